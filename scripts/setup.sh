@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs every Debian package nbtf needs. Idempotent: quiet and fast when all is there.
+set -euo pipefail
+
+PACKAGES=(
+  cmake g++ make pkg-config
+  libtorch-dev            # the neural model (CPU)
+  libopenblas0-openmp     # without it libtorch falls back to the reference BLAS (~40x slower)
+  libopencv-dev           # image decoding / encoding
+  libeigen3-dev           # PCA, k-means
+  libopenexr-dev          # half / float EXR
+  libcxxopts-dev          # command-line options
+  libgtest-dev            # tests
+  nlohmann-json3-dev      # configs, reports
+)
+# Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --with) shift; PACKAGES+=("$1");;
+    *) echo "setup.sh: unknown option '$1'" >&2; exit 2;;
+  esac
+  shift
+done
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[[ ${#missing[@]} -eq 0 ]] && exit 0
+
+echo "setup: installing ${missing[*]}"
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "setup: done"

@@ -1,0 +1,208 @@
+#include "io/btf_loader.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "io/btf_names.h"
+#include "io/image_io.h"
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace fs = std::filesystem;
+
+namespace {
+
+bool isImageFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".exr";
+}
+
+bool isViewFolderName(const std::string& name) {
+  static const std::regex re(R"(.*tv\d+(\.\d+)?_pv\d+(\.\d+)?.*)");
+  return std::regex_match(name, re);
+}
+
+// Directions compare by angle; sort ring ascending, then phi ascending.
+struct DirLess {
+  bool operator()(const Direction& a, const Direction& b) const {
+    return a.thetaDeg != b.thetaDeg ? a.thetaDeg < b.thetaDeg : a.phiDeg < b.phiDeg;
+  }
+};
+
+std::string describe(const Direction& d) {
+  std::ostringstream s;
+  s << "(theta " << d.thetaDeg << ", phi " << d.phiDeg << ")";
+  return s.str();
+}
+
+}  // namespace
+
+StackListing listBtfStack(const std::string& path, Layout forced) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw fileError(path, "no such file or folder");
+  if (!fs::is_directory(path, ec)) throw fileError(path, "not a folder (expected a folder of BTF images)");
+
+  // Collect candidate image files: the folder itself and its view folders.
+  std::vector<fs::path> candidates;
+  std::size_t otherFiles = 0;
+  std::vector<fs::path> entries;
+  for (const auto& e : fs::directory_iterator(path, ec)) entries.push_back(e.path());
+  if (ec) throw fileError(path, "cannot list folder: " + ec.message());
+  std::sort(entries.begin(), entries.end());
+  for (const auto& p : entries) {
+    if (fs::is_directory(p, ec)) {
+      if (!isViewFolderName(p.filename().string())) continue;
+      std::vector<fs::path> inner;
+      for (const auto& e : fs::directory_iterator(p, ec)) inner.push_back(e.path());
+      std::sort(inner.begin(), inner.end());
+      for (const auto& q : inner) {
+        if (fs::is_regular_file(q, ec) && isImageFile(q)) candidates.push_back(q);
+        else if (fs::is_regular_file(q, ec)) ++otherFiles;
+      }
+    } else if (fs::is_regular_file(p, ec)) {
+      if (isImageFile(p)) candidates.push_back(p);
+      else ++otherFiles;
+    }
+  }
+  if (candidates.empty()) {
+    if (entries.empty()) throw fileError(path, "folder is empty: no BTF images found");
+    std::ostringstream s;
+    s << "no BTF images found (" << entries.size() << " entries, " << otherFiles
+      << " non-image files; expected view folders like 'tv030_pv030/' or images named like "
+         "'tl000_pl000_tv000_pv000.png' / '00008 tl000 pl000 tv030 pv030.jpg')";
+    throw fileError(path, s.str());
+  }
+
+  // Parse every name; a name with no angle tokens at all is an error only if it is
+  // an image in a view folder or among other BTF images.
+  std::vector<StackFile> files;
+  std::map<int, int> layoutVotes;
+  for (const auto& p : candidates) {
+    std::optional<ParsedBtfName> parsed;
+    try {
+      parsed = parseBtfFileName(p.filename().string());
+    } catch (const Error& e) {
+      throw fileError(p.string(), std::string(e.what()).substr(p.filename().string().size() + 2));
+    }
+    if (!parsed) throw fileError(p.string(), "image name does not parse (no tl/pl/tv/pv angle tokens)");
+    files.push_back({p.string(), parsed->light, parsed->view, parsed->index});
+    layoutVotes[static_cast<int>(parsed->layout)]++;
+  }
+
+  StackListing listing;
+  listing.layout = forced;
+  if (forced == Layout::Unknown)
+    listing.layout = layoutVotes[static_cast<int>(Layout::Ubo2003)] >= layoutVotes[static_cast<int>(Layout::Utia)]
+                         ? Layout::Ubo2003
+                         : Layout::Utia;
+
+  std::set<Direction, DirLess> lightSet, viewSet;
+  for (const auto& f : files) lightSet.insert(f.light), viewSet.insert(f.view);
+  listing.lights.assign(lightSet.begin(), lightSet.end());
+  listing.views.assign(viewSet.begin(), viewSet.end());
+  std::map<Direction, int, DirLess> lightIndex, viewIndex;
+  for (std::size_t i = 0; i < listing.lights.size(); ++i) lightIndex[listing.lights[i]] = static_cast<int>(i);
+  for (std::size_t i = 0; i < listing.views.size(); ++i) viewIndex[listing.views[i]] = static_cast<int>(i);
+
+  std::size_t nl = listing.lights.size(), nv = listing.views.size();
+  listing.files.assign(nl * nv, std::string());
+  for (const auto& f : files) {
+    std::size_t slot = lightIndex[f.light] * nv + viewIndex[f.view];
+    if (!listing.files[slot].empty())
+      throw fileError(f.path, "duplicate image: light " + describe(f.light) + " x view " + describe(f.view) +
+                                  " is also in '" + listing.files[slot] + "'");
+    listing.files[slot] = f.path;
+  }
+  std::size_t missing = std::count(listing.files.begin(), listing.files.end(), std::string());
+  if (missing > 0) {
+    for (std::size_t slot = 0; slot < listing.files.size(); ++slot) {
+      if (!listing.files[slot].empty()) continue;
+      const Direction& l = listing.lights[slot / nv];
+      const Direction& v = listing.views[slot % nv];
+      std::string folder = (fs::path(path) / viewFolderName(v)).string();
+      std::ostringstream s;
+      s << "incomplete stack: " << missing << " of " << nl * nv << " images missing (" << nl << " lights x " << nv
+        << " views on disk); first missing: light " << describe(l) << " x view " << describe(v) << " (expected in '"
+        << folder << "' or '" << path << "')";
+      throw fileError(path, s.str());
+    }
+  }
+  return listing;
+}
+
+BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
+  StackListing listing = listBtfStack(path, options.layout);
+  const std::string& first = listing.files.front();
+  bool exr = imageFormatFromName(first) == ImageFormat::Exr;
+  ExrColorSpace exrSpace =
+      (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
+
+  // The first image fixes the size every other image must have.
+  int srcW = 0, srcH = 0;
+  if (exr) {
+    ImageF img = readExr(first, exrSpace);
+    srcW = img.width, srcH = img.height;
+  } else {
+    Image8 img = readImage8(first);
+    srcW = img.width, srcH = img.height;
+  }
+  Crop crop = options.crop;
+  if (crop.empty()) crop = {0, 0, srcW, srcH};
+  if (crop.x + crop.width > srcW || crop.y + crop.height > srcH) {
+    std::ostringstream s;
+    s << "crop " << crop.x << "," << crop.y << "," << crop.width << "," << crop.height << " lies outside the "
+      << srcW << " x " << srcH << " images";
+    throw fileError(path, s.str());
+  }
+
+  BtfStack stack(listing.lights, listing.views, crop.width, crop.height, exr ? SampleType::Half : SampleType::Srgb8);
+  stack.source = path;
+  stack.layout = listing.layout;
+  stack.sourceWidth = srcW;
+  stack.sourceHeight = srcH;
+  stack.crop = options.crop.empty() ? Crop{} : crop;
+
+  Progress progress("load", listing.files.size(), options.progress);
+  parallelForDynamic(listing.files.size(), [&](std::size_t i, int) {
+    const std::string& file = listing.files[i];
+    if ((imageFormatFromName(file) == ImageFormat::Exr) != exr)
+      throw fileError(file, std::string("mixed formats: this stack's first image '") + first + "' is " +
+                                (exr ? "EXR" : "8-bit") + ", this one is not");
+    auto checkSize = [&](int w, int h) {
+      if (w != srcW || h != srcH) {
+        std::ostringstream s;
+        s << "image is " << w << " x " << h << ", but the stack's first image '" << first << "' is " << srcW
+          << " x " << srcH;
+        throw fileError(file, s.str());
+      }
+    };
+    if (exr) {
+      ImageF img = readExr(file, exrSpace);
+      checkSize(img.width, img.height);
+      std::vector<float> rows(static_cast<std::size_t>(crop.width) * crop.height * 3);
+      for (int y = 0; y < crop.height; ++y)
+        std::copy_n(img.rgb.data() + (static_cast<std::size_t>(crop.y + y) * srcW + crop.x) * 3, crop.width * 3,
+                    rows.data() + static_cast<std::size_t>(y) * crop.width * 3);
+      stack.setImageLinear(static_cast<int>(i), rows.data());
+    } else {
+      Image8 img = readImage8(file);
+      checkSize(img.width, img.height);
+      std::uint8_t* dst = stack.imageBytes(static_cast<int>(i));
+      for (int y = 0; y < crop.height; ++y)
+        std::copy_n(img.rgb.data() + (static_cast<std::size_t>(crop.y + y) * srcW + crop.x) * 3, crop.width * 3,
+                    dst + static_cast<std::size_t>(y) * crop.width * 3);
+    }
+    progress.advance();
+  });
+  progress.finish();
+  return stack;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,36 @@
+// Loading UBO2003 and UTIA image stacks from disk.
+#pragma once
+#include <string>
+
+#include "io/btf_stack.h"
+
+namespace nbtf {
+
+struct LoadOptions {
+  Layout layout = Layout::Unknown;  // Unknown = detect from the file names
+  Crop crop;                        // applied while decoding: cropped-out texels never take memory
+  bool progress = true;             // progress bar on the terminal
+  // EXR colour space when the file does not say: UTIA EXRs are CIE XYZ (D65).
+  bool utiaExrIsXyz = true;
+};
+
+// Finds the images of a stack under `path`: either a folder per view (tvTTT_pvPPP/) or a
+// flat folder of images. Files without image extensions and subfolders not named like
+// view folders are ignored (so ground truth and notes can sit beside the stack).
+struct StackFile {
+  std::string path;
+  Direction light, view;
+  int index = -1;
+};
+struct StackListing {
+  Layout layout = Layout::Unknown;
+  std::vector<Direction> lights, views;  // sorted: theta ascending, then phi
+  std::vector<std::string> files;        // files[light * views + view]
+};
+StackListing listBtfStack(const std::string& path, Layout forced = Layout::Unknown);
+
+// Loads the whole stack (decoding in parallel on threadCount() threads). Throws nbtf::Error
+// naming the file and the problem for every kind of bad input.
+BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
+
+}  // namespace nbtf

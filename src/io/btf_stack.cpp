@@ -1,0 +1,136 @@
+#include "io/btf_stack.h"
+
+#include <Imath/half.h>
+
+#include <algorithm>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+#include "io/color.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace nbtf {
+
+std::string sampleTypeName(SampleType t) { return t == SampleType::Srgb8 ? "8-bit sRGB" : "half float (linear)"; }
+
+std::string layoutName(Layout l) {
+  switch (l) {
+    case Layout::Ubo2003: return "ubo2003";
+    case Layout::Utia: return "utia";
+    default: return "unknown";
+  }
+}
+
+Layout parseLayout(const std::string& text) {
+  if (text == "ubo2003" || text == "ubo") return Layout::Ubo2003;
+  if (text == "utia") return Layout::Utia;
+  throw Error("unknown layout '" + text + "' (expected ubo2003 or utia)");
+}
+
+Crop parseCrop(const std::string& text) {
+  Crop c;
+  char c1 = 0, c2 = 0, c3 = 0;
+  std::istringstream in(text);
+  if (!(in >> c.x >> c1 >> c.y >> c2 >> c.width >> c3 >> c.height) || c1 != ',' || c2 != ',' || c3 != ',' ||
+      !(in >> std::ws).eof())
+    throw Error("--crop: expected X,Y,W,H (integers), got '" + text + "'");
+  if (c.x < 0 || c.y < 0 || c.width <= 0 || c.height <= 0)
+    throw Error("--crop: '" + text + "' must have X,Y >= 0 and W,H > 0");
+  return c;
+}
+
+BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height,
+                   SampleType type)
+    : lights_(std::move(lights)), views_(std::move(views)), width_(width), height_(height), type_(type) {
+  data_.resize(static_cast<std::size_t>(numImages()) * bytesPerImage());
+}
+
+std::uint8_t* BtfStack::imageBytes(int image) { return data_.data() + static_cast<std::size_t>(image) * bytesPerImage(); }
+const std::uint8_t* BtfStack::imageBytes(int image) const {
+  return data_.data() + static_cast<std::size_t>(image) * bytesPerImage();
+}
+
+namespace {
+inline float halfToFloat(std::uint16_t bits) {
+  Imath::half h;
+  h.setBits(bits);
+  return static_cast<float>(h);
+}
+}  // namespace
+
+float BtfStack::sample(int image, int texel, int channel) const {
+  std::size_t i = static_cast<std::size_t>(texel) * 3 + channel;
+  if (type_ == SampleType::Srgb8) return srgb8ToLinearTable()[imageBytes(image)[i]];
+  std::uint16_t bits;
+  std::memcpy(&bits, imageBytes(image) + 2 * i, 2);
+  return halfToFloat(bits);
+}
+
+void BtfStack::imageLinear(int image, float* out) const {
+  std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
+  const std::uint8_t* src = imageBytes(image);
+  if (type_ == SampleType::Srgb8) {
+    const float* lut = srgb8ToLinearTable();
+    for (std::size_t i = 0; i < n; ++i) out[i] = lut[src[i]];
+  } else {
+    const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(src);
+    for (std::size_t i = 0; i < n; ++i) out[i] = halfToFloat(h[i]);
+  }
+}
+
+void BtfStack::abrdfLinear(int texel, float* out) const {
+  std::size_t offset = static_cast<std::size_t>(texel) * 3;
+  int n = numImages();
+  if (type_ == SampleType::Srgb8) {
+    const float* lut = srgb8ToLinearTable();
+    for (int i = 0; i < n; ++i) {
+      const std::uint8_t* p = imageBytes(i) + offset;
+      out[3 * i] = lut[p[0]], out[3 * i + 1] = lut[p[1]], out[3 * i + 2] = lut[p[2]];
+    }
+  } else {
+    for (int i = 0; i < n; ++i) {
+      const std::uint16_t* p = reinterpret_cast<const std::uint16_t*>(imageBytes(i)) + offset;
+      out[3 * i] = halfToFloat(p[0]), out[3 * i + 1] = halfToFloat(p[1]), out[3 * i + 2] = halfToFloat(p[2]);
+    }
+  }
+}
+
+std::vector<float> BtfStack::abrdfLinear(int texel) const {
+  std::vector<float> out(static_cast<std::size_t>(numImages()) * 3);
+  abrdfLinear(texel, out.data());
+  return out;
+}
+
+void BtfStack::valueRange(float& lo, float& hi) const {
+  lo = std::numeric_limits<float>::infinity();
+  hi = -lo;
+  if (data_.empty()) {
+    lo = hi = 0;
+    return;
+  }
+  if (type_ == SampleType::Srgb8) {
+    auto [mn, mx] = std::minmax_element(data_.begin(), data_.end());
+    lo = srgb8ToLinear(*mn), hi = srgb8ToLinear(*mx);
+    return;
+  }
+  const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(data_.data());
+  for (std::size_t i = 0, n = data_.size() / 2; i < n; ++i) {
+    float v = halfToFloat(h[i]);
+    lo = std::min(lo, v), hi = std::max(hi, v);
+  }
+}
+
+void BtfStack::setImageLinear(int image, const float* rgb) {
+  std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
+  std::uint8_t* dst = imageBytes(image);
+  if (type_ == SampleType::Srgb8) {
+    for (std::size_t i = 0; i < n; ++i) dst[i] = linearToSrgb8(rgb[i]);
+  } else {
+    std::uint16_t* h = reinterpret_cast<std::uint16_t*>(dst);
+    for (std::size_t i = 0; i < n; ++i) h[i] = Imath::half(rgb[i]).bits();
+  }
+}
+
+}  // namespace nbtf

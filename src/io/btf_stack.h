@@ -1,0 +1,83 @@
+// The BTF data model: an image stack indexed by (light, view), stored compactly.
+//
+// Storage is image-major: image i = light * numViews + view holds height x width x RGB.
+// 8-bit sources stay 8-bit sRGB in memory (4x smaller than float32) and are linearized
+// on access through a table; EXR sources stay half floats. An ABRDF is one texel's
+// values over all images: out[3 * image + channel], linear.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/directions.h"
+
+namespace nbtf {
+
+enum class SampleType { Srgb8, Half };
+std::string sampleTypeName(SampleType t);
+
+enum class Layout { Ubo2003, Utia, Unknown };
+std::string layoutName(Layout l);
+Layout parseLayout(const std::string& text);  // "ubo2003" | "utia"; throws otherwise
+
+// A rectangle of texels (x, y, width, height) in the source images; empty = whole image.
+struct Crop {
+  int x = 0, y = 0, width = 0, height = 0;
+  bool empty() const { return width == 0 && height == 0; }
+  bool operator==(const Crop& o) const { return x == o.x && y == o.y && width == o.width && height == o.height; }
+};
+Crop parseCrop(const std::string& text);  // "X,Y,W,H"; throws on bad text or non-positive size
+
+class BtfStack {
+ public:
+  BtfStack() = default;
+  BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type);
+
+  // ---- Shape
+  int numLights() const { return static_cast<int>(lights_.size()); }
+  int numViews() const { return static_cast<int>(views_.size()); }
+  int numImages() const { return numLights() * numViews(); }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int numTexels() const { return width_ * height_; }
+  int imageIndex(int light, int view) const { return light * numViews() + view; }
+  const std::vector<Direction>& lights() const { return lights_; }
+  const std::vector<Direction>& views() const { return views_; }
+  SampleType sampleType() const { return type_; }
+  std::size_t bytesInMemory() const { return data_.size(); }
+  // Bytes this stack would take as linear float32 RGB (the paper's "raw" size).
+  std::size_t rawFloat32Bytes() const { return static_cast<std::size_t>(numImages()) * numTexels() * 3 * 4; }
+
+  // ---- Linear access
+  float sample(int image, int texel, int channel) const;
+  // One whole image, linear RGB, width * height * 3 floats.
+  void imageLinear(int image, float* out) const;
+  // One texel's ABRDF, linear: out[3 * image + channel], numImages * 3 floats.
+  void abrdfLinear(int texel, float* out) const;
+  std::vector<float> abrdfLinear(int texel) const;
+  // Smallest and largest linear value over the whole stack.
+  void valueRange(float& lo, float& hi) const;
+
+  // ---- Raw storage (loaders and writers)
+  std::uint8_t* imageBytes(int image);
+  const std::uint8_t* imageBytes(int image) const;
+  std::size_t bytesPerImage() const { return static_cast<std::size_t>(numTexels()) * 3 * bytesPerSample(); }
+  std::size_t bytesPerSample() const { return type_ == SampleType::Srgb8 ? 1 : 2; }
+  // Stores linear floats into image `image` (converted to the stack's sample type).
+  void setImageLinear(int image, const float* rgb);
+
+  // ---- Provenance
+  std::string source;        // path it was loaded from
+  Layout layout = Layout::Unknown;
+  int sourceWidth = 0, sourceHeight = 0;  // full image size on disk
+  Crop crop;                 // the crop applied while loading (empty = none)
+
+ private:
+  std::vector<Direction> lights_, views_;
+  int width_ = 0, height_ = 0;
+  SampleType type_ = SampleType::Srgb8;
+  std::vector<std::uint8_t> data_;
+};
+
+}  // namespace nbtf

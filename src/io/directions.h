@@ -1,0 +1,40 @@
+// Light and view directions on the upper hemisphere, the 81-direction UBO2003/UTIA
+// sampling, and the stereographic projection the decoder takes as input.
+#pragma once
+#include <array>
+#include <string>
+#include <vector>
+
+namespace nbtf {
+
+// A direction on the upper hemisphere: theta is the polar angle from the surface
+// normal, phi the azimuth, both in degrees (the units the data sets' file names use).
+struct Direction {
+  double thetaDeg = 0;
+  double phiDeg = 0;
+
+  std::array<double, 3> unitVector() const;
+  static Direction fromUnitVector(double x, double y, double z);
+  bool operator==(const Direction& o) const { return thetaDeg == o.thetaDeg && phiDeg == o.phiDeg; }
+};
+
+// Throws nbtf::Error if the direction is below the horizon (theta > 90) or not finite.
+// `what` names the direction in the message (e.g. "light").
+void checkHemisphere(const Direction& d, const std::string& what);
+
+// The 81 directions of UBO2003/UTIA: rings theta = 0..75 step 15 with 1, 6, 12, 18, 20, 24
+// directions, phi evenly spaced from 0; ring ascending, then phi ascending.
+const std::vector<Direction>& hemisphere81();
+
+// Stereographic projection of eq. (7)-(9) of the clustered neural BTF paper:
+// R = sin(pi - theta) / (1 - cos(pi - theta)), x = R cos(phi), y = R sin(phi).
+// Maps the hemisphere into the unit disk (theta = 90 -> R = 1, theta = 0 -> R = 0).
+std::array<float, 2> stereographic(const Direction& d);
+
+// "THETA,PHI" in degrees -> Direction; throws nbtf::Error naming `what` on bad text.
+Direction parseDirection(const std::string& text, const std::string& what);
+
+// Index of the nearest direction in `set` by angle between unit vectors.
+int nearestDirection(const std::vector<Direction>& set, const Direction& d);
+
+}  // namespace nbtf

@@ -1,0 +1,32 @@
+// Atomic output: write to a temporary name beside the target, fsync, then rename,
+// so a crash or kill never leaves a half-written file under the final name.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace nbtf {
+
+// Writes `bytes` to `path` atomically. Throws nbtf::Error naming the path on failure.
+void writeFileAtomic(const std::string& path, const void* data, std::size_t size);
+inline void writeFileAtomic(const std::string& path, const std::string& text) {
+  writeFileAtomic(path, text.data(), text.size());
+}
+
+// For writers that need a file name (OpenCV, OpenEXR): `write(tmpPath)` writes the
+// temporary file, which is then fsynced and renamed onto `path`. On any failure the
+// temporary is removed and an nbtf::Error is thrown.
+void writeAtomicVia(const std::string& path, const std::function<void(const std::string&)>& write);
+
+// The temporary name used for `path` (same folder, so rename stays atomic).
+std::string temporaryPathFor(const std::string& path);
+
+// Reads a whole file; throws nbtf::Error naming the path if it cannot.
+std::vector<std::uint8_t> readFileBytes(const std::string& path);
+
+// Throws a clear error now (before hours of work) if `path` cannot be created:
+// its folder must exist and be writable.
+void checkWritable(const std::string& path);
+
+}  // namespace nbtf

@@ -1,0 +1,21 @@
+// Thread count and a small parallel-for used by every CPU stage.
+#pragma once
+#include <cstddef>
+#include <functional>
+
+namespace nbtf {
+
+// Threads used by nbtf stages: set once from --threads; 0 means all cores.
+void setThreadCount(int threads);
+int threadCount();
+
+// Calls body(begin, end) on disjoint chunks of [0, n) from threadCount() threads.
+// Exceptions thrown by a chunk are rethrown on the caller (the first one wins).
+void parallelFor(std::size_t n, const std::function<void(std::size_t, std::size_t)>& body,
+                 std::size_t minChunk = 1);
+
+// Dynamic scheduling: each index is handed out on demand (good for uneven work like
+// image decoding). body(index, workerId).
+void parallelForDynamic(std::size_t n, const std::function<void(std::size_t, int)>& body);
+
+}  // namespace nbtf

@@ -1,0 +1,39 @@
+// A terminal progress bar for long stages: "label [#####.....] 52% 3412/6561 12.3 s ETA 11 s".
+// Thread-safe advance(); redraws at most ~10 times a second, and only on a terminal
+// (a log file gets one line at the end instead of thousands of carriage returns).
+#pragma once
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <mutex>
+#include <string>
+
+namespace nbtf {
+
+class Progress {
+ public:
+  Progress(std::string label, std::size_t total, bool enabled = true);
+  ~Progress();
+  void advance(std::size_t count = 1);
+  // Extra text shown after the counters (e.g. "loss 0.0123").
+  void setStatus(const std::string& status);
+  void finish();
+  double elapsedSeconds() const;
+
+  // Globally silence progress output (tests, --quiet).
+  static void setQuiet(bool quiet);
+
+ private:
+  void draw(bool final);
+  std::string label_;
+  std::size_t total_;
+  std::atomic<std::size_t> done_{0};
+  bool enabled_;
+  bool finished_ = false;
+  bool tty_;
+  std::string status_;
+  std::mutex mutex_;
+  std::chrono::steady_clock::time_point start_, lastDraw_;
+};
+
+}  // namespace nbtf
