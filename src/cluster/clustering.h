@@ -1,0 +1,41 @@
+// The clustering stage as a whole: PCA of the standardized ABRDFs, k-means++ over texels,
+// and one representative ABRDF per cluster (per-dimension median, the paper's choice).
+#pragma once
+#include <string>
+#include <vector>
+
+#include "cluster/kmeans.h"
+#include "cluster/pca.h"
+
+namespace nbtf {
+
+enum class Representative { Median, Mean };
+
+struct ClusteringOptions {
+  int clusters = 500;
+  PcaOptions pca;
+  KMeansOptions kmeans;  // clusters and seed are taken from above
+  Representative representative = Representative::Median;
+  std::uint64_t seed = 1;
+  bool progress = true;
+};
+
+struct ClusteringResult {
+  std::vector<std::int32_t> ids;  // M
+  MatrixXfCol representatives;    // k x D, in the same space as the input X (standardized)
+  std::vector<int> sizes;         // k
+  double inertia = 0;
+  int iterations = 0;
+  double explainedVarianceRatio = 0;
+  Eigen::VectorXf explainedVariance;
+  double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
+};
+
+// Per-dimension median (or mean) of each cluster's rows of x. k x D.
+MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::int32_t>& ids, int k,
+                                   Representative kind);
+
+// x: M x D standardized ABRDFs. Throws nbtf::Error on bad k or components.
+ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options);
+
+}  // namespace nbtf

@@ -1,0 +1,38 @@
+// ABRDF matrix and the paper's preprocessing (section 2.3 of the clustered neural BTF).
+//
+// The data matrix X is M x D, column-major, M = texels, D = 3 * images; column
+// 3 * image + channel holds one image channel over all texels (so filling it from the
+// image-major stack is a contiguous write). Row t is texel t's ABRDF.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "io/btf_stack.h"
+
+namespace nbtf {
+
+using MatrixXfCol = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor>;
+
+// Linear ABRDF matrix of the stack (M x 3N). The only float32 copy of the data.
+MatrixXfCol abrdfMatrix(const BtfStack& stack, bool progress = true);
+
+// The statistics of x2 = log(x1 + 1) standardized per dimension (eq. 1-4), kept so the
+// same transform can be applied to other data later.
+struct Standardization {
+  Eigen::VectorXf mean;    // D: mean of log(x + 1) over texels
+  Eigen::VectorXf stddev;  // D: std of log(x + 1) over texels (population); 0 for constant dims
+  // Applies log(x + 1), then (x - mean) / stddev; dimensions with zero variance map to 0.
+  void apply(MatrixXfCol& x) const;
+  void applyRow(float* row) const;  // one ABRDF (D floats), in place
+  // Inverse: standardized -> linear (x = exp(z * stddev + mean) - 1).
+  void invert(MatrixXfCol& z) const;
+};
+
+// Fits the standardization on X (linear values) and applies it in place (no second copy).
+Standardization standardizeInPlace(MatrixXfCol& x);
+
+// alpha of eq. (5): the global maximum of the linear values; targets are values / alpha.
+// Throws nbtf::Error if the stack is all zero (nothing to normalize by).
+float targetAlpha(const BtfStack& stack);
+
+}  // namespace nbtf
