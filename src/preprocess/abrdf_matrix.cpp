@@ -1,6 +1,7 @@
 #include "preprocess/abrdf_matrix.h"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -50,6 +51,8 @@ std::string describeDimension(Eigen::Index dim) {
 
 // log(x + 1) is defined for x > -1 only; a NaN or Inf here would silently poison PCA.
 void checkLogDomain(const float* column, Eigen::Index rows, Eigen::Index dim) {
+  auto values = Eigen::Map<const Eigen::ArrayXf>(column, rows);
+  if (((values > -1.0f) && (values < std::numeric_limits<float>::infinity())).all()) return;  // NaN fails too
   for (Eigen::Index t = 0; t < rows; ++t) {
     float v = column[t];
     if (!std::isfinite(v) || v <= -1.0f) {
@@ -112,11 +115,9 @@ Standardization standardizeInPlace(MatrixXfCol& x) {
       checkLogDomain(column, x.rows(), d);
       auto col = x.col(d).array();
       col = col.log1p();
-      double sum = 0;
-      for (Eigen::Index t = 0; t < x.rows(); ++t) sum += column[t];
-      double mean = sum / rows, squares = 0;
-      for (Eigen::Index t = 0; t < x.rows(); ++t) squares += (column[t] - mean) * (column[t] - mean);
-      double stddev = std::sqrt(squares / rows);
+      auto logs = x.col(d).cast<double>();  // Eigen vectorizes both reductions
+      double mean = logs.sum() / rows;
+      double stddev = std::sqrt((logs.array() - mean).square().sum() / rows);
       if (isConstantDimension(mean, stddev)) stddev = 0;
       s.mean[d] = static_cast<float>(mean);
       s.stddev[d] = static_cast<float>(stddev);
