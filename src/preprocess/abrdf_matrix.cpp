@@ -1,0 +1,179 @@
+#include "preprocess/abrdf_matrix.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+// ---- Filling X from the image-major stack
+
+MatrixXfCol abrdfMatrix(const BtfStack& stack, bool progress) {
+  const Eigen::Index texels = stack.numTexels();
+  const int images = stack.numImages();
+  if (texels == 0 || images == 0) throw fileError(stack.source, "empty BTF stack: nothing to cluster");
+  MatrixXfCol x(texels, 3 * static_cast<Eigen::Index>(images));
+  Progress bar("abrdf matrix", images, progress);
+  // One interleaved RGB image per worker at a time; column 3 * image + c is contiguous.
+  const int workers = threadCount();
+  std::vector<std::vector<float>> buffers(workers, std::vector<float>(static_cast<std::size_t>(texels) * 3));
+  parallelForDynamic(images, [&](std::size_t image, int worker) {
+    std::vector<float>& rgb = buffers[worker];
+    stack.imageLinear(static_cast<int>(image), rgb.data());
+    for (int c = 0; c < 3; ++c) {
+      float* column = x.col(3 * static_cast<Eigen::Index>(image) + c).data();
+      for (Eigen::Index t = 0; t < texels; ++t) column[t] = rgb[3 * t + c];
+    }
+    bar.advance();
+  });
+  bar.finish();
+  return x;
+}
+
+// ---- Standardization
+
+namespace {
+
+// Dimensions whose spread is below float resolution of their values are constant: their
+// "variance" is rounding noise, and dividing by it would blow noise up to unit scale.
+bool isConstantDimension(double mean, double stddev) { return stddev <= 1e-6 * std::abs(mean); }
+
+std::string describeDimension(Eigen::Index dim) {
+  std::ostringstream s;
+  s << "dimension " << dim << " (image " << dim / 3 << ", channel " << "RGB"[dim % 3] << ")";
+  return s.str();
+}
+
+// log(x + 1) is defined for x > -1 only; a NaN or Inf here would silently poison PCA.
+void checkLogDomain(const float* column, Eigen::Index rows, Eigen::Index dim) {
+  auto values = Eigen::Map<const Eigen::ArrayXf>(column, rows);
+  if (((values > -1.0f) && (values < std::numeric_limits<float>::infinity())).all()) return;  // NaN fails too
+  for (Eigen::Index t = 0; t < rows; ++t) {
+    float v = column[t];
+    if (!std::isfinite(v) || v <= -1.0f) {
+      std::ostringstream s;
+      s << "ABRDF value " << v << " at texel " << t << ", " << describeDimension(dim)
+        << " cannot be log-transformed (expected a finite linear value > -1)";
+      throw Error(s.str());
+    }
+  }
+}
+
+// log(1 + x) for a run of values, vectorized: Eigen's log1p falls back to scalar code on
+// SSE2, 3x slower. With u = 1 + x (rounded), log(u) * x / (u - 1) cancels the rounding of u
+// (Goldberg's formula) and keeps log1p's accuracy for tiny x.
+void log1pInPlace(float* values, Eigen::Index n) {
+  auto x = Eigen::Map<Eigen::ArrayXf>(values, n);
+  Eigen::ArrayXf u = x + 1.0f;
+  x = (u == 1.0f).select(x, u.log() * (x / (u - 1.0f)));
+}
+
+// exp(y) - 1, the inverse, with Kahan's correction (u - 1) * y / log(u), u = exp(y), for
+// the same reason.
+void expm1InPlace(float* values, Eigen::Index n) {
+  auto y = Eigen::Map<Eigen::ArrayXf>(values, n);
+  Eigen::ArrayXf u = y.exp();
+  Eigen::ArrayXf corrected = (u - 1.0f) * (y / u.log());
+  y = (u == 1.0f).select(y, (u - 1.0f == -1.0f || u == std::numeric_limits<float>::infinity()).select(u - 1.0f, corrected));
+}
+
+// Float sums over short runs (vectorized), accumulated in double.
+constexpr Eigen::Index kRun = 1024;
+double columnSum(const float* column, Eigen::Index rows) {
+  double sum = 0;
+  for (Eigen::Index b = 0; b < rows; b += kRun) sum += Eigen::Map<const Eigen::ArrayXf>(column + b, std::min(kRun, rows - b)).sum();
+  return sum;
+}
+double columnSquares(const float* column, Eigen::Index rows, float mean) {
+  double sum = 0;
+  for (Eigen::Index b = 0; b < rows; b += kRun)
+    sum += (Eigen::Map<const Eigen::ArrayXf>(column + b, std::min(kRun, rows - b)) - mean).square().sum();
+  return sum;
+}
+
+}  // namespace
+
+void Standardization::apply(MatrixXfCol& x) const {
+  if (x.cols() != mean.size())
+    throw Error("standardization: data has " + std::to_string(x.cols()) + " dimensions, the statistics have " +
+                std::to_string(mean.size()));
+  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t d = begin; d < end; ++d) {
+      checkLogDomain(x.col(d).data(), x.rows(), d);
+      auto col = x.col(d).array();
+      if (stddev[d] > 0) {
+        log1pInPlace(x.col(d).data(), x.rows());
+        col = (col - mean[d]) * (1.0f / stddev[d]);
+      } else {
+        col = 0.0f;
+      }
+    }
+  });
+}
+
+void Standardization::applyRow(float* row) const {
+  for (Eigen::Index d = 0; d < mean.size(); ++d) checkLogDomain(row + d, 1, d);
+  log1pInPlace(row, mean.size());
+  for (Eigen::Index d = 0; d < mean.size(); ++d) row[d] = stddev[d] > 0 ? (row[d] - mean[d]) * (1.0f / stddev[d]) : 0.0f;
+}
+
+void Standardization::invert(MatrixXfCol& z) const {
+  if (z.cols() != mean.size())
+    throw Error("standardization: data has " + std::to_string(z.cols()) + " dimensions, the statistics have " +
+                std::to_string(mean.size()));
+  parallelFor(z.cols(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t d = begin; d < end; ++d) {
+      auto col = z.col(d).array();
+      col = col * stddev[d] + mean[d];
+      expm1InPlace(z.col(d).data(), z.rows());
+    }
+  });
+}
+
+Standardization standardizeInPlace(MatrixXfCol& x) {
+  if (x.rows() == 0 || x.cols() == 0) throw Error("standardization: empty ABRDF matrix");
+  Standardization s;
+  s.mean.resize(x.cols());
+  s.stddev.resize(x.cols());
+  const double rows = static_cast<double>(x.rows());
+  // Per column (contiguous, cache-resident): log, two-pass mean and variance in double,
+  // then scale. One pass over memory, no second copy of X.
+  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t d = begin; d < end; ++d) {
+      float* column = x.col(d).data();
+      checkLogDomain(column, x.rows(), d);
+      auto col = x.col(d).array();
+      log1pInPlace(column, x.rows());
+      double mean = columnSum(column, x.rows()) / rows;
+      double stddev = std::sqrt(columnSquares(column, x.rows(), static_cast<float>(mean)) / rows);
+      if (isConstantDimension(mean, stddev)) stddev = 0;
+      s.mean[d] = static_cast<float>(mean);
+      s.stddev[d] = static_cast<float>(stddev);
+      // Exactly the arithmetic of apply(), so fitting and re-applying agree bit for bit.
+      if (stddev > 0)
+        col = (col - s.mean[d]) * (1.0f / s.stddev[d]);
+      else
+        col = 0.0f;
+    }
+  });
+  return s;
+}
+
+// ---- Target normalization
+
+float targetAlpha(const BtfStack& stack) {
+  float lo, hi;
+  stack.valueRange(lo, hi);
+  if (!(hi > 0))
+    throw fileError(stack.source.empty() ? std::string("BTF stack") : stack.source,
+                    "every value is zero: no maximum to normalize the targets by");
+  return hi;
+}
+
+}  // namespace nbtf
