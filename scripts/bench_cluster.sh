@@ -24,15 +24,20 @@ mkdir -p "$work"
 python=/usr/bin/python3
 
 echo "== data"
-if [[ ! -f "$work/data.f32" ]]; then
+if [[ -x "$bin/nbtf-synth" ]]; then
+  source_text="synthetic fabric (nbtf-synth --preset fabric --size 100x100 --seed 1), log + standardized"
+else
+  source_text="procedural weave (nbtf-bench-cluster matrix --synthetic 100x100), log + standardized"
+fi
+if [[ ! -f "$work/data.f32" || "$(cat "$work/data.txt" 2>/dev/null)" != "$source_text" ]]; then
+  rm -f "$work/data.f32"
   if [[ -x "$bin/nbtf-synth" ]]; then
-    "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 -o "$work/fabric"
+    "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$work/fabric"
     "$bin/nbtf-bench-cluster" matrix --stack "$work/fabric" -o "$work/data.f32"
-    echo "synthetic fabric (nbtf-synth --preset fabric --size 100x100 --seed 1)" > "$work/data.txt"
   else
     "$bin/nbtf-bench-cluster" matrix --synthetic 100x100 -o "$work/data.f32"
-    echo "procedural weave (nbtf-bench-cluster matrix --synthetic 100x100)" > "$work/data.txt"
   fi
+  echo "$source_text" > "$work/data.txt"
 fi
 echo "data: $(cat "$work/data.txt")"
 

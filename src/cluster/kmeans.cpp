@@ -236,6 +236,8 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
       break;
     }
   }
+  bar.setStatus(result.converged ? "converged after " + std::to_string(result.iterations) + " iterations"
+                                 : "iteration limit reached");
   bar.finish();
 
   result.ids = lloyd.assign;
