@@ -657,6 +657,8 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
   if (sections.empty() || sections.front().tag != kInfo)
     throw fileError(name, "corrupted: the first section must be 'INFO' (material info)");
   CompressedBtf btf;
+  btf.formatMajor = major;
+  btf.formatMinor = minor;
   btf.metadataJson.clear();
   std::vector<std::uint32_t> seen;
   for (const SectionRef& s : sections) {

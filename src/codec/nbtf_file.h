@@ -69,7 +69,9 @@ struct CompressedBtf {
   std::vector<std::uint8_t> encoderState; // serialized encoder; empty unless --save-encoder
   std::string metadataJson = "{}";        // config, seed, training statistics (a JSON object)
 
-  // Optional sections this reader did not know (skipped); filled by parseNbtf only.
+  // Filled by parseNbtf only: the file's format version and the optional sections this
+  // reader did not know (skipped). The writer always writes the current version.
+  std::uint16_t formatMajor = kNbtfFormatMajor, formatMinor = kNbtfFormatMinor;
   std::vector<std::string> skippedSections;
 
   int numImages() const { return static_cast<int>(lights.size() * views.size()); }
