@@ -14,5 +14,7 @@ struct Command {
 };
 
 int infoMain(int argc, char** argv);
+int decodeMain(int argc, char** argv);
+int queryMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

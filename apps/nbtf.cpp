@@ -8,6 +8,8 @@ namespace nbtf::cli {
 namespace {
 const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
+    {"decode", decodeMain, "Reconstruct images from a .nbtf file (any angles, any size)"},
+    {"query", queryMain, "Decoded RGB at texels and directions (single or CSV batch)"},
 };
 
 void printUsage() {

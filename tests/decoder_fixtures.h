@@ -66,6 +66,17 @@ inline CompressedBtf makeDecoderMaterial(int k, std::vector<int> widths = {37, 2
   return b;
 }
 
+// Like makeDecoderMaterial, with outputs mostly inside [0, 1] after x alpha (a few
+// negative), so 8-bit images keep most of the information.
+inline CompressedBtf makeDisplayableMaterial(int k, int width = 7, int height = 5, unsigned seed = 11) {
+  CompressedBtf b = makeDecoderMaterial(k, {37, 21}, width, height, seed);
+  DenseLayer& last = b.decoder.layers.back();
+  for (float& w : last.weight) w *= 0.1f;
+  last.bias = {0.2f, 0.25f, 0.15f};
+  b.alpha = 1.5f;
+  return b;
+}
+
 // A material whose decoder is smooth and monotone in the stereographic coordinates:
 // RGB grows with the light's and the view's x and falls with their y, and every ReLU is
 // active in the hemisphere. Along a ring (phi in [0, 90]) or a meridian (phi = 0), an
