@@ -17,7 +17,7 @@ constexpr std::size_t kMinParallelSamples = 4096;
 
 // Per-thread scratch, so single evaluations allocate nothing after the first.
 float* threadScratch(std::size_t floats) {
-  thread_local std::vector<float> scratch;
+  thread_local detail::AlignedFloats scratch;
   if (scratch.size() < floats) scratch.resize(floats);
   return scratch.data();
 }
@@ -171,6 +171,7 @@ void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std:
       fill(begin, a.n, rows, dirs);
       a.rows = rows;
       a.dirs = dirs;
+      a.prefetchRows = true;
       a.out = rgb + 3 * begin;
       a.scratch = scratch;
       tile(packed, a);

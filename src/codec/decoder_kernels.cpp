@@ -211,6 +211,14 @@ template <class V, class B> NBTF_INLINE void evaluateTile(const PackedDecoder& p
   float* rowBuf = dirBuf + p.pad0;
   const bool relu0 = p.activation0 == Activation::Relu;
 
+  // The first-layer rows of a per-texel material (texels x 112 floats) outgrow the
+  // caches and queries hit them at random: request the tile's rows before using any.
+  if (a.prefetchRows && !p.rowPart.empty()) {
+    for (int s = 0; s < a.n; ++s) {
+      const float* part = p.rowPart.data() + static_cast<std::size_t>(a.rows[s]) * p.pad0;
+      for (int j = 0; j < p.pad0; j += 64 / static_cast<int>(sizeof(float))) __builtin_prefetch(part + j);
+    }
+  }
   const float* lastDirs = nullptr;
   for (int s = 0; s < rows; ++s) {
     const int src = std::min(s, a.n - 1);
@@ -311,7 +319,7 @@ PackedLayer packOutput(const DenseLayer& l, int inPad) {
   p.weights.assign(static_cast<std::size_t>(l.out) * inPad, 0.0f);
   for (int o = 0; o < l.out; ++o)
     std::copy_n(l.weight.data() + static_cast<std::size_t>(o) * l.in, l.in, p.weights.data() + static_cast<std::size_t>(o) * inPad);
-  p.bias = l.bias;
+  p.bias.assign(l.bias.begin(), l.bias.end());
   return p;
 }
 

@@ -10,6 +10,7 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <new>
 #include <vector>
 
 #include "codec/decoder.h"
@@ -25,14 +26,27 @@ constexpr int kRowGranule = 24;
 
 inline int padTo(int n, int m) { return (n + m - 1) / m * m; }
 
+// Cache-line aligned storage: a 64-byte vector load that straddles two lines costs two.
+template <class T> struct CacheAligned {
+  using value_type = T;
+  static constexpr std::align_val_t kAlign{64};
+  CacheAligned() = default;
+  template <class U> CacheAligned(const CacheAligned<U>&) {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), kAlign)); }
+  void deallocate(T* p, std::size_t) { ::operator delete(p, kAlign); }
+  template <class U> bool operator==(const CacheAligned<U>&) const { return true; }
+  template <class U> bool operator!=(const CacheAligned<U>&) const { return false; }
+};
+using AlignedFloats = std::vector<float, CacheAligned<float>>;
+
 struct PackedLayer {
   int in = 0, out = 0;
   int inPad = 0, outPad = 0;
   Activation activation = Activation::None;
   // Dense layers: in x outPad (transposed). The output layer: out x inPad (row-major),
   // evaluated as dot products.
-  std::vector<float> weights;
-  std::vector<float> bias;  // outPad (dense) or out (output layer)
+  AlignedFloats weights;
+  AlignedFloats bias;  // outPad (dense) or out (output layer)
 };
 
 struct PackedDecoder {
@@ -41,11 +55,11 @@ struct PackedDecoder {
   // ---- First layer (layer 0)
   int width0 = 0, pad0 = 0;
   Activation activation0 = Activation::None;
-  std::vector<float> bias0;          // pad0
-  std::vector<float> latentWeights;  // latentDim x pad0 (transposed W0_z)
-  std::vector<float> dirWeights;     // 4 x pad0 (transposed W0_dir)
-  const float* latents = nullptr;    // rows x latentDim (the material's), for uncached rows
-  std::vector<float> rowPart;        // rows x pad0: b0 + W0_z z, or empty = computed per sample
+  AlignedFloats bias0;          // pad0
+  AlignedFloats latentWeights;  // latentDim x pad0 (transposed W0_z)
+  AlignedFloats dirWeights;     // 4 x pad0 (transposed W0_dir)
+  const float* latents = nullptr;  // rows x latentDim (the material's), for uncached rows
+  AlignedFloats rowPart;        // rows x pad0: b0 + W0_z z, or empty = computed per sample
   // ---- Layers 1 .. L-2 (dense) and L-1 (the output layer); none when L == 1.
   std::vector<PackedLayer> hidden;
   PackedLayer output;
@@ -70,8 +84,9 @@ struct TileArgs {
   const float* dirs = nullptr;
   int dirStride = 4;
   int n = 0;
+  bool prefetchRows = false;  // rows in random order (queries): prefetch their first-layer parts
   float* out = nullptr;
-  float* scratch = nullptr;  // scratchFloats() floats
+  float* scratch = nullptr;  // scratchFloats() floats, 64-byte aligned
 };
 using TileKernel = void (*)(const PackedDecoder&, const TileArgs&);
 // rowPart[i] = b0 + W0_z z_i for rows [begin, end), pad0 floats each.
