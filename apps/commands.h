@@ -16,5 +16,6 @@ struct Command {
 int infoMain(int argc, char** argv);
 int decodeMain(int argc, char** argv);
 int queryMain(int argc, char** argv);
+int clusterMain(int argc, char** argv);
 
 }  // namespace nbtf::cli
