@@ -65,6 +65,36 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
     }
 }
 
+// The model stage's own forward pass (model/mlp.h, what training evaluates) on the same
+// inputs: decoder input = latent | stereographic light | stereographic view.
+TEST(Decoder, AgreesWithTheModelsForwardPass) {
+  for (int k : {6, 0}) {
+    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4);
+    NbtfDecoder dec(b);
+    std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
+    Mlp::RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + 4);
+    for (std::size_t p = 0; p < pairs.size(); ++p)
+      for (int t = 0; t < b.numTexels(); ++t) {
+        auto row = in.row(static_cast<Eigen::Index>(p * b.numTexels() + t));
+        for (int q = 0; q < b.latentDim; ++q) row(q) = b.latentOfTexel(t)[q];
+        auto d = decoderDirectionInput(pairs[p].first, pairs[p].second);
+        for (int q = 0; q < 4; ++q) row(b.latentDim + q) = d[q];
+      }
+    Mlp::RowMatrix out = b.decoder.forward(in);
+    for (std::size_t p = 0; p < pairs.size(); ++p) {
+      std::vector<float> img(3 * b.numTexels());
+      dec.decodeImage(pairs[p].first, pairs[p].second, img.data(), OutputScale::Normalized);
+      for (int t = 0; t < b.numTexels(); ++t) {
+        std::array<double, 3> mag;
+        referenceOutput(b, t, pairs[p].first, pairs[p].second, &mag);
+        for (int c = 0; c < 3; ++c)
+          EXPECT_NEAR(img[3 * t + c], out(static_cast<Eigen::Index>(p * b.numTexels() + t), c), 2 * decoderTolerance(mag[c]))
+              << "texel " << t << " pair " << p << " channel " << c;
+      }
+    }
+  }
+}
+
 TEST(Decoder, AutoPicksTheBestSupportedInstructionSet) {
   NbtfDecoder dec(makeDecoderMaterial(3));
   EXPECT_EQ(dec.isa(), supportedIsas().back());
