@@ -53,6 +53,7 @@ struct Fixture {
     in.sizes.rawFloat32 = ref.rawFloat32Bytes();
     in.sizes.decoder = 97532, in.sizes.latents = 16000, in.sizes.ids = 512;
     in.sizes.total = 97532 + 16000 + 512, in.sizes.fileBytes = 120000;
+    in.sizes.idsPaper = 1024, in.sizes.totalPaper = 97532 + 16000 + 1024;
     EvalOptions o;
     o.progress = false;
     o.blurSampleImages = 4;
@@ -110,6 +111,7 @@ TEST(Report, JsonHasTheDocumentedKeysAndTheMetrics) {
   EXPECT_DOUBLE_EQ(j["psnr"].get<double>(), 20 * std::log10(1 / r.all.rmse));
   EXPECT_EQ(j["bytes"]["raw_float32"].get<std::uint64_t>(), 6561ull * 256 * 3 * 4);
   EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), 6561.0 * 256 * 3 * 4 / (97532 + 16000 + 512));
+  EXPECT_DOUBLE_EQ(j["ratio_paper"].get<double>(), 6561.0 * 256 * 3 * 4 / (97532 + 16000 + 1024));
   EXPECT_EQ(j["rmse_by_image"].size(), 81u);
   EXPECT_EQ(j["rmse_by_image"][80].size(), 81u);
   EXPECT_DOUBLE_EQ(j["rmse_by_image"][2][5].get<double>(), r.table.image(2 * 81 + 5).rmse);

@@ -90,6 +90,11 @@ json reportJson(const EvalResult& r) {
                   {"ids", r.sizes.ids},                 {"total", r.sizes.total},
                   {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
     j["ratio"] = r.sizes.ratio();
+    if (r.sizes.totalPaper && r.sizes.totalPaper != r.sizes.total) {
+      j["bytes"]["ids_paper"] = r.sizes.idsPaper;
+      j["bytes"]["total_paper"] = r.sizes.totalPaper;
+      j["ratio_paper"] = static_cast<double>(r.sizes.rawFloat32) / static_cast<double>(r.sizes.totalPaper);
+    }
   } else {
     j["bytes"] = nullptr;
     j["ratio"] = nullptr;
@@ -259,6 +264,12 @@ Doc reportDoc(const json& j) {
     };
     if (!b["file"].is_null()) srows.push_back({"File on disk", bytesText(b["file"]), humanBytes(b["file"])});
     srows.push_back({"**Compression ratio** (raw : total)", "1 : " + fmt("%.0f", j["ratio"].get<double>()), ""});
+    if (b.contains("total_paper")) {
+      srows.push_back({"Id list with the paper's 4-byte ids", bytesText(b["ids_paper"]), humanBytes(b["ids_paper"])});
+      srows.push_back({"Total with 4-byte ids", bytesText(b["total_paper"]), humanBytes(b["total_paper"])});
+      srows.push_back({"Compression ratio with 4-byte ids (comparable to the paper)",
+                       "1 : " + fmt("%.0f", j["ratio_paper"].get<double>()), ""});
+    }
     doc.table({"Part", "Bytes", "Size"}, srows,
               "Total = decoder + latents + id list, the paper's definition (headers, directions and metadata are "
               "not counted; the file on disk is the honest upper bound). KiB = 1024 bytes.",
