@@ -133,7 +133,7 @@ TEST(Report, EveryNumberInTheMarkdownTablesIsAJsonValue) {
   std::istringstream lines(md);
   std::string line;
   // Unit words that contain digits, then thousands separators of byte counts.
-  const std::regex units(R"(eq\. ?\(?10\)?|8-bit|0-255|float32|peak \d+|#\d+|log10)");
+  const std::regex units(R"(eq\. ?\(?10\)?|8-bit|\d-byte|0-255|float32|peak \d+|#\d+|log10)");
   const std::regex number(R"((\d+)(?:\.(\d+))?(?:e([-+]\d+))?)");
   int checked = 0;
   bool header = true;
