@@ -14,5 +14,6 @@ struct Command {
 };
 
 int infoMain(int argc, char** argv);
+int evalMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

@@ -8,6 +8,7 @@ namespace nbtf::cli {
 namespace {
 const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
+    {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
 };
 
 void printUsage() {
