@@ -15,5 +15,6 @@ struct Command {
 
 int infoMain(int argc, char** argv);
 int evalMain(int argc, char** argv);
+int clusterMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

@@ -9,6 +9,7 @@ namespace {
 const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
     {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
+    {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
 };
 
 void printUsage() {

@@ -13,8 +13,8 @@ enum class Representative { Median, Mean };
 
 struct ClusteringOptions {
   int clusters = 500;
-  PcaOptions pca;
-  KMeansOptions kmeans;  // clusters and seed are taken from above
+  PcaOptions pca;        // seed and progress are taken from here
+  KMeansOptions kmeans;  // clusters, seed and progress are taken from here
   Representative representative = Representative::Median;
   std::uint64_t seed = 1;
   bool progress = true;
@@ -24,10 +24,12 @@ struct ClusteringResult {
   std::vector<std::int32_t> ids;  // M
   MatrixXfCol representatives;    // k x D, in the same space as the input X (standardized)
   std::vector<int> sizes;         // k
-  double inertia = 0;
+  double inertia = 0;              // k-means inertia in PCA space (squared distances of the scores)
   int iterations = 0;
+  bool converged = false;          // k-means stopped because no texel changed cluster
+  int reseeded = 0, emptyClusters = 0;
   double explainedVarianceRatio = 0;
-  Eigen::VectorXf explainedVariance;
+  Eigen::VectorXf explainedVariance;  // C: variance of the standardized ABRDFs along each component
   double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
 };
 

@@ -11,9 +11,12 @@ namespace nbtf {
 
 struct KMeansOptions {
   int clusters = 500;
-  int maxIterations = 100;
+  int maxIterations = 300;  // Lloyd rounds; stops earlier when no point changes cluster
   std::uint64_t seed = 1;
   bool progress = true;
+  // Candidates drawn per k-means++ step, the one lowering the potential most is kept
+  // ("greedy" k-means++, as scikit-learn does). 0 = 2 + ln k; 1 = the classic algorithm.
+  int seedingTrials = 0;
 };
 
 struct KMeansResult {
@@ -23,9 +26,19 @@ struct KMeansResult {
   double inertia = 0;             // sum of squared distances to the assigned centre
   int iterations = 0;
   int reseeded = 0;               // empty clusters re-seeded
+  bool converged = false;         // stopped because no point changed cluster
+  int emptyClusters = 0;          // clusters left empty (only when fewer distinct points than k)
+  double seedingSeconds = 0, lloydSeconds = 0;
 };
 
 // points: M x C (one row per texel). Throws nbtf::Error if k < 1 or k > M.
 KMeansResult kmeansPlusPlus(const MatrixXfCol& points, const KMeansOptions& options);
+
+// Lloyd iterations from given centres (k x C; k = centers.rows(), options.clusters is
+// ignored). Same errors as above.
+KMeansResult kmeansFromCenters(const MatrixXfCol& points, const MatrixXfCol& centers, const KMeansOptions& options);
+
+// The number of k-means++ candidates per step for k clusters (requested > 0 wins).
+int seedingTrialsFor(int k, int requested);
 
 }  // namespace nbtf

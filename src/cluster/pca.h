@@ -13,12 +13,14 @@ struct PcaOptions {
   int oversampling = 10;
   int powerIterations = 4;
   std::uint64_t seed = 1;
+  bool progress = true;
 };
 
 struct PcaResult {
   Eigen::VectorXf mean;          // D: column means subtracted before the SVD
   MatrixXfCol basis;             // D x C, orthonormal columns
-  MatrixXfCol scores;            // M x C: (X - mean) * basis
+  MatrixXfCol scores;            // M x C: (X - mean) * basis (computed as the SVD's U * S, which
+                                 // equals it up to the part of X the sketch did not capture)
   Eigen::VectorXf explainedVariance;  // C: variance along each component
   double totalVariance = 0;      // sum of the variances of all D dimensions
   double explainedRatio() const; // sum(explainedVariance) / totalVariance

@@ -1,0 +1,139 @@
+// nbtf cluster <input> --clusters K -o DIR: the clustering stage alone (log + standardize,
+// PCA, k-means++, representatives), writing DIR/labels.png and DIR/summary.json.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "cli_common.h"
+#include "cluster/cluster_output.h"
+#include "cluster/clustering.h"
+#include "commands.h"
+#include "io/btf_loader.h"
+#include "io/image_io.h"
+#include "preprocess/abrdf_matrix.h"
+#include "util/atomic_file.h"
+#include "util/progress.h"
+
+namespace nbtf::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+int clusterStack(const cxxopts::ParseResult& args) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::string input = args["input"].as<std::string>();
+  const std::string outDir = args["output"].as<std::string>();
+  ClusteringOptions options;
+  options.clusters = args["clusters"].as<int>();
+  options.pca.components = args["components"].as<int>();
+  options.pca.powerIterations = args["power-iterations"].as<int>();
+  options.kmeans.maxIterations = args["max-iterations"].as<int>();
+  options.seed = args["seed"].as<std::uint64_t>();
+  const std::string representative = args["representative"].as<std::string>();
+  if (representative == "median") options.representative = Representative::Median;
+  else if (representative == "mean") options.representative = Representative::Mean;
+  else throw Error("--representative: expected median or mean, got '" + representative + "'");
+  // Options that can be judged before hours of loading are judged now.
+  if (options.clusters < 1) throw Error("--clusters must be at least 1, got " + std::to_string(options.clusters));
+  if (options.pca.components < 1)
+    throw Error("--components must be at least 1, got " + std::to_string(options.pca.components));
+  if (options.pca.powerIterations < 0) throw Error("--power-iterations must be >= 0");
+  if (options.kmeans.maxIterations < 0) throw Error("--max-iterations must be >= 0");
+
+  std::error_code ec;
+  fs::create_directories(outDir, ec);
+  if (ec) throw fileError(outDir, "cannot create output folder: " + ec.message());
+  const std::string labelsPath = (fs::path(outDir) / "labels.png").string();
+  const std::string summaryPath = (fs::path(outDir) / "summary.json").string();
+  checkWritable(labelsPath);
+
+  ClusterRunInfo info;
+  info.input = input;
+  info.threads = threadCount();
+  auto step = std::chrono::steady_clock::now();
+  LoadOptions load;
+  if (args.count("layout")) load.layout = parseLayout(args["layout"].as<std::string>());
+  if (args.count("crop")) load.crop = parseCrop(args["crop"].as<std::string>());
+  BtfStack stack = loadBtfStack(input, load);
+  info.loadSeconds = secondsSince(step);
+  info.width = stack.width(), info.height = stack.height(), info.images = stack.numImages();
+  info.crop = stack.crop;
+  info.alpha = targetAlpha(stack);
+
+  const int texels = stack.numTexels(), dims = 3 * stack.numImages();
+  if (options.clusters > texels)
+    throw Error("--clusters " + std::to_string(options.clusters) + ": the input has only " + std::to_string(texels) +
+                " texels (" + std::to_string(stack.width()) + " x " + std::to_string(stack.height()) + ")");
+  if (options.pca.components > std::min(texels, dims))
+    throw Error("--components " + std::to_string(options.pca.components) + ": at most " +
+                std::to_string(std::min(texels, dims)) + " for " + std::to_string(texels) + " texels x " +
+                std::to_string(dims) + " dimensions");
+
+  step = std::chrono::steady_clock::now();
+  MatrixXfCol x = abrdfMatrix(stack);
+  info.matrixSeconds = secondsSince(step);
+  step = std::chrono::steady_clock::now();
+  standardizeInPlace(x);
+  info.standardizeSeconds = secondsSince(step);
+
+  ClusteringResult result = clusterAbrdfs(x, options);
+  info.totalSeconds = secondsSince(start);
+
+  writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, stack.width(), stack.height()));
+  nlohmann::json summary = clusteringSummary(result, options, info);
+  writeFileAtomic(summaryPath, summary.dump(2) + "\n");
+
+  const auto& sizes = summary["cluster_sizes"];
+  std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, stack.width(),
+              stack.height(), stack.numImages(), options.clusters, info.totalSeconds);
+  std::printf("  PCA          %d components: %.2f%% of the variance of the standardized log ABRDFs (%.2f s)\n",
+              options.pca.components, 100.0 * result.explainedVarianceRatio, result.pcaSeconds);
+  std::printf("  k-means      inertia %.6g in PCA space (%.4g per texel), %d iterations%s (%.2f s)\n",
+              result.inertia, result.inertia / texels, result.iterations,
+              result.converged ? ", converged" : ", iteration limit reached", result.kmeansSeconds);
+  std::printf("  sizes        min %d, median %d, max %d texels%s\n", sizes["min"].get<int>(), sizes["median"].get<int>(),
+              sizes["max"].get<int>(),
+              result.emptyClusters ? (", " + std::to_string(result.emptyClusters) + " empty (too few distinct ABRDFs)").c_str()
+                                   : "");
+  std::printf("  wrote        %s, %s\n", labelsPath.c_str(), summaryPath.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int clusterMain(int argc, char** argv) {
+  return runGuarded("cluster", [&] {
+    cxxopts::Options options("nbtf cluster", "Cluster a BTF's ABRDFs (log + standardize, PCA, k-means++)");
+    options.positional_help("<input> --clusters K -o <dir>");
+    options.add_options()("input", "BTF stack folder", cxxopts::value<std::string>())(
+        "k,clusters", "Number of clusters", cxxopts::value<int>())(
+        "components", "PCA components", cxxopts::value<int>()->default_value("32"))(
+        "power-iterations", "PCA power iterations", cxxopts::value<int>()->default_value(
+                                                         std::to_string(PcaOptions().powerIterations)))(
+        "max-iterations", "k-means iteration limit",
+        cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
+        "representative", "Cluster representative: median or mean",
+        cxxopts::value<std::string>()->default_value("median"))(
+        "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
+        "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
+        "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
+        "o,output", "Output folder (labels.png, summary.json)", cxxopts::value<std::string>())(
+        "q,quiet", "No progress bars");
+    addCommonOptions(options);
+    options.parse_positional({"input"});
+    cxxopts::ParseResult args;
+    if (!parseOptions(options, argc, argv, args)) return 0;
+    applyCommonOptions(args);
+    if (args.count("quiet")) Progress::setQuiet(true);
+    if (!args.count("input")) throw Error("missing <input> (see 'nbtf cluster --help')");
+    if (!args.count("clusters")) throw Error("missing --clusters K (see 'nbtf cluster --help')");
+    if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf cluster --help')");
+    return clusterStack(args);
+  });
+}
+
+}  // namespace nbtf::cli

@@ -1,0 +1,44 @@
+// What `nbtf cluster` writes for people to judge a clustering: the id list as a label
+// image (one colour per cluster) and a JSON summary (sizes, inertia, variance, timings).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "cluster/clustering.h"
+#include "io/btf_stack.h"
+#include "io/image_io.h"
+
+namespace nbtf {
+
+// A cluster's colour: a bijective scramble of the id into 24 bits, so neighbouring ids get
+// unrelated colours and the id list can be read back exactly from a lossless PNG.
+std::array<std::uint8_t, 3> labelColour(int id);
+int labelFromColour(const std::uint8_t* rgb);  // the inverse
+
+// ids: width * height, row-major (texel t = y * width + x, as in BtfStack).
+Image8 labelImage(const std::vector<std::int32_t>& ids, int width, int height);
+
+// Cluster sizes in power-of-two bins: [1], [2, 3], [4, 7], ... (empty clusters in [0, 0]).
+struct SizeBin {
+  int smallest = 0, largest = 0;  // inclusive range of sizes
+  int clusters = 0;
+};
+std::vector<SizeBin> sizeHistogram(const std::vector<int>& sizes);
+
+// Where the clustered data came from and what the steps before clustering cost.
+struct ClusterRunInfo {
+  std::string input;
+  int width = 0, height = 0, images = 0;
+  Crop crop;
+  float alpha = 0;  // target normalization (linear)
+  int threads = 0;
+  double loadSeconds = 0, matrixSeconds = 0, standardizeSeconds = 0, totalSeconds = 0;
+};
+
+nlohmann::json clusteringSummary(const ClusteringResult& result, const ClusteringOptions& options,
+                                 const ClusterRunInfo& info);
+
+}  // namespace nbtf

@@ -1,0 +1,130 @@
+#include "cluster/clustering.h"
+
+#include <algorithm>
+#include <chrono>
+#include <sstream>
+
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+namespace {
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
+// ---- Representatives
+
+MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::int32_t>& ids, int k,
+                                   Representative kind) {
+  if (k < 1) throw Error("cluster representatives: k must be at least 1, got " + std::to_string(k));
+  if (static_cast<Eigen::Index>(ids.size()) != x.rows()) {
+    std::ostringstream s;
+    s << "cluster representatives: " << ids.size() << " ids for " << x.rows() << " ABRDFs";
+    throw Error(s.str());
+  }
+  // Texels sorted by cluster (counting sort), so each cluster is one run of indices.
+  std::vector<std::int32_t> offset(k + 1, 0), order(ids.size());
+  for (std::size_t t = 0; t < ids.size(); ++t) {
+    if (ids[t] < 0 || ids[t] >= k) {
+      std::ostringstream s;
+      s << "cluster representatives: texel " << t << " has cluster id " << ids[t] << ", expected 0.." << k - 1;
+      throw Error(s.str());
+    }
+    ++offset[ids[t] + 1];
+  }
+  for (int c = 0; c < k; ++c) offset[c + 1] += offset[c];
+  {
+    std::vector<std::int32_t> next(offset.begin(), offset.end() - 1);
+    for (std::size_t t = 0; t < ids.size(); ++t) order[next[ids[t]]++] = static_cast<std::int32_t>(t);
+  }
+  std::int32_t largest = 0;
+  for (int c = 0; c < k; ++c) largest = std::max(largest, offset[c + 1] - offset[c]);
+
+  // Dimension by dimension: a column of X is contiguous and small enough to stay in cache
+  // while every cluster gathers its values from it, and no cluster is ever copied whole
+  // (a single cluster of a full material would be gigabytes).
+  MatrixXfCol out(k, x.cols());
+  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
+    std::vector<float> values(largest);
+    for (std::size_t d = begin; d < end; ++d) {
+      const float* column = x.col(d).data();
+      float* rep = out.col(d).data();
+      for (int c = 0; c < k; ++c) {
+        const std::int32_t n = offset[c + 1] - offset[c];
+        const std::int32_t* members = order.data() + offset[c];
+        if (n == 0) {
+          rep[c] = 0.0f;  // an empty cluster (no texel refers to it): the standardized mean
+          continue;
+        }
+        if (kind == Representative::Mean) {
+          double sum = 0;
+          for (std::int32_t i = 0; i < n; ++i) sum += column[members[i]];
+          rep[c] = static_cast<float>(sum / n);
+          continue;
+        }
+        for (std::int32_t i = 0; i < n; ++i) values[i] = column[members[i]];
+        // Median; for an even count the mean of the two middle values (numpy's convention).
+        float* mid = values.data() + n / 2;
+        std::nth_element(values.data(), mid, values.data() + n);
+        float upperMiddle = *mid;
+        if (n % 2 == 1) {
+          rep[c] = upperMiddle;
+        } else {
+          float lowerMiddle = *std::max_element(values.data(), mid);
+          rep[c] = 0.5f * (lowerMiddle + upperMiddle);
+        }
+      }
+    }
+  });
+  return out;
+}
+
+// ---- The stage
+
+ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options) {
+  const Eigen::Index m = x.rows(), dims = x.cols();
+  if (m == 0 || dims == 0) throw Error("clustering: empty ABRDF matrix");
+  if (options.clusters < 1)
+    throw Error("clustering: the number of clusters must be at least 1, got " + std::to_string(options.clusters));
+  if (options.clusters > m) {
+    std::ostringstream s;
+    s << "clustering: " << options.clusters << " clusters requested, but there are only " << m << " texels";
+    throw Error(s.str());
+  }
+  ClusteringResult result;
+
+  auto start = std::chrono::steady_clock::now();
+  PcaOptions pcaOptions = options.pca;
+  pcaOptions.seed = options.seed;
+  pcaOptions.progress = options.progress;
+  PcaResult pca = randomizedPca(x, pcaOptions);
+  result.pcaSeconds = secondsSince(start);
+  result.explainedVariance = pca.explainedVariance;
+  result.explainedVarianceRatio = pca.explainedRatio();
+
+  start = std::chrono::steady_clock::now();
+  KMeansOptions kmeansOptions = options.kmeans;
+  kmeansOptions.clusters = options.clusters;
+  kmeansOptions.seed = options.seed;
+  kmeansOptions.progress = options.progress;
+  KMeansResult kmeans = kmeansPlusPlus(pca.scores, kmeansOptions);
+  result.kmeansSeconds = secondsSince(start);
+  result.inertia = kmeans.inertia;
+  result.iterations = kmeans.iterations;
+  result.converged = kmeans.converged;
+  result.reseeded = kmeans.reseeded;
+  result.emptyClusters = kmeans.emptyClusters;
+
+  start = std::chrono::steady_clock::now();
+  result.representatives = clusterRepresentatives(x, kmeans.ids, options.clusters, options.representative);
+  result.representativeSeconds = secondsSince(start);
+  result.ids = std::move(kmeans.ids);
+  result.sizes = std::move(kmeans.sizes);
+  return result;
+}
+
+}  // namespace nbtf

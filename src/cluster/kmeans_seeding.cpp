@@ -1,0 +1,172 @@
+// k-means++ seeding (Arthur and Vassilvitskii 2007; section 3.2 of the clustered neural
+// BTF): each new centre is a point drawn with probability proportional to D(x)^2, its
+// squared distance to the closest centre chosen so far.
+#include <algorithm>
+#include <cmath>
+
+#include "cluster/kmeans_internal.h"
+#include "cluster/random.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+namespace {
+
+// D(x)^2 kept with per-block sums, so a draw costs O(M / block + block) and the total is
+// always summed in the same order.
+class PotentialSampler {
+ public:
+  explicit PotentialSampler(const std::vector<float>& distance2) : d2_(distance2) {
+    const Eigen::Index m = static_cast<Eigen::Index>(d2_.size());
+    blockSums_.assign((m + kPointBlock - 1) / kPointBlock, 0.0);
+    for (std::size_t b = 0; b < blockSums_.size(); ++b) refreshBlock(b);
+  }
+  void refreshBlock(std::size_t b) {
+    std::size_t begin = b * kPointBlock, end = std::min(d2_.size(), begin + kPointBlock);
+    double sum = 0;
+    for (std::size_t i = begin; i < end; ++i) sum += d2_[i];
+    blockSums_[b] = sum;
+  }
+  double total() const {
+    double sum = 0;
+    for (double s : blockSums_) sum += s;
+    return sum;
+  }
+  // A point drawn with probability d2 / total (uniformly when every d2 is 0).
+  std::int32_t draw(StageRandom& random) const {
+    const double sum = total();
+    if (!(sum > 0)) return static_cast<std::int32_t>(random.below(d2_.size()));
+    double target = random.uniform() * sum;
+    std::size_t b = 0;
+    for (; b + 1 < blockSums_.size() && target >= blockSums_[b]; ++b) target -= blockSums_[b];
+    std::size_t begin = b * kPointBlock, end = std::min(d2_.size(), begin + kPointBlock);
+    std::size_t last = begin;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (d2_[i] <= 0) continue;
+      last = i;
+      if (target < d2_[i]) return static_cast<std::int32_t>(i);
+      target -= d2_[i];
+    }
+    return static_cast<std::int32_t>(last);  // rounding ran past the end: the last positive point
+  }
+
+ private:
+  const std::vector<float>& d2_;
+  std::vector<double> blockSums_;
+};
+
+// What adding one candidate centre would change: the points it would take over.
+struct CandidateEffect {
+  std::int32_t point = -1;
+  double potentialChange = 0;  // <= 0
+  std::vector<std::pair<std::int32_t, float>> takenOver;  // (point, new squared distance)
+};
+
+}  // namespace
+
+Seeding kmeansPlusPlusSeeding(const RowMatrixXf& points, int k, int trials, std::uint64_t seed,
+                              Progress* progress) {
+  const Eigen::Index m = points.rows(), dims = points.cols();
+  StageRandom random(seed);
+  Seeding s;
+  s.centers.resize(k, dims);
+  s.nearest.assign(m, 0);
+  s.distance2.assign(m, 0.0f);
+
+  // First centre: uniform.
+  std::int32_t first = static_cast<std::int32_t>(random.below(m));
+  s.centers.row(0) = points.row(first);
+  parallelFor(m, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i)
+      s.distance2[i] = squaredDistance(points.row(i).data(), s.centers.row(0).data(), dims);
+  });
+  // Points grouped by their closest centre, with the group's radius (largest distance):
+  // a candidate c can take no point of group j when |c - centre_j| >= 2 * radius_j.
+  std::vector<std::vector<std::int32_t>> members(k);
+  std::vector<float> radius(k, 0.0f);
+  members[0].resize(m);
+  for (Eigen::Index i = 0; i < m; ++i) members[0][i] = static_cast<std::int32_t>(i);
+  radius[0] = std::sqrt(*std::max_element(s.distance2.begin(), s.distance2.end()));
+  PotentialSampler sampler(s.distance2);
+  if (progress) progress->advance();
+
+  std::vector<CandidateEffect> effects(trials);
+  Eigen::VectorXf centerNorm2(k);
+  centerNorm2[0] = s.centers.row(0).squaredNorm();
+  RowMatrixXf candidates(trials, dims);
+  Eigen::MatrixXf products;  // n x trials: centre . candidate
+  std::vector<char> touchedBlock((m + kPointBlock - 1) / kPointBlock, 0);
+  std::vector<char> shrunk(k, 0);
+  for (int n = 1; n < k; ++n) {
+    for (int t = 0; t < trials; ++t) {
+      effects[t].point = sampler.draw(random);
+      candidates.row(t) = points.row(effects[t].point);
+    }
+    products.noalias() = s.centers.topRows(n) * candidates.transpose();
+    // Candidates are independent; each is scanned by one thread, so results do not
+    // depend on the thread count.
+    auto evaluate = [&](std::size_t t) {
+      CandidateEffect& e = effects[t];
+      e.potentialChange = 0;
+      e.takenOver.clear();
+      const float* c = candidates.row(t).data();
+      const float candidateNorm2 = candidates.row(t).squaredNorm();
+      for (int j = 0; j < n; ++j) {
+        // Group j is out of reach when |c - centre_j|^2 >= 4 radius_j^2; the product form
+        // of the distance carries rounding, so only skip with a margin.
+        float centre2 = centerNorm2[j] + candidateNorm2 - 2.0f * products(j, t);
+        float margin = 1e-5f * (centerNorm2[j] + candidateNorm2);
+        if (centre2 - margin >= 4.0f * radius[j] * radius[j]) continue;
+        for (std::int32_t i : members[j]) {
+          float d2 = squaredDistance(points.row(i).data(), c, dims);
+          if (d2 < s.distance2[i]) {
+            e.potentialChange += static_cast<double>(d2) - s.distance2[i];
+            e.takenOver.emplace_back(i, d2);
+          }
+        }
+      }
+    };
+    if (trials == 1 || m < 20000) {
+      for (int t = 0; t < trials; ++t) evaluate(t);
+    } else {
+      parallelFor(trials, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t t = begin; t < end; ++t) evaluate(t);
+      });
+    }
+    int best = 0;
+    for (int t = 1; t < trials; ++t)
+      if (effects[t].potentialChange < effects[best].potentialChange) best = t;
+
+    // Commit the best candidate: move the points it takes over into its group.
+    const CandidateEffect& chosen = effects[best];
+    s.centers.row(n) = points.row(chosen.point);
+    centerNorm2[n] = s.centers.row(n).squaredNorm();
+    float newRadius2 = 0;
+    for (const auto& [i, d2] : chosen.takenOver) {
+      shrunk[s.nearest[i]] = 1;
+      s.nearest[i] = n;
+      s.distance2[i] = d2;
+      members[n].push_back(i);
+      newRadius2 = std::max(newRadius2, d2);
+      touchedBlock[i / kPointBlock] = 1;
+    }
+    radius[n] = std::sqrt(newRadius2);
+    for (int j = 0; j < n; ++j) {
+      if (!shrunk[j]) continue;
+      shrunk[j] = 0;
+      auto& list = members[j];
+      list.erase(std::remove_if(list.begin(), list.end(), [&](std::int32_t i) { return s.nearest[i] != j; }),
+                 list.end());
+      float r2 = 0;
+      for (std::int32_t i : list) r2 = std::max(r2, s.distance2[i]);
+      radius[j] = std::sqrt(r2);
+    }
+    for (std::size_t b = 0; b < touchedBlock.size(); ++b)
+      if (touchedBlock[b]) sampler.refreshBlock(b), touchedBlock[b] = 0;
+    if (progress) progress->advance();
+  }
+  return s;
+}
+
+}  // namespace nbtf

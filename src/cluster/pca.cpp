@@ -1,0 +1,137 @@
+#include "cluster/pca.h"
+
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <cmath>
+#include <sstream>
+
+#include "cluster/blas.h"
+#include "cluster/random.h"
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+double PcaResult::explainedRatio() const {
+  return totalVariance > 0 ? explainedVariance.cast<double>().sum() / totalVariance : 0.0;
+}
+
+namespace {
+
+// Column means and the total (population) variance, in double; one pass over X.
+void columnStatistics(const MatrixXfCol& x, Eigen::VectorXf& mean, double& totalVariance) {
+  mean.resize(x.cols());
+  Eigen::VectorXd variance(x.cols());
+  const double rows = static_cast<double>(x.rows());
+  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t d = begin; d < end; ++d) {
+      const float* col = x.col(d).data();
+      double sum = 0;
+      for (Eigen::Index t = 0; t < x.rows(); ++t) sum += col[t];
+      double m = sum / rows, squares = 0;
+      for (Eigen::Index t = 0; t < x.rows(); ++t) squares += (col[t] - m) * (col[t] - m);
+      if (!std::isfinite(m) || !std::isfinite(squares)) {
+        std::ostringstream s;
+        s << "PCA: dimension " << d << " holds NaN or Inf values";
+        throw Error(s.str());
+      }
+      mean[d] = static_cast<float>(m);
+      variance[d] = squares / rows;
+    }
+  });
+  totalVariance = variance.sum();
+}
+
+// Orthonormal basis of the columns (thin Householder QR).
+MatrixXfCol orthonormalize(const MatrixXfCol& y) {
+  Eigen::HouseholderQR<MatrixXfCol> qr(y);
+  return qr.householderQ() * MatrixXfCol::Identity(y.rows(), y.cols());
+}
+
+// The centred products, without ever forming X - mean:
+//   (X - 1 mean^T) B   = X B   - 1 (mean^T B)
+//   (X - 1 mean^T)^T Q = X^T Q - mean (1^T Q)
+MatrixXfCol centredTimes(const MatrixXfCol& x, const Eigen::VectorXf& mean, const MatrixXfCol& b) {
+  MatrixXfCol y;
+  blasMultiply(x, false, b, y);
+  Eigen::RowVectorXf shift = mean.transpose() * b;
+  y.rowwise() -= shift;
+  return y;
+}
+MatrixXfCol centredTransposeTimes(const MatrixXfCol& x, const Eigen::VectorXf& mean, const MatrixXfCol& q) {
+  MatrixXfCol z;
+  blasMultiply(x, true, q, z);
+  Eigen::RowVectorXf sums = q.colwise().sum();
+  z.noalias() -= mean * sums;
+  return z;
+}
+
+}  // namespace
+
+PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options) {
+  const Eigen::Index rows = x.rows(), dims = x.cols();
+  const Eigen::Index rank = std::min(rows, dims);
+  if (options.components < 1 || options.components > rank) {
+    std::ostringstream s;
+    s << "PCA: " << options.components << " components requested, but " << rows << " texels x " << dims
+      << " dimensions allow between 1 and " << rank;
+    throw Error(s.str());
+  }
+  if (options.oversampling < 0) throw Error("PCA: oversampling must be >= 0");
+  if (options.powerIterations < 0) throw Error("PCA: power iterations must be >= 0");
+  const int components = options.components;
+  const Eigen::Index sketch = std::min<Eigen::Index>(components + options.oversampling, rank);
+
+  PcaResult result;
+  columnStatistics(x, result.mean, result.totalVariance);
+  Progress bar("pca", 2 * options.powerIterations + 2, options.progress);
+
+  // Range finder: a Gaussian sketch of the column space, sharpened by power iterations
+  // (each one squares the decay of the singular values the sketch must separate).
+  StageRandom random(options.seed);
+  MatrixXfCol omega(dims, sketch);
+  for (Eigen::Index j = 0; j < sketch; ++j)
+    for (Eigen::Index d = 0; d < dims; ++d) omega(d, j) = static_cast<float>(random.normal());
+  MatrixXfCol q = orthonormalize(centredTimes(x, result.mean, omega));
+  omega.resize(0, 0);
+  bar.advance();
+  for (int i = 0; i < options.powerIterations; ++i) {
+    MatrixXfCol z = orthonormalize(centredTransposeTimes(x, result.mean, q));
+    bar.advance();
+    q = orthonormalize(centredTimes(x, result.mean, z));
+    bar.advance();
+  }
+
+  // B = Q^T (X - mean) is small (sketch x D). With B^T = Qb R: B = R^T Qb^T, and the SVD
+  // of the tiny R^T = U S W^T gives B = U S (Qb W)^T.
+  MatrixXfCol bt = centredTransposeTimes(x, result.mean, q);
+  bar.advance();
+  Eigen::HouseholderQR<MatrixXfCol> qr(bt);
+  MatrixXfCol qb = qr.householderQ() * MatrixXfCol::Identity(dims, sketch);
+  Eigen::MatrixXd rt = qr.matrixQR().topRows(sketch).triangularView<Eigen::Upper>().toDenseMatrix().transpose().cast<double>();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(rt, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::MatrixXf u = svd.matrixU().leftCols(components).cast<float>();
+  Eigen::MatrixXf w = svd.matrixV().leftCols(components).cast<float>();
+  Eigen::VectorXf sigma = svd.singularValues().head(components).cast<float>();
+
+  result.basis = qb * w;
+  result.scores = q * u;
+  result.scores *= sigma.asDiagonal();
+  result.explainedVariance = sigma.array().square() / static_cast<float>(rows);
+
+  // Signs are arbitrary in an SVD; fix them (largest basis entry positive) so results
+  // do not flip between BLAS builds.
+  for (int j = 0; j < components; ++j) {
+    Eigen::Index at;
+    result.basis.col(j).cwiseAbs().maxCoeff(&at);
+    if (result.basis(at, j) < 0) {
+      result.basis.col(j) *= -1.0f;
+      result.scores.col(j) *= -1.0f;
+    }
+  }
+  bar.finish();
+  return result;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,74 @@
+#include "model/torch_reference.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "model/decoder_backprop.h"
+#include "model/torch_modules.h"
+
+namespace nbtf {
+
+ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, const Mlp::RowMatrix& inputs) {
+  torch::manual_seed(seed);
+  detail::Decoder decoder(model);
+  ReferenceDecoder r;
+  r.exported = detail::exportDecoder(decoder);
+  torch::NoGradGuard noGrad;
+  torch::Tensor in = torch::from_blob(const_cast<float*>(inputs.data()), {inputs.rows(), inputs.cols()}).clone();
+  torch::Tensor out = decoder->forward(in).contiguous();
+  r.torchOutput.resize(out.size(0), out.size(1));
+  std::copy(out.data_ptr<float>(), out.data_ptr<float>() + out.numel(), r.torchOutput.data());
+  return r;
+}
+
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile) {
+  torch::manual_seed(seed);
+  detail::Decoder decoder(model);
+  const int rows = tiles * rowsPerTile;
+  torch::Tensor z = torch::randn({tiles, model.latentDim});
+  torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
+  torch::Tensor targets = torch::rand({rows, 3});
+
+  // Autograd on the plain concatenated input.
+  torch::Tensor zAuto = z.clone().requires_grad_(true);
+  torch::Tensor input = torch::cat({zAuto.repeat_interleave(rowsPerTile, 0), dirs}, 1);
+  torch::Tensor loss = torch::mse_loss(decoder->forward(input), targets);
+  decoder->zero_grad();
+  loss.backward();
+  std::vector<torch::Tensor> expected;
+  for (auto& p : decoder->parameters()) expected.push_back(p.grad().clone());
+  expected.push_back(zAuto.grad().clone());
+
+  // The hand-written pass.
+  detail::DecoderBackprop backprop(decoder, model.latentDim);
+  torch::Tensor dz;
+  double manualLoss = backprop.trainStep(z, dirs, targets, rowsPerTile, dz);
+  std::vector<torch::Tensor> got;
+  for (auto& p : decoder->parameters()) got.push_back(p.grad().clone());
+  got.push_back(dz);
+
+  double scale = 0, err = std::abs(manualLoss - loss.item<double>()) / std::max(1e-30, loss.item<double>());
+  for (auto& e : expected) scale = std::max(scale, e.abs().max().item<double>());
+  for (std::size_t i = 0; i < got.size(); ++i)
+    err = std::max(err, (got[i] - expected[i]).abs().max().item<double>() / scale);
+  return err;
+}
+
+double matmulGflops(int n, int threads, double minSeconds) {
+  torch::set_num_threads(threads);
+  torch::NoGradGuard noGrad;
+  torch::manual_seed(0);
+  torch::Tensor a = torch::randn({n, n}), b = torch::randn({n, n}), c = torch::empty({n, n});
+  torch::mm_out(c, a, b);  // warm-up: thread pool, page faults
+  double best = 0, total = 0;
+  while (total < minSeconds) {
+    auto t0 = std::chrono::steady_clock::now();
+    torch::mm_out(c, a, b);
+    double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    total += s;
+    best = std::max(best, 2.0 * n * n * n / s / 1e9);
+  }
+  return best;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,28 @@
+// libtorch-backed reference computations for tests and benchmarks. The header is
+// torch-free; the work happens in torch_reference.cpp.
+#pragma once
+#include <cstdint>
+
+#include "model/mlp.h"
+#include "model/trainer.h"
+
+namespace nbtf {
+
+// A decoder initialized by torch from `seed`: its export as an Mlp, and torch's own forward
+// pass (nn::Linear + ReLU) on `inputs`, to check that the export is exact.
+struct ReferenceDecoder {
+  Mlp exported;
+  Mlp::RowMatrix torchOutput;
+};
+ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, const Mlp::RowMatrix& inputs);
+
+// Runs the hand-written decoder backward pass that training uses and torch autograd on the
+// same random batch (tiles x rowsPerTile rows); returns the largest difference over all
+// parameter gradients and the latent gradient, relative to the largest gradient magnitude.
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile);
+
+// libtorch's float32 matrix-multiply rate (n x n times n x n, `threads` threads), GFLOP/s,
+// the best of repeated runs taking at least minSeconds in all.
+double matmulGflops(int n, int threads, double minSeconds);
+
+}  // namespace nbtf

@@ -1,0 +1,131 @@
+// `nbtf cluster` end to end: the built binary on a small stack written here.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "cluster/cluster_output.h"
+#include "io/btf_names.h"
+#include "io/image_io.h"
+
+namespace nbtf {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ClusterCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("nbtf_cluster_cli_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+    writeTwoMaterialStack(root_ / "stack");
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  // 12 x 8 texels, 2 lights x 2 views, UBO2003 layout. Left half: a red diffuse material;
+  // right half: a blue one whose brightness follows the light differently. Small per-texel
+  // variation so no two ABRDFs are identical.
+  static void writeTwoMaterialStack(const fs::path& dir) {
+    std::vector<Direction> lights = {{0, 0}, {60, 90}}, views = {{0, 0}, {45, 180}};
+    int index = 0;
+    for (std::size_t l = 0; l < lights.size(); ++l)
+      for (std::size_t v = 0; v < views.size(); ++v, ++index) {
+        fs::path folder = dir / viewFolderName(views[v]);
+        fs::create_directories(folder);
+        std::vector<float> rgb(12 * 8 * 3);
+        for (int y = 0; y < 8; ++y)
+          for (int x = 0; x < 12; ++x) {
+            float jitter = 0.02f * ((x * 7 + y * 3) % 5);
+            float* p = &rgb[3 * (y * 12 + x)];
+            if (x < 6) {
+              float shade = l == 0 ? 0.6f : 0.3f;
+              p[0] = shade + jitter, p[1] = 0.1f, p[2] = 0.1f;
+            } else {
+              float shade = (l == 0 ? 0.2f : 0.5f) + (v == 0 ? 0.1f : 0.0f);
+              p[0] = 0.05f, p[1] = 0.1f, p[2] = shade + jitter;
+            }
+          }
+        writeImageSrgb8((folder / ubo2003FileName(index, lights[l], views[v], ".png")).string(), ImageFormat::Png,
+                        12, 8, rgb.data());
+      }
+  }
+
+  int run(const std::string& arguments, std::string& output) {
+    fs::path log = root_ / "log.txt";
+    std::string command = std::string(NBTF_BIN_DIR) + "/nbtf cluster " + arguments + " > " + log.string() + " 2>&1";
+    int status = std::system(command.c_str());
+    std::ifstream in(log);
+    std::stringstream s;
+    s << in.rdbuf();
+    output = s.str();
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  fs::path root_;
+};
+
+TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
+  std::string output;
+  fs::path out = root_ / "out";
+  int code = run((root_ / "stack").string() + " --clusters 2 --components 2 -q -o " + out.string(), output);
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("into 2 clusters"), std::string::npos) << output;
+
+  Image8 labels = readImage8((out / "labels.png").string());
+  ASSERT_EQ(labels.width, 12);
+  ASSERT_EQ(labels.height, 8);
+  // Exactly the two materials: every texel of a half has that half's cluster.
+  int left = labelFromColour(&labels.rgb[0]), right = labelFromColour(&labels.rgb[3 * 11]);
+  EXPECT_NE(left, right);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 12; ++x)
+      EXPECT_EQ(labelFromColour(&labels.rgb[3 * (y * 12 + x)]), x < 6 ? left : right) << x << "," << y;
+
+  std::ifstream in(out / "summary.json");
+  nlohmann::json summary = nlohmann::json::parse(in);
+  EXPECT_EQ(summary["kmeans"]["k"], 2);
+  EXPECT_EQ(summary["texels"], 96);
+  EXPECT_EQ(summary["clusters"][0]["size"], 48);
+  EXPECT_EQ(summary["clusters"][1]["size"], 48);
+  EXPECT_GT(summary["pca"]["explained_variance_ratio"].get<double>(), 0.5);
+  EXPECT_TRUE(summary["seconds"].contains("total"));
+}
+
+TEST_F(ClusterCliTest, CropIsApplied) {
+  std::string output;
+  fs::path out = root_ / "crop";
+  int code = run((root_ / "stack").string() + " --clusters 3 --components 2 --crop 4,2,4,4 -q -o " + out.string(),
+                 output);
+  ASSERT_EQ(code, 0) << output;
+  Image8 labels = readImage8((out / "labels.png").string());
+  EXPECT_EQ(labels.width, 4);
+  EXPECT_EQ(labels.height, 4);
+}
+
+TEST_F(ClusterCliTest, BadClusterCountsFailClearlyAndWriteNothing) {
+  std::string output;
+  fs::path out = root_ / "bad";
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 500 -q -o " + out.string(), output), 1);
+  EXPECT_NE(output.find("only 96 texels"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists(out / "labels.png"));
+  EXPECT_FALSE(fs::exists(out / "summary.json"));
+
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 0 -q -o " + out.string(), output), 1);
+  EXPECT_NE(output.find("--clusters must be at least 1"), std::string::npos) << output;
+
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 2 --components 13 -q -o " + out.string(), output), 1);
+  EXPECT_NE(output.find("--components 13"), std::string::npos) << output;
+
+  EXPECT_EQ(run((root_ / "missing").string() + " --clusters 2 -q -o " + out.string(), output), 1);
+  EXPECT_NE(output.find("missing"), std::string::npos) << output;
+}
+
+}  // namespace
+}  // namespace nbtf
