@@ -19,15 +19,15 @@
 namespace nbtf {
 namespace {
 
-struct Run {
+struct CommandRun {
   int code = -1;
   std::string output;
 };
 
 // Runs `nbtf <args>` and captures stdout + stderr.
-Run runNbtf(const std::string& args, const std::string& logPath) {
+CommandRun runNbtf(const std::string& args, const std::string& logPath) {
   std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " > '" + logPath + "' 2>&1";
-  Run r;
+  CommandRun r;
   int status = std::system(cmd.c_str());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   std::ifstream in(logPath);
@@ -55,7 +55,7 @@ class CmdEval : public ::testing::Test {
 };
 
 TEST_F(CmdEval, WritesAReportWhoseRmseIsTheDirectComputation) {
-  Run r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "out") + "' -q --threads 2",
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "out") + "' -q --threads 2",
                   tmp / "log");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("linear RGB / alpha"), std::string::npos) << r.output;
@@ -92,7 +92,7 @@ TEST_F(CmdEval, RejectsAReferenceWithOtherDirections) {
   views[1] = {30, 60};
   test::writeTestStack(tmp / "other", btf.lights, views, btf.sourceWidth, btf.sourceHeight, Layout::Utia,
                        ImageFormat::Exr);
-  Run r = runNbtf("eval '" + file + "' --reference '" + (tmp / "other") + "' -o '" + (tmp / "out") + "' -q",
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "other") + "' -o '" + (tmp / "out") + "' -q",
                   tmp / "log");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.output.find("does not match"), std::string::npos) << r.output;
@@ -102,7 +102,7 @@ TEST_F(CmdEval, RejectsAReferenceWithOtherDirections) {
 }
 
 TEST_F(CmdEval, RejectsAReferenceOfAnotherSize) {
-  Run r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' --crop 0,0,5,3 -o '" + (tmp / "out") +
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' --crop 0,0,5,3 -o '" + (tmp / "out") +
                       "' -q",
                   tmp / "log");
   EXPECT_EQ(r.code, 1);
@@ -111,7 +111,7 @@ TEST_F(CmdEval, RejectsAReferenceOfAnotherSize) {
 }
 
 TEST_F(CmdEval, MissingOptionsAreNamed) {
-  Run r = runNbtf("eval '" + file + "' -o '" + (tmp / "out") + "'", tmp / "log");
+  CommandRun r = runNbtf("eval '" + file + "' -o '" + (tmp / "out") + "'", tmp / "log");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.output.find("missing --reference"), std::string::npos) << r.output;
 }
