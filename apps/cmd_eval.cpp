@@ -8,17 +8,35 @@
 #include "commands.h"
 #include "eval/compressed_source.h"
 #include "eval/report.h"
+#include "eval/sweep.h"
 #include "io/btf_loader.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
 namespace {
 
+// --summarize: many report.json files -> sweep tables and rate-distortion plot scripts.
+int runSummarize(const cxxopts::ParseResult& args) {
+  if (!args.count("output")) throw Error("missing -o <folder> for the sweep summary (see 'nbtf eval --help')");
+  if (!args.count("files")) throw Error("--summarize needs report.json files");
+  std::vector<SweepEntry> entries;
+  for (const auto& path : args["files"].as<std::vector<std::string>>()) entries.push_back(readSweepEntry(path));
+  SweepFiles files = writeSweepSummary(entries, args["output"].as<std::string>());
+  std::printf("%s", sweepTablesMarkdown(entries).c_str());
+  std::printf("table           %s\n", files.table.c_str());
+  for (std::size_t i = 0; i < files.scripts.size(); ++i)
+    std::printf("gnuplot script  %s -> %s\n", files.scripts[i].c_str(), files.plots[i].c_str());
+  return 0;
+}
+
 int runEval(const cxxopts::ParseResult& args) {
-  if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf eval --help')");
+  if (args.count("summarize")) return runSummarize(args);
+  if (!args.count("files")) throw Error("missing <file.nbtf> (see 'nbtf eval --help')");
+  const auto& files = args["files"].as<std::vector<std::string>>();
+  if (files.size() != 1) throw Error("expected one <file.nbtf>, got " + std::to_string(files.size()));
   if (!args.count("reference")) throw Error("missing --reference <stack folder> (see 'nbtf eval --help')");
   if (!args.count("output")) throw Error("missing -o <report folder> (see 'nbtf eval --help')");
-  const std::string file = args["file"].as<std::string>();
+  const std::string file = files.front();
   const std::string referencePath = args["reference"].as<std::string>();
   const std::string outDir = args["output"].as<std::string>();
   EvalOptions options;
@@ -71,16 +89,18 @@ int runEval(const cxxopts::ParseResult& args) {
 int evalMain(int argc, char** argv) {
   return runGuarded("eval", [&] {
     cxxopts::Options options("nbtf eval", "Compare a compressed material with its reference; write an RMSE report");
-    options.positional_help("<file.nbtf> --reference <stack> -o <report folder>");
-    options.add_options()("file", "Compressed material (.nbtf)", cxxopts::value<std::string>())(
+    options.positional_help("<file.nbtf> --reference <stack> -o <report folder>  |  --summarize -o <folder> <report.json>...");
+    options.add_options()("files", "Compressed material (.nbtf); with --summarize: report.json files",
+                          cxxopts::value<std::vector<std::string>>())(
         "r,reference", "The measured BTF image stack it was made from", cxxopts::value<std::string>())(
         "o,output", "Report folder (created if missing)", cxxopts::value<std::string>())(
         "crop", "Crop X,Y,W,H of the reference (default: the file's crop)", cxxopts::value<std::string>())(
         "layout", "Reference layout: ubo2003 or utia (default: the file's)", cxxopts::value<std::string>())(
         "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
-        cxxopts::value<int>()->default_value("8"))("q,quiet", "No progress bars");
+        cxxopts::value<int>()->default_value("8"))("q,quiet", "No progress bars")(
+        "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plot scripts)");
     addCommonOptions(options);
-    options.parse_positional({"file"});
+    options.parse_positional({"files"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
     applyCommonOptions(args);

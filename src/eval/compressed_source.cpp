@@ -104,6 +104,8 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.holdoutImages = btf.holdoutImages;
   in.sizes = sizeTableOf(btf, fileBytes);
   in.method = methodDescription(btf);
+  in.methodFamily = codecMethodName(btf.method);
+  if (btf.method == CodecMethod::ClusteredNeural) in.methodParameter = btf.latentRows;
   in.referenceName = referenceName;
   in.compressedName = fileName;
   std::string shape = std::to_string(btf.decoder.inputSize());

@@ -58,6 +58,8 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
 
   EvalResult r;
   r.method = in.method, r.referenceName = in.referenceName, r.compressedName = in.compressedName;
+  r.methodFamily = in.methodFamily.empty() ? in.method : in.methodFamily;
+  r.methodParameter = in.methodParameter;
   r.details = in.details;
   r.width = ref.width(), r.height = ref.height();
   r.lights = ref.lights(), r.views = ref.views();

@@ -8,6 +8,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,6 +51,10 @@ struct EvalInputs {
   std::vector<int> holdoutImages;  // images kept out of training (may be empty)
   SizeTable sizes;                 // sizes.total == 0: no size table (e.g. synthetic inputs)
   std::string method;              // e.g. "clustered neural, k = 500"
+  // For sweeps: the curve this result belongs to ("clustered-neural", "per-texel-neural",
+  // "pca"; default: method) and its parameter (k, components; NaN = none).
+  std::string methodFamily;
+  double methodParameter = std::numeric_limits<double>::quiet_NaN();
   std::string referenceName;       // where the reference came from
   std::string compressedName;      // the compressed file, if any
   std::vector<std::pair<std::string, std::string>> details;  // extra facts for the header
@@ -80,7 +85,8 @@ struct BlurSample {
 
 struct EvalResult {
   // ---- Inputs, described
-  std::string method, referenceName, compressedName;
+  std::string method, methodFamily, referenceName, compressedName;
+  double methodParameter = std::numeric_limits<double>::quiet_NaN();
   std::vector<std::pair<std::string, std::string>> details;
   int width = 0, height = 0;
   std::vector<Direction> lights, views;

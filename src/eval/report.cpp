@@ -21,6 +21,14 @@ namespace {
 // +infinity (identical images) has no JSON form: null, and the text says "identical".
 json finiteOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+// The reference's folder name ("data/WOOL/" -> "WOOL"), the material's name in sweep tables.
+std::string materialName(const std::string& reference) {
+  std::filesystem::path p(reference);
+  while (!p.empty() && p.filename().empty()) p = p.parent_path();
+  std::string name = p.filename().string();
+  return name.empty() ? reference : name;
+}
+
 json directionJson(const Direction& d) { return {{"theta", d.thetaDeg}, {"phi", d.phiDeg}}; }
 
 json elevationJson(const std::vector<ElevationError>& rows) {
@@ -47,12 +55,15 @@ json reportJson(const EvalResult& r) {
   j["format"] = "nbtf-eval-report";
   j["version"] = 1;
   j["method"] = r.method;
+  j["method_family"] = r.methodFamily;
+  j["method_parameter"] = finiteOrNull(r.methodParameter);
   j["reference"] = r.referenceName;
   j["compressed"] = r.compressedName.empty() ? json(nullptr) : json(r.compressedName);
   json details = json::object();
   for (const auto& [k, v] : r.details) details[k] = v;
   j["details"] = details;
-  j["material"] = {{"width", r.width},
+  j["material"] = {{"name", materialName(r.referenceName)},
+                   {"width", r.width},
                    {"height", r.height},
                    {"texels", r.width * r.height},
                    {"lights", r.lights.size()},
