@@ -129,6 +129,7 @@ h3 { font-size: 16px; margin-top: 22px; }
 table { border-collapse: collapse; margin: 8px 0 18px; font-size: 14px; }
 th, td { border: 1px solid #d0d7de; padding: 4px 10px; }
 th { background: #eef3f7; text-align: left; }
+td { white-space: nowrap; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
 tr:nth-child(even) td { background: #fafbfc; }
 p.caption { font-style: italic; color: #444; margin: 14px 0 2px; font-size: 14px; }
