@@ -77,7 +77,10 @@ int runEval(const cxxopts::ParseResult& args) {
   else
     std::printf("held-out RMSE   none (the file records no held-out images)\n");
   std::printf("ratio           1 : %.0f (raw float32 / total)\n", result.sizes.ratio());
-  std::printf("blur sigma      %.3f texels (median of %zu images)\n", result.blurSigmaMedian, result.blurSamples.size());
+  int atBound = 0;
+  for (const auto& s : result.blurSamples) atBound += s.estimate.atUpperBound;
+  std::printf("blur sigma      %.3f texels (median of %zu images%s)\n", result.blurSigmaMedian, result.blurSamples.size(),
+              atBound ? (", " + std::to_string(atBound) + " at the upper bound: no detail left").c_str() : "");
   std::printf("time            %.1f s\n", result.seconds);
   std::printf("report          %s\n                %s\n                %s\n", paths.html.c_str(), paths.markdown.c_str(),
               paths.json.c_str());

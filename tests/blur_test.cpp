@@ -136,6 +136,30 @@ TEST(Blur, IdenticalImagesGiveSigmaNearZeroWithoutNaN) {
   EXPECT_TRUE(e.converged);
 }
 
+TEST(Blur, AFlatReconstructionStopsAtTheUpperBound) {
+  // No detail at all: the best blur is as wide as allowed (a quarter of the 32-texel side),
+  // and the optimizer stops there instead of pushing against the bound until the cap.
+  // (Wrap-around: a wide wrapped blur tends to the mean; a clamped one does not.)
+  const int w = 32, h = 24;
+  auto ref = texture(w, h);
+  std::vector<float> flat(ref.size());
+  for (int c = 0; c < 3; ++c) {
+    double mean = 0;
+    for (std::size_t i = c; i < ref.size(); i += 3) mean += ref[i];
+    mean /= w * h;
+    for (std::size_t i = c; i < flat.size(); i += 3) flat[i] = static_cast<float>(mean);
+  }
+  BlurOptions o;
+  o.border = BlurBorder::Wrap;
+  BlurEstimate e = estimateBlur(ref.data(), flat.data(), w, h, 1.0f, o);
+  EXPECT_TRUE(e.atUpperBound);
+  EXPECT_EQ(e.upperBound, 8.0);
+  EXPECT_NEAR(e.sigma, 8.0, 1e-9);
+  EXPECT_TRUE(e.converged);
+  EXPECT_LT(e.iterations, 100);
+  EXPECT_LT(e.rmseAfter, e.rmseBefore);
+}
+
 TEST(Blur, NoisyReconstructionIsNotMistakenForBlur) {
   // Noise added to an unblurred image: the best blur is (near) none.
   const int w = 32, h = 32;

@@ -131,6 +131,8 @@ double blurLoss(const float* reference, const float* reconstruction, int width, 
 BlurEstimate estimateBlur(const float* reference, const float* reconstruction, int width, int height, float alpha,
                           const BlurOptions& o) {
   if (!(o.minSigma > 0) || !(o.maxSigma > o.minSigma)) throw Error("blur: need 0 < minSigma < maxSigma");
+  // A Gaussian wider than a quarter of the image says nothing more than "no detail left".
+  const double maxSigma = std::max(2 * o.minSigma, std::min(o.maxSigma, 0.25 * std::max(width, height)));
   BlurEstimate est;
   const std::size_t n = static_cast<std::size_t>(width) * height * 3;
   est.rmseBefore = rmseLinear(reference, reconstruction, n, alpha);
@@ -139,11 +141,11 @@ BlurEstimate estimateBlur(const float* reference, const float* reconstruction, i
   double bestSigma = o.minSigma, bestLoss = blurLoss(reference, reconstruction, width, height, alpha, o.minSigma,
                                                      o.border, nullptr);
   if (o.startSigma > 0) {
-    bestSigma = std::min(o.maxSigma, std::max(o.minSigma, o.startSigma));
+    bestSigma = std::min(maxSigma, std::max(o.minSigma, o.startSigma));
     bestLoss = blurLoss(reference, reconstruction, width, height, alpha, bestSigma, o.border, nullptr);
   } else {
     for (double s : {0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0}) {
-      if (s <= o.minSigma || s > o.maxSigma) continue;
+      if (s <= o.minSigma || s > maxSigma) continue;
       double l = blurLoss(reference, reconstruction, width, height, alpha, s, o.border, nullptr);
       if (l < bestLoss) bestLoss = l, bestSigma = s;
     }
@@ -162,9 +164,13 @@ BlurEstimate estimateBlur(const float* reference, const float* reconstruction, i
     v = beta2 * v + (1 - beta2) * grad * grad;
     double mHat = m / (1 - std::pow(beta1, t)), vHat = v / (1 - std::pow(beta2, t));
     double step = o.learningRate * mHat / (std::sqrt(vHat) + eps);
-    sigma = std::min(o.maxSigma, std::max(o.minSigma, sigma - step));
+    // The change actually made: at a bound the gradient may keep pushing outward while
+    // sigma stays put, which is convergence too.
+    double next = std::min(maxSigma, std::max(o.minSigma, sigma - step));
+    double moved = std::abs(next - sigma);
+    sigma = next;
     est.iterations = t;
-    quiet = std::abs(step) < o.stepTolerance ? quiet + 1 : 0;
+    quiet = moved < o.stepTolerance ? quiet + 1 : 0;
     if (quiet >= o.patience) {
       est.converged = true;
       break;
@@ -174,6 +180,8 @@ BlurEstimate estimateBlur(const float* reference, const float* reconstruction, i
   if (last < bestLoss) bestLoss = last, bestSigma = sigma;
   est.sigma = bestSigma;
   est.rmseAfter = std::sqrt(bestLoss);
+  est.atUpperBound = bestSigma >= maxSigma * (1 - 1e-9);
+  est.upperBound = maxSigma;
   return est;
 }
 

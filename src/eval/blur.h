@@ -54,7 +54,7 @@ struct BlurOptions {
   double learningRate = 1e-2;  // Adam, as in seed 000
   int maxIterations = 800;
   double minSigma = 1e-3;
-  double maxSigma = 16;
+  double maxSigma = 16;  // also capped at a quarter of the image's larger side
   // Stop once the Adam step stayed below this (texels) for `patience` iterations.
   double stepTolerance = 2e-4;
   int patience = 20;
@@ -69,6 +69,10 @@ struct BlurEstimate {
   double initialSigma = 0;
   int iterations = 0;
   bool converged = false;  // stopped by the step tolerance, not the iteration cap
+  // sigma reached the largest allowed value (min(maxSigma, image side / 4)): the
+  // reconstruction keeps no detail at any scale the estimate can measure.
+  bool atUpperBound = false;
+  double upperBound = 0;
 };
 
 // Estimates sigma for one image pair. Starts Adam from the best sigma of a coarse grid

@@ -44,7 +44,8 @@ json elevationJson(const std::vector<ElevationError>& rows) {
 
 json blurJson(const BlurEstimate& b) {
   return {{"sigma", b.sigma},          {"rmse_before", b.rmseBefore}, {"rmse_after", b.rmseAfter},
-          {"iterations", b.iterations}, {"converged", b.converged},    {"start_sigma", b.initialSigma}};
+          {"iterations", b.iterations}, {"converged", b.converged},    {"start_sigma", b.initialSigma},
+          {"at_upper_bound", b.atUpperBound}, {"upper_bound", b.upperBound}};
 }
 
 }  // namespace
@@ -191,6 +192,10 @@ std::string rmseText(const json& v) { return v.is_null() ? "n/a" : fmt("%#.4g", 
 std::string srgbText(const json& v) { return v.is_null() ? "n/a" : fmt("%.3f", v.get<double>()); }
 std::string psnrText(const json& v) { return v.is_null() ? "infinite (identical)" : fmt("%.2f dB", v.get<double>()); }
 std::string sigmaText(const json& v) { return fmt("%.3f", v.get<double>()); }
+// A blur estimate's sigma; ">=" when it hit the upper bound (no detail left to measure).
+std::string blurSigmaText(const json& b) {
+  return (b["at_upper_bound"].get<bool>() ? ">= " : "") + sigmaText(b["sigma"]);
+}
 std::string degreesText(double v) { return fmt("%g", std::round(v * 1000) / 1000) + "\xC2\xB0"; }
 std::string dirText(const json& d) {
   return "(" + degreesText(d["theta"].get<double>()) + ", " + degreesText(d["phi"].get<double>()) + ")";
@@ -321,7 +326,7 @@ Doc reportDoc(const json& j) {
     const json& b = c["blur"];
     std::string pair = c["name"].get<std::string>() + (c["exact"].get<bool>() ? "" : " (nearest measured)");
     crows.push_back({"#" + std::to_string(index), pair, dirText(c["light"]), dirText(c["view"]), rmseText(c["rmse"]),
-                     srgbText(c["rmse_srgb8"]), sigmaText(b["sigma"]), rmseText(b["rmse_after"]),
+                     srgbText(c["rmse_srgb8"]), blurSigmaText(b), rmseText(b["rmse_after"]),
                      "x " + fmt("%g", c["error_magnification"].get<double>())});
   }
   doc.table({"", "Pair", "Light", "View", "RMSE (linear RGB / alpha)", "RMSE (sRGB 8-bit)", "Blur sigma (texels)",
@@ -344,7 +349,7 @@ Doc reportDoc(const json& j) {
                    fmt("%g", c["error_magnification"].get<double>()) + ". RMSE " + rmseText(c["rmse"]) +
                    " (linear RGB / alpha), " + srgbText(c["rmse_srgb8"]) + " (sRGB 8-bit), PSNR " + psnrText(c["psnr"]) +
                    " (linear / alpha, peak 1); effective blur sigma " +
-                   sigmaText(c["blur"]["sigma"]) + " texels.",
+                   blurSigmaText(c["blur"]) + " texels.",
                c["name"].get<std::string>());
   }
 
@@ -361,12 +366,18 @@ Doc reportDoc(const json& j) {
                 "blur. **Median sigma: " + sigmaText(j["blur_sigma"]) + " texels.**");
   std::vector<std::vector<std::string>> brows;
   for (const auto& s : j["blur"]["images"])
-    brows.push_back({dirText(s["light"]), dirText(s["view"]), sigmaText(s["sigma"]), rmseText(s["rmse_before"]),
+    brows.push_back({dirText(s["light"]), dirText(s["view"]), blurSigmaText(s), rmseText(s["rmse_before"]),
                      rmseText(s["rmse_after"]), integerText(s["iterations"])});
   doc.table({"Light", "View", "Sigma (texels)", "RMSE before (linear RGB / alpha)", "RMSE after blur (linear RGB / alpha)",
              "Adam iterations"},
             brows, "Images: evenly spaced over the stack, the compared pairs and the worst pair",
             {false, false, true, true, true, true});
+  for (const auto& s : j["blur"]["images"])
+    if (s["at_upper_bound"].get<bool>()) {
+      doc.note("\">=\" marks estimates that reached the largest sigma measured (a quarter of the image side, at most "
+               "16 texels): those reconstructions keep no detail the reference has at any scale the estimate can see.");
+      break;
+    }
 
   // ---- Definitions
   doc.heading("How these numbers are computed");
