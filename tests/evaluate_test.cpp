@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include "eval_fixtures.h"
 #include "test_util.h"
@@ -70,6 +71,12 @@ TEST_F(Evaluate, MetricsMatchADirectComputation) {
   // The gain grows with the view elevation, so the grazing ring has the largest error.
   EXPECT_GT(r.byViewElevation[5].error.rmse, r.byViewElevation[0].error.rmse);
   EXPECT_FALSE(r.alphaFromReference);
+  // The blur sample spreads over the (light, view) square: 8 distinct lights, not the diagonal.
+  std::set<int> lights;
+  int diagonal = 0;
+  for (const auto& s : r.blurSamples) lights.insert(s.light), diagonal += s.light == s.view;
+  EXPECT_GE(lights.size(), 8u);
+  EXPECT_LE(diagonal, 1);
 }
 
 TEST_F(Evaluate, FindsThePaperPairsAndTheWorstPair) {

@@ -21,7 +21,7 @@
 namespace nbtf {
 namespace {
 
-using nlohmann::json;
+using json = ReportJson;
 
 std::string slurp(const std::string& path) {
   std::ifstream in(path);

@@ -91,10 +91,17 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   }
   std::set<int> keep;
   for (const auto& c : r.comparisons) keep.insert(c.image);
+  // Blur sample: lights evenly spaced, views along a golden-ratio sequence, so the sample
+  // spreads over the (light, view) square instead of a diagonal (a stride through image
+  // indices lands on light == view for 81 x 81).
   int samples = std::min(options.blurSampleImages, numImages);
   std::set<int> blurImages;
-  for (int i = 0; i < samples; ++i)
-    blurImages.insert(static_cast<int>((static_cast<long long>(2 * i + 1) * numImages) / (2 * samples)));
+  const int nl = ref.numLights();
+  for (int i = 0; i < samples; ++i) {
+    int light = static_cast<int>((i + 0.5) * nl / samples);
+    double frac = std::fmod(0.5 + i * 0.6180339887498949, 1.0);
+    blurImages.insert(ref.imageIndex(std::min(light, nl - 1), std::min(static_cast<int>(frac * nv), nv - 1)));
+  }
   keep.insert(blurImages.begin(), blurImages.end());
 
   // ---- The pass: every image once, errors per image.

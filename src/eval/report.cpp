@@ -10,7 +10,7 @@
 
 namespace nbtf {
 
-using nlohmann::json;
+using json = ReportJson;
 
 std::string comparisonFile(std::size_t index) { return "comparison_" + std::to_string(index + 1) + ".png"; }
 

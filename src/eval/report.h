@@ -19,9 +19,11 @@ constexpr const char* kHeatMapFile = "rmse_heatmap.png";
 constexpr const char* kElevationFile = "rmse_by_elevation.png";
 std::string comparisonFile(std::size_t index);  // "comparison_1.png", ...
 
-nlohmann::json reportJson(const EvalResult& result);
+// Keys keep the order they are written in (a person reads report.json too).
+using ReportJson = nlohmann::ordered_json;
+ReportJson reportJson(const EvalResult& result);
 // The report document, from the JSON alone.
-Doc reportDoc(const nlohmann::json& report);
+Doc reportDoc(const ReportJson& report);
 
 struct ReportPaths {
   std::string markdown, html, json;
