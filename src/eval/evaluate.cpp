@@ -146,7 +146,11 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   if (!kept.count(r.worstImage)) {
     auto& buf = kept[r.worstImage];
     buf.assign(n, std::numeric_limits<float>::quiet_NaN());
-    in.reconstruct(r.worstImage, buf.data());
+    try {
+      in.reconstruct(r.worstImage, buf.data());
+    } catch (const std::exception& e) {
+      throw Error(imageName(r, r.worstImage) + ": " + e.what());
+    }
   }
   blurImages.insert(r.worstImage);
   for (const auto& c : r.comparisons) blurImages.insert(c.image);
