@@ -16,5 +16,6 @@ struct Command {
 int infoMain(int argc, char** argv);
 int evalMain(int argc, char** argv);
 int clusterMain(int argc, char** argv);
+int compressMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

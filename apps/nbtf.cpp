@@ -8,6 +8,7 @@ namespace nbtf::cli {
 namespace {
 const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
+    {"compress", compressMain, "Compress a BTF image stack into a .nbtf file (clustered neural BTF)"},
     {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
 };
