@@ -7,7 +7,9 @@
 
 #include <cmath>
 
+#include "codec/compressor.h"
 #include "codec_fixtures.h"
+#include "model_test_material.h"
 #include "test_util.h"
 #include "util/progress.h"
 
@@ -92,6 +94,29 @@ TEST(CompressedSourceCheck, EvalInputsCarrySizesAlphaAndHoldout) {
   in.reconstruct(4, a.data());
   rec.image(4, c.data());
   EXPECT_EQ(a, c);
+}
+
+TEST(CompressedSourceCheck, EvaluationAgreesWithTheCompressorsOwnRmse) {
+  // Two independent computations of eq. (10): the trainer's bookkeeping at compress time and
+  // this evaluation of the finished material.
+  Progress::setQuiet(true);
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o;
+  o.train = testing::quickConfig();
+  o.train.holdoutFraction = 0.2;
+  o.clusters = 6;
+  o.progress = false;
+  CompressStats stats;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  checkReferenceMatches(b, m.stack, "m.nbtf", "material");
+  CompressedReconstruction rec(b);
+  EvalOptions eo;
+  eo.progress = false;
+  eo.blurSampleImages = 2;
+  EvalResult r = evaluate(compressedEvalInputs(b, m.stack, rec, "m.nbtf", "material", 0), eo);
+  ASSERT_TRUE(r.hasHoldout());
+  EXPECT_NEAR(r.training.rmse, stats.rmseTrain, 1e-4);
+  EXPECT_NEAR(r.holdout.rmse, stats.rmseHoldout, 1e-4);
 }
 
 TEST(CompressedSourceCheck, RejectsADecoderOfTheWrongShape) {
