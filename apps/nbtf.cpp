@@ -11,6 +11,7 @@ const Command kCommands[] = {
     {"compress", compressMain, "Compress a BTF image stack into a .nbtf file (clustered neural BTF)"},
     {"decode", decodeMain, "Reconstruct images from a .nbtf file (any angles, any size)"},
     {"query", queryMain, "Decoded RGB at texels and directions (single or CSV batch)"},
+    {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
 };
 
