@@ -17,5 +17,6 @@ int infoMain(int argc, char** argv);
 int decodeMain(int argc, char** argv);
 int queryMain(int argc, char** argv);
 int clusterMain(int argc, char** argv);
+int compressMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

@@ -10,6 +10,7 @@ const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
     {"decode", decodeMain, "Reconstruct images from a .nbtf file (any angles, any size)"},
     {"query", queryMain, "Decoded RGB at texels and directions (single or CSV batch)"},
+    {"compress", compressMain, "Compress a BTF image stack into a .nbtf file (clustered neural BTF)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
 };
 

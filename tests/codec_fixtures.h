@@ -1,8 +1,12 @@
 // Shared fixtures for the codec tests: small valid CompressedBtf values built in memory.
 #pragma once
+#include <filesystem>
 #include <random>
 
 #include "codec/nbtf_file.h"
+#include "io/btf_names.h"
+#include "io/image_io.h"
+#include "model_test_material.h"
 
 namespace nbtf::testing {
 
@@ -56,6 +60,24 @@ inline CompressedBtf makeBtf(int k, int width = 4, int height = 3, int latentDim
   b.holdoutImages = {1, 4};
   b.metadataJson = R"({"seed": 1, "config": {"epochs": 3}})";
   return b;
+}
+
+// Writes the model tests' 8 x 8-texel, 9 x 9-direction synthetic material to `root` as a
+// UTIA stack of float EXRs (exact values), for tests that go through the loader.
+inline std::string writeTestStack(const std::string& root) {
+  TestMaterial m = makeTestMaterial();
+  std::vector<float> rgb(static_cast<std::size_t>(m.stack.numTexels()) * 3);
+  for (int l = 0; l < m.stack.numLights(); ++l)
+    for (int v = 0; v < m.stack.numViews(); ++v) {
+      const Direction& light = m.stack.lights()[l];
+      const Direction& view = m.stack.views()[v];
+      std::filesystem::path folder = std::filesystem::path(root) / viewFolderName(view);
+      std::filesystem::create_directories(folder);
+      m.stack.imageLinear(m.stack.imageIndex(l, v), rgb.data());
+      writeExr((folder / utiaFileName(light, view, ".exr")).string(), m.stack.width(), m.stack.height(), rgb.data(),
+               /*halfFloat=*/false);
+    }
+  return root;
 }
 
 }  // namespace nbtf::testing

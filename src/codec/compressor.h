@@ -17,10 +17,10 @@ struct CompressOptions {
   TrainConfig train;            // the recipe, with command-line overrides already applied
   int clusters = 500;           // k; 0 = per-texel mode (one latent per texel)
   int pcaComponents = 0;        // PCA components before k-means; 0 = default (32, capped by the data)
-  int kmeansIterations = 100;
+  int kmeansIterations = 0;     // Lloyd rounds at most; 0 = the clustering library's default
   std::string saveEncoderPath;  // also write this .nbtf with the encoder inside ("" = no)
   // Where training checkpoints go; "" = the config's training.checkpoint_path, else
-  // "<output>.ckpt". Removed after the output is written.
+  // defaultCheckpointPath(output), which is removed once the output is written.
   std::string checkpointPath;
   bool progress = true;
   std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
@@ -58,6 +58,9 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
 // The whole pipeline. Checks that `output` (and the encoder file) can be written before
 // any work is done. When interrupted, returns with stats.interrupted set and writes nothing.
 CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options);
+
+// "<output>.ckpt": where training checkpoints go unless configured otherwise.
+std::string defaultCheckpointPath(const std::string& output);
 
 // The config as a JSON object in the config-file format (reloadable by loadTrainConfig),
 // without run-control and path keys, which do not change the result.
