@@ -1,6 +1,7 @@
 // nbtf decode <file.nbtf> -o <dir>: reconstruct the image stack (all measured images, a
 // subset, or unmeasured angles) in the layout and naming the loaders read.
 #include <cstdio>
+#include <tuple>
 
 #include "cli_common.h"
 #include "codec/decoder.h"

@@ -1,6 +1,8 @@
 // nbtf query <file.nbtf>: decoded RGB for one (texel, light, view) or a CSV batch.
+#include <cmath>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "cli_common.h"
 #include "codec/decoder.h"

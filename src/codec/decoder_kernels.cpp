@@ -50,13 +50,13 @@ template <class V> NBTF_INLINE V load(const float* p) {
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-template <class V> NBTF_INLINE void store(float* p, V v) { std::memcpy(p, &v, sizeof v); }
-template <class V> NBTF_INLINE V relu(V v) {
+template <class V> NBTF_INLINE void store(float* p, const V& v) { std::memcpy(p, &v, sizeof v); }
+template <class V> NBTF_INLINE V relu(const V& v) {
   using I = typename VecInfo<V>::Int;
   return reinterpret_cast<V>(reinterpret_cast<I>(v) & reinterpret_cast<I>(v > V{}));
 }
 // Pairwise (tree) sum of the lanes.
-template <class V> NBTF_INLINE float horizontalSum(V v) {
+template <class V> NBTF_INLINE float horizontalSum(const V& v) {
   constexpr int L = VecInfo<V>::kLanes;
   float t[L];
   std::memcpy(t, &v, sizeof v);
