@@ -1,5 +1,7 @@
 // nbtf cluster <input> --clusters K -o DIR: the clustering stage alone (log + standardize,
-// PCA, k-means++, representatives), writing DIR/labels.png and DIR/summary.json.
+// PCA, k-means++, representatives), writing DIR/labels.png (the id list, a colour per
+// cluster), DIR/texel_colour.png and DIR/cluster_colour.png (each texel's mean colour over all
+// images, and its cluster's: what the clustering keeps) and DIR/summary.json.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -49,6 +51,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
   if (ec) throw fileError(outDir, "cannot create output folder: " + ec.message());
   const std::string labelsPath = (fs::path(outDir) / "labels.png").string();
   const std::string summaryPath = (fs::path(outDir) / "summary.json").string();
+  const std::string texelColourPath = (fs::path(outDir) / "texel_colour.png").string();
+  const std::string clusterColourPath = (fs::path(outDir) / "cluster_colour.png").string();
   checkWritable(labelsPath);
 
   ClusterRunInfo info;
@@ -78,6 +82,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.matrixSeconds = secondsSince(step);
   const int width = stack.width(), height = stack.height(), images = stack.numImages();
   stack = BtfStack();  // X holds the data now: a full material's 8-bit stack is 1.3 GB
+  const Eigen::MatrixXf texelColour = texelMeanColour(x);  // before X is log-transformed
   step = std::chrono::steady_clock::now();
   standardizeInPlace(x);
   info.standardizeSeconds = secondsSince(step);
@@ -86,7 +91,17 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.totalSeconds = secondsSince(start);
 
   writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, width, height));
+  // Both appearance images on one scale (the brightest texel's average), so they compare.
+  const float brightest = texelColour.maxCoeff();
+  writeImage8(texelColourPath, ImageFormat::Png, colourImage(texelColour, width, height, brightest));
+  writeImage8(clusterColourPath, ImageFormat::Png,
+              colourImage(clusterMeanColour(texelColour, result.ids, options.clusters), width, height, brightest));
   nlohmann::json summary = clusteringSummary(result, options, info);
+  summary["appearance_images"] = {
+      {"texel_colour", "texel_colour.png"},
+      {"cluster_colour", "cluster_colour.png"},
+      {"encoding", "linear RGB averaged over all images, divided by scale_linear, sRGB 8-bit"},
+      {"scale_linear", brightest}};
   writeFileAtomic(summaryPath, summary.dump(2) + "\n");
 
   const auto& sizes = summary["cluster_sizes"];
@@ -101,7 +116,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
               sizes["max"].get<int>(),
               result.emptyClusters ? (", " + std::to_string(result.emptyClusters) + " empty (too few distinct ABRDFs)").c_str()
                                    : "");
-  std::printf("  wrote        %s, %s\n", labelsPath.c_str(), summaryPath.c_str());
+  std::printf("  wrote        %s (ids), %s and %s (mean colour per texel / per cluster), %s\n",
+              labelsPath.c_str(), texelColourPath.c_str(), clusterColourPath.c_str(), summaryPath.c_str());
   return 0;
 }
 
@@ -123,7 +139,7 @@ int clusterMain(int argc, char** argv) {
         "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
-        "o,output", "Output folder (labels.png, summary.json)", cxxopts::value<std::string>())(
+        "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>())(
         "q,quiet", "No progress bars");
     addCommonOptions(options);
     options.parse_positional({"input"});

@@ -88,6 +88,17 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
     for (int x = 0; x < 12; ++x)
       EXPECT_EQ(labelFromColour(&labels.rgb[3 * (y * 12 + x)]), x < 6 ? left : right) << x << "," << y;
 
+  // Appearance images: the two materials' colours per texel, and per cluster (the jitter
+  // inside each half averages out).
+  Image8 texelColour = readImage8((out / "texel_colour.png").string());
+  Image8 clusterColour = readImage8((out / "cluster_colour.png").string());
+  ASSERT_EQ(texelColour.width, 12);
+  ASSERT_EQ(clusterColour.height, 8);
+  EXPECT_GT(texelColour.rgb[0], texelColour.rgb[2]);        // left: red
+  EXPECT_LT(texelColour.rgb[3 * 11], texelColour.rgb[3 * 11 + 2]);  // right: blue
+  EXPECT_NE(texelColour.rgb[0], texelColour.rgb[3 * 1]);  // jitter between texels
+  EXPECT_EQ(clusterColour.rgb[0], clusterColour.rgb[3 * 1]);  // one colour per cluster
+
   std::ifstream in(out / "summary.json");
   nlohmann::json summary = nlohmann::json::parse(in);
   EXPECT_EQ(summary["kmeans"]["k"], 2);

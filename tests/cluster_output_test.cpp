@@ -33,6 +33,23 @@ TEST(ClusterOutput, LabelImageIsRowMajorTexels) {
   EXPECT_THROW(labelImage({0, 1, 2}, 2, 2), Error);
 }
 
+TEST(ClusterOutput, MeanColoursPerTexelAndPerCluster) {
+  // 3 texels x 2 images: texel t, image i, channel c holds t + i + 0.1 c.
+  MatrixXfCol x(3, 6);
+  for (int t = 0; t < 3; ++t)
+    for (int i = 0; i < 2; ++i)
+      for (int c = 0; c < 3; ++c) x(t, 3 * i + c) = t + i + 0.1f * c;
+  Eigen::MatrixXf texel = texelMeanColour(x);
+  EXPECT_FLOAT_EQ(texel(2, 1), 2.5f + 0.1f);  // (2 + 0 + 0.1 + 2 + 1 + 0.1) / 2
+  Eigen::MatrixXf cluster = clusterMeanColour(texel, {0, 1, 0}, 2);
+  EXPECT_FLOAT_EQ(cluster(0, 0), 1.5f);  // texels 0 and 2: (0.5 + 2.5) / 2
+  EXPECT_FLOAT_EQ(cluster(2, 0), 1.5f);
+  EXPECT_FLOAT_EQ(cluster(1, 2), 1.7f);
+  Image8 image = colourImage(cluster, 3, 1, 1.7f);
+  EXPECT_EQ(image.rgb[3 * 1 + 2], 255);  // the scale maps to white
+  EXPECT_THROW(colourImage(cluster, 2, 2, 1.0f), Error);
+}
+
 TEST(ClusterOutput, SizeHistogramUsesPowerOfTwoBins) {
   auto bins = sizeHistogram({1, 2, 3, 4, 9, 0, 5});
   ASSERT_EQ(bins.size(), 5u);

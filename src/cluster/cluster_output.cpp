@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <sstream>
 
+#include "io/color.h"
 #include "util/error.h"
+#include "util/parallel.h"
 
 namespace nbtf {
 
@@ -57,6 +59,49 @@ Image8 labelImage(const std::vector<std::int32_t>& ids, int width, int height) {
     auto c = labelColour(ids[t]);
     std::copy(c.begin(), c.end(), image.rgb.begin() + 3 * t);
   }
+  return image;
+}
+
+// ---- Appearance
+
+Eigen::MatrixXf texelMeanColour(const MatrixXfCol& linearAbrdfs) {
+  const Eigen::Index m = linearAbrdfs.rows(), images = linearAbrdfs.cols() / 3;
+  if (images == 0 || linearAbrdfs.cols() % 3 != 0) throw Error("texel colours: expected 3 columns per image");
+  Eigen::MatrixXf out(m, 3);
+  // Texel ranges in parallel; within a range, columns in order (contiguous reads).
+  parallelFor(m, [&](std::size_t begin, std::size_t end) {
+    Eigen::ArrayXXd sum = Eigen::ArrayXXd::Zero(end - begin, 3);
+    for (Eigen::Index d = 0; d < linearAbrdfs.cols(); ++d)
+      sum.col(d % 3) += linearAbrdfs.col(d).segment(begin, end - begin).cast<double>().array();
+    out.middleRows(begin, end - begin) = (sum / static_cast<double>(images)).cast<float>().matrix();
+  }, 256);
+  return out;
+}
+
+Eigen::MatrixXf clusterMeanColour(const Eigen::MatrixXf& texelColour, const std::vector<std::int32_t>& ids, int k) {
+  if (static_cast<Eigen::Index>(ids.size()) != texelColour.rows()) throw Error("cluster colours: one id per texel expected");
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(k, 3);
+  std::vector<int> count(k, 0);
+  for (std::size_t t = 0; t < ids.size(); ++t) {
+    if (ids[t] < 0 || ids[t] >= k) throw Error("cluster colours: id " + std::to_string(ids[t]) + " out of range");
+    sum.row(ids[t]) += texelColour.row(t).cast<double>();
+    ++count[ids[t]];
+  }
+  Eigen::MatrixXf out(ids.size(), 3);
+  for (std::size_t t = 0; t < ids.size(); ++t) out.row(t) = (sum.row(ids[t]) / count[ids[t]]).cast<float>();
+  return out;
+}
+
+Image8 colourImage(const Eigen::MatrixXf& rgb, int width, int height, float scale) {
+  if (rgb.rows() != static_cast<Eigen::Index>(width) * height || rgb.cols() != 3)
+    throw Error("colour image: " + std::to_string(rgb.rows()) + " colours do not fill " + std::to_string(width) + " x " +
+                std::to_string(height) + " texels");
+  Image8 image;
+  image.width = width, image.height = height;
+  image.rgb.resize(static_cast<std::size_t>(width) * height * 3);
+  const float inverse = scale > 0 ? 1.0f / scale : 1.0f;
+  for (Eigen::Index t = 0; t < rgb.rows(); ++t)
+    for (int c = 0; c < 3; ++c) image.rgb[3 * t + c] = linearToSrgb8(rgb(t, c) * inverse);
   return image;
 }
 

@@ -21,6 +21,14 @@ int labelFromColour(const std::uint8_t* rgb);  // the inverse
 // ids: width * height, row-major (texel t = y * width + x, as in BtfStack).
 Image8 labelImage(const std::vector<std::int32_t>& ids, int width, int height);
 
+// Appearance images, to judge a clustering by eye when k is too large for label colours:
+// each texel's linear RGB averaged over all images (from the linear ABRDF matrix, M x 3N),
+// and the same with every texel given its cluster's average. M x 3, linear.
+Eigen::MatrixXf texelMeanColour(const MatrixXfCol& linearAbrdfs);
+Eigen::MatrixXf clusterMeanColour(const Eigen::MatrixXf& texelColour, const std::vector<std::int32_t>& ids, int k);
+// Linear RGB (M x 3) -> 8-bit sRGB image, divided by `scale` first (e.g. the brightest texel).
+Image8 colourImage(const Eigen::MatrixXf& rgb, int width, int height, float scale);
+
 // Cluster sizes in power-of-two bins: [1], [2, 3], [4, 7], ... (empty clusters in [0, 0]).
 struct SizeBin {
   int smallest = 0, largest = 0;  // inclusive range of sizes
