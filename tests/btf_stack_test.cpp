@@ -1,0 +1,58 @@
+#include "io/btf_stack.h"
+
+#include <gtest/gtest.h>
+
+#include "io/color.h"
+#include "util/error.h"
+
+namespace nbtf {
+
+TEST(BtfStack, ShapeAndIndexing) {
+  BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {15, 0}, {15, 60}}, 4, 2, SampleType::Srgb8);
+  EXPECT_EQ(s.numImages(), 6);
+  EXPECT_EQ(s.numTexels(), 8);
+  EXPECT_EQ(s.imageIndex(1, 2), 5);
+  EXPECT_EQ(s.bytesInMemory(), 6u * 8 * 3);
+  EXPECT_EQ(s.rawFloat32Bytes(), 6u * 8 * 3 * 4);
+}
+
+TEST(BtfStack, HalfStorageKeepsLinearValues) {
+  BtfStack s({{0, 0}}, {{0, 0}, {30, 0}}, 2, 1, SampleType::Half);
+  EXPECT_EQ(s.bytesInMemory(), 2u * 2 * 3 * 2);
+  std::vector<float> a = {0.1f, 0.2f, 3.0f, 0.0f, 0.5f, 1.0f}, b = {1, 1, 1, 2, 2, 2};
+  s.setImageLinear(0, a.data());
+  s.setImageLinear(1, b.data());
+  EXPECT_NEAR(s.sample(0, 0, 2), 3.0f, 1e-3);
+  auto abrdf = s.abrdfLinear(1);
+  ASSERT_EQ(abrdf.size(), 6u);
+  EXPECT_NEAR(abrdf[1], 0.5f, 1e-3);
+  EXPECT_FLOAT_EQ(abrdf[4], 2.0f);
+  float lo, hi;
+  s.valueRange(lo, hi);
+  EXPECT_FLOAT_EQ(lo, 0);
+  EXPECT_FLOAT_EQ(hi, 3);
+}
+
+TEST(BtfStack, Srgb8StorageLinearizesOnAccess) {
+  BtfStack s({{0, 0}}, {{0, 0}}, 1, 1, SampleType::Srgb8);
+  s.imageBytes(0)[0] = 128;
+  s.imageBytes(0)[1] = 0;
+  s.imageBytes(0)[2] = 255;
+  EXPECT_FLOAT_EQ(s.sample(0, 0, 0), srgb8ToLinear(128));
+  float img[3];
+  s.imageLinear(0, img);
+  EXPECT_FLOAT_EQ(img[2], 1.0f);
+}
+
+TEST(BtfStack, ParseCropAndLayout) {
+  Crop c = parseCrop("10,20,100,50");
+  EXPECT_EQ(c.x, 10);
+  EXPECT_EQ(c.height, 50);
+  EXPECT_THROW(parseCrop("10,20,100"), Error);
+  EXPECT_THROW(parseCrop("10,20,0,5"), Error);
+  EXPECT_THROW(parseCrop("-1,0,5,5"), Error);
+  EXPECT_EQ(parseLayout("utia"), Layout::Utia);
+  EXPECT_THROW(parseLayout("ubo2014"), Error);
+}
+
+}  // namespace nbtf

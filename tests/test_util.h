@@ -1,0 +1,82 @@
+// Shared test helpers: temporary folders and tiny on-disk stacks in either layout.
+#pragma once
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "io/btf_names.h"
+#include "io/image_io.h"
+
+namespace nbtf::test {
+
+// A fresh folder under the system temp dir, removed (with everything in it) at scope exit.
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "nbtf_test_XXXXXX").string();
+    if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = tmpl;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return (std::filesystem::path(path_) / name).string(); }
+
+ private:
+  std::string path_;
+};
+
+// Linear value of texel (x, y), channel c in image (light, view): a smooth, distinct pattern.
+inline float patternValue(int light, int view, int x, int y, int c) {
+  return 0.05f + 0.9f * static_cast<float>(((light * 7 + view * 3 + x * 5 + y * 11 + c * 13) % 17)) / 16.0f;
+}
+
+// Writes a stack with the given directions: UBO2003 (view folders, indexed names) or UTIA.
+// Returns the paths written, in (light, view) order.
+inline std::vector<std::string> writeTestStack(const std::string& dir, const std::vector<Direction>& lights,
+                                               const std::vector<Direction>& views, int w, int h, Layout layout,
+                                               ImageFormat format, bool flat = false) {
+  std::vector<std::string> paths;
+  std::vector<float> rgb(static_cast<std::size_t>(w) * h * 3);
+  for (std::size_t l = 0; l < lights.size(); ++l) {
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c)
+            rgb[(static_cast<std::size_t>(y) * w + x) * 3 + c] = patternValue(int(l), int(v), x, y, c);
+      std::filesystem::path folder = flat ? std::filesystem::path(dir) : std::filesystem::path(dir) / viewFolderName(views[v]);
+      std::filesystem::create_directories(folder);
+      std::string name = layout == Layout::Ubo2003
+                             ? ubo2003FileName(int(l * views.size() + v), lights[l], views[v], extensionOf(format))
+                             : utiaFileName(lights[l], views[v], extensionOf(format));
+      std::string path = (folder / name).string();
+      if (format == ImageFormat::Exr)
+        writeExr(path, w, h, rgb.data(), true,
+                 layout == Layout::Utia ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb);
+      else
+        writeImageSrgb8(path, format, w, h, rgb.data());
+      paths.push_back(path);
+    }
+  }
+  return paths;
+}
+
+// Asserts that `fn` throws nbtf::Error whose message contains every one of `parts`.
+template <class Fn>
+void expectErrorContaining(Fn&& fn, const std::vector<std::string>& parts) {
+  try {
+    fn();
+    ADD_FAILURE() << "expected an nbtf::Error";
+  } catch (const std::exception& e) {
+    std::string msg = e.what();
+    for (const auto& p : parts) EXPECT_NE(msg.find(p), std::string::npos) << "message '" << msg << "' lacks '" << p << "'";
+  }
+}
+
+}  // namespace nbtf::test
