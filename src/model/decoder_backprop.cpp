@@ -45,12 +45,12 @@ void accumulateWeightGradient(int rows, int in, int out, const float* dy, const 
 #endif
 
 // h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n.
-NBTF_SIMD_CLONES void layer0Forward(int n, int W, std::int64_t r0, int rowsPerTile, const float* tiles, const float* d,
-                                    const float* w0T, float* h) {
+NBTF_SIMD_CLONES void layer0Forward(int n, int W, std::int64_t r0, int rowsPerTile, const float* __restrict tiles,
+                                    const float* __restrict d, const float* __restrict w0T, float* __restrict h) {
   for (int r = 0; r < n; ++r) {
-    const float* a = tiles + ((r0 + r) / rowsPerTile) * W;
+    const float* __restrict a = tiles + ((r0 + r) / rowsPerTile) * W;
     const float* dr = d + 4 * r;
-    float* hr = h + static_cast<std::size_t>(r) * W;
+    float* __restrict hr = h + static_cast<std::size_t>(r) * W;
     const float d0 = dr[0], d1 = dr[1], d2 = dr[2], d3 = dr[3];
     for (int j = 0; j < W; ++j) {
       float v = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
@@ -60,9 +60,9 @@ NBTF_SIMD_CLONES void layer0Forward(int n, int W, std::int64_t r0, int rowsPerTi
 }
 
 // y = relu(y + b), row-wise.
-NBTF_SIMD_CLONES void biasRelu(int n, int W, const float* b, float* y) {
+NBTF_SIMD_CLONES void biasRelu(int n, int W, const float* __restrict b, float* __restrict y) {
   for (int r = 0; r < n; ++r) {
-    float* yr = y + static_cast<std::size_t>(r) * W;
+    float* __restrict yr = y + static_cast<std::size_t>(r) * W;
     for (int j = 0; j < W; ++j) {
       float v = yr[j] + b[j];
       yr[j] = v > 0 ? v : 0;
@@ -71,10 +71,11 @@ NBTF_SIMD_CLONES void biasRelu(int n, int W, const float* b, float* y) {
 }
 
 // g = g where h > 0 else 0 (the ReLU's backward); db += column sums of g (if given).
-NBTF_SIMD_CLONES void reluBackward(int n, int W, const float* h, float* g, float* db) {
+NBTF_SIMD_CLONES void reluBackward(int n, int W, const float* __restrict h, float* __restrict g,
+                                   float* __restrict db) {
   for (int r = 0; r < n; ++r) {
-    float* gr = g + static_cast<std::size_t>(r) * W;
-    const float* hr = h + static_cast<std::size_t>(r) * W;
+    float* __restrict gr = g + static_cast<std::size_t>(r) * W;
+    const float* __restrict hr = h + static_cast<std::size_t>(r) * W;
     for (int j = 0; j < W; ++j) gr[j] = hr[j] > 0 ? gr[j] : 0.0f;
     if (db)
       for (int j = 0; j < W; ++j) db[j] += gr[j];
@@ -82,20 +83,18 @@ NBTF_SIMD_CLONES void reluBackward(int n, int W, const float* h, float* g, float
 }
 
 // Layer 0's gradient: per tile (sum of its rows) and per direction input (transposed).
-NBTF_SIMD_CLONES void layer0Backward(int n, int W, std::int64_t r0, int rowsPerTile, const float* g, const float* d,
-                                     float* tileGrad, float* dirGradT) {
+// One stream per loop and restrict-qualified pointers, so every loop vectorizes.
+NBTF_SIMD_CLONES void layer0Backward(int n, int W, std::int64_t r0, int rowsPerTile, const float* __restrict g,
+                                     const float* __restrict d, float* __restrict tileGrad,
+                                     float* __restrict dirGradT) {
   for (int r = 0; r < n; ++r) {
-    const float* gr = g + static_cast<std::size_t>(r) * W;
-    float* t = tileGrad + ((r0 + r) / rowsPerTile) * W;
-    const float* dr = d + 4 * r;
-    const float d0 = dr[0], d1 = dr[1], d2 = dr[2], d3 = dr[3];
-    for (int j = 0; j < W; ++j) {
-      float v = gr[j];
-      t[j] += v;
-      dirGradT[j] += d0 * v;
-      dirGradT[W + j] += d1 * v;
-      dirGradT[2 * W + j] += d2 * v;
-      dirGradT[3 * W + j] += d3 * v;
+    const float* __restrict gr = g + static_cast<std::size_t>(r) * W;
+    float* __restrict t = tileGrad + ((r0 + r) / rowsPerTile) * W;
+    for (int j = 0; j < W; ++j) t[j] += gr[j];
+    for (int q = 0; q < 4; ++q) {
+      const float dq = d[4 * r + q];
+      float* __restrict dg = dirGradT + q * W;
+      for (int j = 0; j < W; ++j) dg[j] += dq * gr[j];
     }
   }
 }
