@@ -76,6 +76,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
   step = std::chrono::steady_clock::now();
   MatrixXfCol x = abrdfMatrix(stack);
   info.matrixSeconds = secondsSince(step);
+  const int width = stack.width(), height = stack.height(), images = stack.numImages();
+  stack = BtfStack();  // X holds the data now: a full material's 8-bit stack is 1.3 GB
   step = std::chrono::steady_clock::now();
   standardizeInPlace(x);
   info.standardizeSeconds = secondsSince(step);
@@ -83,13 +85,13 @@ int clusterStack(const cxxopts::ParseResult& args) {
   ClusteringResult result = clusterAbrdfs(x, options);
   info.totalSeconds = secondsSince(start);
 
-  writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, stack.width(), stack.height()));
+  writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, width, height));
   nlohmann::json summary = clusteringSummary(result, options, info);
   writeFileAtomic(summaryPath, summary.dump(2) + "\n");
 
   const auto& sizes = summary["cluster_sizes"];
-  std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, stack.width(),
-              stack.height(), stack.numImages(), options.clusters, info.totalSeconds);
+  std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, width, height, images,
+              options.clusters, info.totalSeconds);
   std::printf("  PCA          %d components: %.2f%% of the variance of the standardized log ABRDFs (%.2f s)\n",
               options.pca.components, 100.0 * result.explainedVarianceRatio, result.pcaSeconds);
   std::printf("  k-means      inertia %.6g in PCA space (%.4g per texel), %d iterations%s (%.2f s)\n",

@@ -186,9 +186,11 @@ int runMain(int argc, char** argv) {
       "components", "PCA components", cxxopts::value<int>()->default_value("32"))(
       "power-iterations", "PCA power iterations", cxxopts::value<int>()->default_value("-1"))(
       "seed", "Seed", cxxopts::value<std::uint64_t>()->default_value("1"))(
+      "threads", "Worker threads (0 = all cores)", cxxopts::value<int>()->default_value("0"))(
       "out", "Output folder", cxxopts::value<std::string>());
   auto args = options.parse(argc, argv);
   if (!args.count("matrix") || !args.count("out")) throw Error("run: --matrix and --out are required");
+  setThreadCount(args["threads"].as<int>());
   const std::string out = args["out"].as<std::string>();
   Progress::setQuiet(true);
   MatrixXfCol x = readMatrix(args["matrix"].as<std::string>());

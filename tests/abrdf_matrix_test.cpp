@@ -67,6 +67,22 @@ TEST_F(AbrdfMatrixTest, StandardizedDimensionsHaveMeanZeroAndUnitStd) {
   }
 }
 
+TEST_F(AbrdfMatrixTest, TinyValuesKeepTheirLogPrecision) {
+  // Dark pixels: linear values around 1e-6, where log(1 + x) computed naively in float
+  // would be off by percents (1 + x rounds away most of x).
+  MatrixXfCol x(400, 2);
+  for (int t = 0; t < 400; ++t) x(t, 0) = 1e-7f * (1 + t % 37), x(t, 1) = 0.5f + 1e-3f * (t % 11);
+  MatrixXfCol original = x;
+  Standardization s = standardizeInPlace(x);
+  for (int d = 0; d < 2; ++d) {
+    double mean = original.col(d).cast<double>().array().log1p().mean();
+    EXPECT_NEAR(s.mean[d], mean, 1e-5 * mean) << "dimension " << d;
+  }
+  MatrixXfCol back = x;
+  s.invert(back);
+  EXPECT_NEAR(back(36, 0), original(36, 0), 1e-3 * original(36, 0));
+}
+
 TEST_F(AbrdfMatrixTest, ConstantDimensionsBecomeZeroNotNan) {
   MatrixXfCol x = randomPositive(100, 4, 2);
   x.col(1).setConstant(0.3f);  // a constant pixel

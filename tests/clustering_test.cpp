@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <random>
+
 #include "cluster_test_util.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -37,6 +40,28 @@ TEST(ClusterRepresentatives, MedianIsTakenPerDimension) {
   EXPECT_FLOAT_EQ(mean(0, 1), 14.0f / 3);
   EXPECT_FLOAT_EQ(mean(1, 0), 25);
   EXPECT_FLOAT_EQ(mean(1, 1), 13.0f / 4);
+}
+
+TEST(ClusterRepresentatives, MedianMatchesSortingForLargeClustersWithDuplicates) {
+  // Clusters of hundreds of texels, values with many ties (8-bit sources repeat values).
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> level(0, 40), cluster(0, 6);
+  MatrixXfCol x(3001, 4);
+  for (int d = 0; d < 4; ++d)
+    for (int t = 0; t < x.rows(); ++t) x(t, d) = d == 0 ? 0.0f : level(rng) * 0.25f - (d == 3 ? rng() % 1000 : 0);
+  std::vector<std::int32_t> ids(x.rows());
+  for (auto& id : ids) id = cluster(rng);
+  MatrixXfCol median = clusterRepresentatives(x, ids, 7, Representative::Median);
+  for (int c = 0; c < 7; ++c)
+    for (int d = 0; d < 4; ++d) {
+      std::vector<float> values;
+      for (int t = 0; t < x.rows(); ++t)
+        if (ids[t] == c) values.push_back(x(t, d));
+      std::sort(values.begin(), values.end());
+      std::size_t n = values.size();
+      float expected = n % 2 ? values[n / 2] : 0.5f * (values[n / 2 - 1] + values[n / 2]);
+      EXPECT_EQ(median(c, d), expected) << "cluster " << c << " dim " << d << " (" << n << " texels)";
+    }
 }
 
 TEST(ClusterRepresentatives, MedianIgnoresOutliersTheMeanFollows) {

@@ -63,7 +63,8 @@ TEST(KMeans, ClassicSeedingAlsoWorks) {
 }
 
 TEST(KMeans, SameSeedSameIdsOnAnyThreadCount) {
-  auto blobs = makeBlobs(30, 40, 6, 8.0f, 3);  // overlapping blobs: many iterations
+  // Overlapping blobs (many iterations), enough points for the seeding to use threads.
+  auto blobs = makeBlobs(30, 150, 6, 8.0f, 3);
   setThreadCount(1);
   KMeansResult a = kmeansPlusPlus(blobs.points, quiet(25, 7));
   setThreadCount(2);

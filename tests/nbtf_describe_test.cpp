@@ -25,7 +25,7 @@ TEST(NbtfDescribe, ClusteredFileShowsMethodGeometrySizesAndTraining) {
   EXPECT_TRUE(contains(text, "2 images (33.3%) kept out of training")) << text;
   EXPECT_TRUE(contains(text, "RMSE 0.0213 on training images, 0.0251 on held-out images (linear RGB / alpha")) << text;
   EXPECT_TRUE(contains(text, "12 epochs, seed 3, 2 threads, adam")) << text;
-  EXPECT_TRUE(contains(text, "PCA 8 components explain 0.93")) << text;
+  EXPECT_TRUE(contains(text, "PCA with 8 components explains 93.0% of the variance")) << text;
   // Size table: 131 x 4 decoder, 5 x 8 x 4 latents, 12 one-byte ids, raw 12 x 6 x 12.
   EXPECT_TRUE(contains(text, "524 B")) << text;
   EXPECT_TRUE(contains(text, "160 B")) << text;

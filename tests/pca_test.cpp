@@ -7,6 +7,7 @@
 #include <random>
 
 #include "util/error.h"
+#include "util/parallel.h"
 
 namespace nbtf {
 namespace {
@@ -79,6 +80,18 @@ TEST(Pca, MatchesTheExactEigendecomposition) {
 TEST(Pca, SameSeedSameResult) {
   MatrixXfCol x = gaussian(200, 50, 6);
   PcaResult a = randomizedPca(x, quietOptions(4)), b = randomizedPca(x, quietOptions(4));
+  EXPECT_EQ(a.basis, b.basis);
+  EXPECT_EQ(a.scores, b.scores);
+}
+
+TEST(Pca, SameResultOnAnyThreadCount) {
+  // Large enough for the products to be split into several slices.
+  MatrixXfCol x = gaussian(2100, 700, 10);
+  setThreadCount(1);
+  PcaResult a = randomizedPca(x, quietOptions(8));
+  setThreadCount(2);
+  PcaResult b = randomizedPca(x, quietOptions(8));
+  setThreadCount(0);
   EXPECT_EQ(a.basis, b.basis);
   EXPECT_EQ(a.scores, b.scores);
 }

@@ -79,6 +79,12 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
   EXPECT_LT(decoderBackpropError(small, 5, 3, 2), 1e-5);
 }
 
+TEST(Trainer, MaxPoolMatchesTorch) {
+  EXPECT_EQ(maxPoolReferenceError(1, 3, 4, 30), 0.0);
+  EXPECT_EQ(maxPoolReferenceError(2, 2, 5, 31), 0.0);  // a tail that pooling drops
+  EXPECT_EQ(maxPoolReferenceError(3, 1, 1, 3), 0.0);   // a single window
+}
+
 TEST(Trainer, PerTexelModeLearnsTheMaterial) {
   const TestMaterial& m = material();
   TrainResult r = trainModel(m.perTexel(), quickConfig());

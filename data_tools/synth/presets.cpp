@@ -27,8 +27,8 @@ WeaveSpec silkSatin() {
   s.warpPitch = 4.5, s.weftPitch = 6.5;
   s.halfWidth = 0.48, s.thickness = 0.18, s.crimp = 0.10, s.wander = 0.03, s.slub = 0.04;
   s.flatness = 5;  // silk floats lie flat
-  s.warp = {{0.45f, 0.29f, 0.08f}, 0.03f, 0.06f, 6, 0.5f, 0.05f, 0.08f, 0.07f, 0.30f, 0.0f, 0.5f};
-  s.weft = {{0.36f, 0.24f, 0.07f}, 0.03f, 0.08f, -10, 0.5f, 0.06f, 0.04f, 0.10f, 0.35f, 0.0f, 0.5f};
+  s.warp = {{0.38f, 0.24f, 0.06f}, 0.03f, 0.06f, 6, 0.5f, 0.05f, 0.05f, 0.07f, 0.30f, 0.0f, 0.5f};
+  s.weft = {{0.30f, 0.20f, 0.055f}, 0.03f, 0.08f, -10, 0.5f, 0.06f, 0.03f, 0.10f, 0.35f, 0.0f, 0.5f};
   s.gapColour[0] = 0.10f, s.gapColour[1] = 0.06f, s.gapColour[2] = 0.02f;
   return s;
 }

@@ -1,13 +1,20 @@
 // Large float products through the system BLAS. On Debian that is OpenBLAS (installed for
-// libtorch by scripts/setup.sh, picked through the libblas.so.3 alternative): 2-3x the
-// speed of Eigen's portable (SSE2) kernels on the M x 3N ABRDF matrix, which is what
-// PCA's cost is made of. Internal to the cluster stage.
+// libtorch by scripts/setup.sh, picked through the libblas.so.3 alternative): 2-4x the
+// speed of Eigen's portable (SSE2) kernels, on the M x 3N ABRDF matrix (PCA) and on the
+// point-centre products of k-means. Internal to the cluster stage.
 #pragma once
 #include "preprocess/abrdf_matrix.h"
 
 namespace nbtf {
 
-// c = op(a) * b, op(a) = a or a^T; c is resized. Runs on threadCount() threads.
+// c = op(a) * b, op(a) = a or a^T; c is resized. Runs on threadCount() threads; the result
+// does not depend on their number.
 void blasMultiply(const MatrixXfCol& a, bool transposeA, const MatrixXfCol& b, MatrixXfCol& c);
+
+// c = op(a) * op(b), column-major with BLAS conventions (m x n result, inner size k), on the
+// calling thread only: for products inside parallelFor workers, where every worker runs
+// its own, and whose result then does not depend on the thread count.
+void gemmOnThisThread(bool transposeA, bool transposeB, int m, int n, int k, const float* a, int lda,
+                      const float* b, int ldb, float* c, int ldc);
 
 }  // namespace nbtf

@@ -11,6 +11,49 @@
 namespace nbtf {
 
 namespace {
+
+// ---- Selection
+//
+// Quickselect with a branch-free partition (the comparison result moves the boundary
+// instead of choosing a path): random values make std::nth_element's branches mispredict
+// about half the time. On return a[0..kth) <= a[kth] <= a[kth+1..n).
+
+template <typename Keep>
+int partition(float* a, int lo, int hi, Keep keep) {
+  int store = lo;
+  for (int i = lo; i < hi; ++i) {
+    float x = a[i];
+    a[i] = a[store];
+    a[store] = x;
+    store += keep(x);
+  }
+  return store;
+}
+
+float selectKth(float* a, int n, int kth) {
+  int lo = 0, hi = n;
+  while (hi - lo > 24) {
+    float x = a[lo], y = a[lo + (hi - lo) / 2], z = a[hi - 1];
+    float pivot = std::max(std::min(x, y), std::min(std::max(x, y), z));  // median of three
+    int split = partition(a, lo, hi, [pivot](float v) { return v < pivot; });
+    if (split == lo) {
+      // Nothing below the pivot: it is the minimum. Split off the values equal to it, so
+      // runs of duplicates (black pixels) always make progress.
+      split = partition(a, lo, hi, [pivot](float v) { return v <= pivot; });
+      if (kth < split) return pivot;
+    }
+    if (kth < split) hi = split;
+    else lo = split;
+  }
+  for (int i = lo + 1; i < hi; ++i) {  // insertion sort of the last few
+    float v = a[i];
+    int j = i;
+    for (; j > lo && a[j - 1] > v; --j) a[j] = a[j - 1];
+    a[j] = v;
+  }
+  return a[kth];
+}
+
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -68,13 +111,11 @@ MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::
         }
         for (std::int32_t i = 0; i < n; ++i) values[i] = column[members[i]];
         // Median; for an even count the mean of the two middle values (numpy's convention).
-        float* mid = values.data() + n / 2;
-        std::nth_element(values.data(), mid, values.data() + n);
-        float upperMiddle = *mid;
+        float upperMiddle = selectKth(values.data(), n, n / 2);
         if (n % 2 == 1) {
           rep[c] = upperMiddle;
         } else {
-          float lowerMiddle = *std::max_element(values.data(), mid);
+          float lowerMiddle = *std::max_element(values.data(), values.data() + n / 2);
           rep[c] = 0.5f * (lowerMiddle + upperMiddle);
         }
       }

@@ -12,6 +12,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "cluster/blas.h"
 #include "cluster/kmeans_internal.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -74,7 +75,8 @@ struct Lloyd {
     std::vector<std::size_t> changedPerBlock(blocks(), 0);
     parallelFor(blocks(), [&](std::size_t blockBegin, std::size_t blockEnd) {
       RowMatrixXf gathered(kPointBlock, dims);
-      Eigen::MatrixXf products;  // k x rows: one point per column
+      Eigen::MatrixXf products(kk, kPointBlock);  // one point per column
+      Eigen::VectorXf distance2(kk);
       std::vector<std::int32_t> rescan;
       for (std::size_t b = blockBegin; b < blockEnd; ++b) {
         const Eigen::Index begin = b * kPointBlock, end = std::min(points.rows(), begin + kPointBlock);
@@ -93,24 +95,26 @@ struct Lloyd {
           rescan.push_back(static_cast<std::int32_t>(i));
         }
         if (rescan.empty()) continue;
-        const Eigen::Index rows = static_cast<Eigen::Index>(rescan.size());
-        for (Eigen::Index r = 0; r < rows; ++r) gathered.row(r) = points.row(rescan[r]);
-        products.noalias() = centers * gathered.topRows(rows).transpose();
+        const int rows = static_cast<int>(rescan.size());
+        for (int r = 0; r < rows; ++r) gathered.row(r) = points.row(rescan[r]);
+        // products = centres (k x C) * gathered^T (C x rows); row-major storage is the
+        // transposed column-major one, hence the flags.
+        gemmOnThisThread(true, false, kk, rows, static_cast<int>(dims), centers.data(), static_cast<int>(dims),
+                         gathered.data(), static_cast<int>(dims), products.data(), kk);
         std::size_t changed = 0;
-        for (Eigen::Index r = 0; r < rows; ++r) {
+        for (int r = 0; r < rows; ++r) {
           const std::int32_t i = rescan[r];
-          const float* dot = products.col(r).data();
-          float best = std::numeric_limits<float>::infinity(), second = best;
-          int bestJ = 0;
-          for (int j = 0; j < kk; ++j) {
-            float d2 = centerNorm2[j] - 2.0f * dot[j];
-            if (d2 < best) second = best, best = d2, bestJ = j;
-            else if (d2 < second) second = d2;
-          }
+          // |x - c|^2 - |x|^2 for every centre; the smallest two, ties to the lower index.
+          distance2 = centerNorm2 - 2.0f * products.col(r);
+          Eigen::Index bestJ;
+          const float best = distance2.minCoeff();
+          bestJ = std::find(distance2.data(), distance2.data() + kk, best) - distance2.data();
+          distance2[bestJ] = std::numeric_limits<float>::infinity();
+          const float second = kk > 1 ? distance2.minCoeff() : std::numeric_limits<float>::infinity();
           // The product form loses digits to cancellation: take the distance to the new
           // centre exactly, and shrink the lower bound by the rounding it may carry.
           if (bestJ != assign[i]) ++changed;
-          assign[i] = bestJ;
+          assign[i] = static_cast<std::int32_t>(bestJ);
           upper[i] = std::sqrt(squaredDistance(points.row(i).data(), centers.row(bestJ).data(), dims));
           float slack = 1e-5f * (pointNorm2[i] + largestCenterNorm2);
           lower[i] = kk == 1 ? std::numeric_limits<float>::infinity()
@@ -232,6 +236,8 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
       break;
     }
   }
+  bar.setStatus(result.converged ? "converged after " + std::to_string(result.iterations) + " iterations"
+                                 : "iteration limit reached");
   bar.finish();
 
   result.ids = lloyd.assign;

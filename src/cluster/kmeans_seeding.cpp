@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cluster/blas.h"
 #include "cluster/kmeans_internal.h"
 #include "cluster/random.h"
 #include "util/parallel.h"
@@ -92,6 +93,7 @@ Seeding kmeansPlusPlusSeeding(const RowMatrixXf& points, int k, int trials, std:
   if (progress) progress->advance();
 
   std::vector<CandidateEffect> effects(trials);
+  std::vector<std::vector<int>> reach(trials);  // per candidate: the groups it may take points from
   Eigen::VectorXf centerNorm2(k);
   centerNorm2[0] = s.centers.row(0).squaredNorm();
   RowMatrixXf candidates(trials, dims);
@@ -103,21 +105,30 @@ Seeding kmeansPlusPlusSeeding(const RowMatrixXf& points, int k, int trials, std:
       effects[t].point = sampler.draw(random);
       candidates.row(t) = points.row(effects[t].point);
     }
-    products.noalias() = s.centers.topRows(n) * candidates.transpose();
-    // Candidates are independent; each is scanned by one thread, so results do not
-    // depend on the thread count.
+    // products = centres (n x C) * candidates^T; row-major storage, hence the flags.
+    products.resize(n, trials);
+    gemmOnThisThread(true, false, n, trials, static_cast<int>(dims), s.centers.data(), static_cast<int>(dims),
+                     candidates.data(), static_cast<int>(dims), products.data(), n);
+    // Groups within reach of each candidate: |c - centre_j|^2 < 4 radius_j^2. The product
+    // form of the distance carries rounding, so only skip with a margin.
+    std::size_t work = 0;
+    for (int t = 0; t < trials; ++t) {
+      const float candidateNorm2 = candidates.row(t).squaredNorm();
+      reach[t].clear();
+      for (int j = 0; j < n; ++j) {
+        float centre2 = centerNorm2[j] + candidateNorm2 - 2.0f * products(j, t);
+        float margin = 1e-5f * (centerNorm2[j] + candidateNorm2);
+        if (centre2 - margin < 4.0f * radius[j] * radius[j]) reach[t].push_back(j), work += members[j].size();
+      }
+    }
+    // Each candidate is scanned by one thread, so results do not depend on the thread
+    // count; threads are only started when the scan outweighs starting them.
     auto evaluate = [&](std::size_t t) {
       CandidateEffect& e = effects[t];
       e.potentialChange = 0;
       e.takenOver.clear();
       const float* c = candidates.row(t).data();
-      const float candidateNorm2 = candidates.row(t).squaredNorm();
-      for (int j = 0; j < n; ++j) {
-        // Group j is out of reach when |c - centre_j|^2 >= 4 radius_j^2; the product form
-        // of the distance carries rounding, so only skip with a margin.
-        float centre2 = centerNorm2[j] + candidateNorm2 - 2.0f * products(j, t);
-        float margin = 1e-5f * (centerNorm2[j] + candidateNorm2);
-        if (centre2 - margin >= 4.0f * radius[j] * radius[j]) continue;
+      for (int j : reach[t])
         for (std::int32_t i : members[j]) {
           float d2 = squaredDistance(points.row(i).data(), c, dims);
           if (d2 < s.distance2[i]) {
@@ -125,14 +136,11 @@ Seeding kmeansPlusPlusSeeding(const RowMatrixXf& points, int k, int trials, std:
             e.takenOver.emplace_back(i, d2);
           }
         }
-      }
     };
-    if (trials == 1 || m < 20000) {
+    if (work < 32768 || threadCount() == 1) {
       for (int t = 0; t < trials; ++t) evaluate(t);
     } else {
-      parallelFor(trials, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t t = begin; t < end; ++t) evaluate(t);
-      });
+      parallelForDynamic(trials, [&](std::size_t t, int) { evaluate(t); });
     }
     int best = 0;
     for (int t = 1; t < trials; ++t)

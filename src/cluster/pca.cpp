@@ -19,18 +19,26 @@ double PcaResult::explainedRatio() const {
 
 namespace {
 
-// Column means and the total (population) variance, in double; one pass over X.
+constexpr Eigen::Index kRun = 1024;
+
+// Column means and the total (population) variance; one pass over X.
 void columnStatistics(const MatrixXfCol& x, Eigen::VectorXf& mean, double& totalVariance) {
   mean.resize(x.cols());
   Eigen::VectorXd variance(x.cols());
   const double rows = static_cast<double>(x.rows());
   parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
     for (std::size_t d = begin; d < end; ++d) {
+      // Two passes over one column (it stays in cache): float sums over short runs, which
+      // Eigen vectorizes, accumulated in double.
       const float* col = x.col(d).data();
       double sum = 0;
-      for (Eigen::Index t = 0; t < x.rows(); ++t) sum += col[t];
-      double m = sum / rows, squares = 0;
-      for (Eigen::Index t = 0; t < x.rows(); ++t) squares += (col[t] - m) * (col[t] - m);
+      for (Eigen::Index b = 0; b < x.rows(); b += kRun)
+        sum += Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, x.rows() - b)).sum();
+      const double m = sum / rows;
+      const float mf = static_cast<float>(m);
+      double squares = 0;
+      for (Eigen::Index b = 0; b < x.rows(); b += kRun)
+        squares += (Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, x.rows() - b)) - mf).square().sum();
       if (!std::isfinite(m) || !std::isfinite(squares)) {
         std::ostringstream s;
         s << "PCA: dimension " << d << " holds NaN or Inf values";

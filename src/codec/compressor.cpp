@@ -228,10 +228,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     return stats;
   }
 
-  StageSeconds loadOnly = stats.seconds;
-  CompressedBtf btf = compressStack(stack, o, stats);
-  stats.seconds.load = loadOnly.load;
-  stats.output = output;
+  CompressedBtf btf = compressStack(stack, o, stats);  // fills the other stages' seconds
   if (stats.interrupted) return stats;
 
   // ---- Write (atomic); the encoder copy is the same file plus the encoder section.

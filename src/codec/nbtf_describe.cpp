@@ -1,6 +1,7 @@
 #include "codec/nbtf_describe.h"
 
 #include <cstdio>
+#include <string>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -67,7 +68,9 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
   std::size_t params = 0;
   for (const auto& l : btf.decoder.layers) params += l.parameterCount();
-  field("decoder", decoderShape(btf.decoder) + ", " + std::to_string(params) + " parameters");
+  std::string digits = std::to_string(params), grouped;
+  for (std::size_t i = 0; i < digits.size(); ++i) grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
+  field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
   field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
   if (btf.holdoutImages.empty()) {
     field("hold-out", "none (every image was used for training)");
@@ -106,9 +109,9 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   }
   std::string explained = jsonNumber(meta, "clustering", "pca_explained_variance_ratio");
   if (!explained.empty()) {
-    std::string comps = jsonNumber(meta, "clustering", "pca_components");
-    field("clustering", "PCA " + comps + " components explain " + explained +
-                            " of the variance (standardized log ABRDFs); k-means++ " +
+    std::snprintf(line, sizeof line, "%.1f%%", 100 * std::stod(explained));
+    field("clustering", "PCA with " + jsonNumber(meta, "clustering", "pca_components") + " components explains " +
+                            line + " of the variance (standardized log ABRDFs); k-means " +
                             jsonNumber(meta, "clustering", "kmeans_iterations") + " iterations");
   }
   o << "\n" << formatSizeTable(computeSizes(btf, fileBytes));

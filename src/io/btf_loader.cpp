@@ -19,6 +19,9 @@ namespace fs = std::filesystem;
 namespace {
 
 bool isImageFile(const fs::path& p) {
+  // Hidden files are never stack images: among them are the temporaries an interrupted
+  // atomic write leaves (".<name>.tmp<pid>_<n>.<ext>", which still carry angle tokens).
+  if (!p.filename().empty() && p.filename().string()[0] == '.') return false;
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   return ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".exr";

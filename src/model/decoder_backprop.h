@@ -1,12 +1,15 @@
 // Hand-written forward and backward pass of the decoder for one training step. PRIVATE to
 // src/model/*.cpp (includes torch).
 //
-// Why not autograd: the decoder is where the flops are, and a step's batch has structure
-// autograd cannot see. Rows come in tiles of S rows that share one latent, so the first
-// layer splits into W_z z (once per tile) + W_d d (per row): no GEMM with K = 12 and no
-// gradient for the direction inputs. All activations live in preallocated buffers, so a
-// step allocates nothing large. Parameter gradients are written into the parameters' .grad
-// tensors; the latent gradient is returned for the encoder's autograd backward.
+// Why not autograd: the decoder is where the flops are, and at width 106 the time goes to
+// memory passes over [batch x 106] tensors as much as to the matrix products. Here the
+// batch is cut into chunks of a few hundred rows; each thread runs a chunk through every
+// layer and back while its activations are still in L2 (single-threaded BLAS products,
+// bias/ReLU/masks in the same cache-resident pass), and accumulates the weight gradients
+// over its chunks. Rows come in tiles that share one latent, so the first layer splits
+// into W_z z (once per tile) + W_d d (per row): no product with K = 12 and no gradient for
+// the direction inputs. A thread's share of the chunks is fixed by the thread count and the
+// per-thread sums are added in thread order, so results are bit-identical run to run.
 #pragma once
 #include <vector>
 
@@ -29,14 +32,29 @@ class DecoderBackprop {
                    torch::Tensor& dz);
 
  private:
-  void ensureBuffers(std::int64_t rows);
+  // One thread's scratch (chunk activations) and gradient sums.
+  struct Worker {
+    std::vector<float> hidden;       // (layers - 1) x chunk x width, post-ReLU
+    std::vector<float> grad, grad2;  // chunk x width
+    std::vector<float> out;          // chunk x 3
+    std::vector<float> weightGrad, biasGrad;  // all layers, concatenated
+    std::vector<float> dirGrad;      // 4 x width: dLoss/dW_d, transposed
+    std::vector<float> tileGrad;     // tiles x width: dLoss/d(W_z z + b)
+    double loss = 0;
+  };
+  // Sets up the per-tile part of layer 0 and the workers, then runs them in parallel.
+  void run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile, float* outRows);
+  // Runs the chunks of worker `w`; targets == nullptr: forward only (outputs to outRows).
+  void runWorker(int w, int workers, std::int64_t rows, int rowsPerTile, const float* dirs, const float* targets,
+                 float* outRows);
 
   Decoder decoder_;
-  int latentDim_;
-  int layers_, width_;
-  std::vector<torch::Tensor> hidden_;  // post-ReLU activations of layers 0 .. L-2, [rows, width]
-  torch::Tensor out_, diff_;           // [rows, 3]
-  torch::Tensor grad_[2];              // ping-pong [rows, width]
+  int latentDim_, layers_, width_;
+  std::vector<std::int64_t> weightOffset_, biasOffset_;  // into Worker::weightGrad / biasGrad
+  std::vector<Worker> workers_;
+  std::vector<float> dirWeightT_;  // 4 x width: W_d transposed, refreshed every call
+  torch::Tensor perTile_;          // [tiles, width]: W_z z + b
+  torch::Tensor out_;              // [rows, 3]
   std::vector<torch::Tensor> weightGrad_, biasGrad_;
 };
 

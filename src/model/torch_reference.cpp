@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 
 #include "model/decoder_backprop.h"
 #include "model/torch_modules.h"
@@ -52,6 +53,43 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
   for (std::size_t i = 0; i < got.size(); ++i)
     err = std::max(err, (got[i] - expected[i]).abs().max().item<double>() / scale);
   return err;
+}
+
+double maxPoolReferenceError(std::uint64_t seed, int batch, int channels, int length) {
+  torch::manual_seed(seed);
+  // Rounded values make ties common, so the tie rule is checked too.
+  torch::Tensor x = (torch::randn({batch, channels, length}) * 2).round();
+  torch::Tensor g = torch::randn({batch, channels, length / 3});
+  torch::Tensor a = x.clone().requires_grad_(true), b = x.clone().requires_grad_(true);
+  torch::Tensor ya = detail::maxPool3(a);
+  torch::Tensor yb = torch::nn::MaxPool1d(torch::nn::MaxPool1dOptions(3).stride(3))->forward(b);
+  ya.backward(g);
+  yb.backward(g);
+  return std::max((ya - yb).abs().max().item<double>(), (a.grad() - b.grad()).abs().max().item<double>());
+}
+
+DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads) {
+  torch::set_num_threads(threads);
+  torch::manual_seed(0);
+  detail::Decoder decoder(model);
+  detail::DecoderBackprop backprop(decoder, model.latentDim);
+  const int rows = tiles * rowsPerTile;
+  torch::Tensor z = torch::randn({tiles, model.latentDim}), dirs = torch::rand({rows, 4}), y = torch::rand({rows, 3});
+  torch::Tensor dz;
+  backprop.trainStep(z, dirs, y, rowsPerTile, dz);  // warm-up
+  auto cpu = [] {
+    timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+  };
+  double c0 = cpu();
+  auto t0 = std::chrono::steady_clock::now();
+  for (int s = 0; s < steps; ++s) backprop.trainStep(z, dirs, y, rowsPerTile, dz);
+  DecoderStepRate r;
+  r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cpuSeconds = cpu() - c0;
+  r.samplesPerSecond = static_cast<double>(rows) * steps / r.wallSeconds;
+  return r;
 }
 
 double matmulGflops(int n, int threads, double minSeconds) {

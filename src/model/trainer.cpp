@@ -200,6 +200,12 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     setLearningRate(*optimizer, config.learningRate * scheduleFactor(config, p));
 
     // Samples: which groups and images, then their directions and targets.
+    auto tPhase = Clock::now();
+    auto lap = [&](double& slot) {
+      auto now = Clock::now();
+      slot += std::chrono::duration<double>(now - tPhase).count();
+      tPhase = now;
+    };
     planStep(set, config.seed, step, tiles, perTile, plan);
     {
       float* d = dirs.data_ptr<float>();
@@ -220,25 +226,33 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     }
 
     double loss;
+    TrainResult::Profile& prof = result.profile;
+    lap(prof.sampling);
     if (!polish) {
       torch::Tensor in = gatherEncoderInputs(x, plan.distinctGroups.data(),
                                              static_cast<std::int64_t>(plan.distinctGroups.size()));
       for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
       torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
+      lap(prof.encoder);
       loss = backprop.trainStep(z.detach(), dirs, targets, perTile, dz);
+      lap(prof.decoder);
       z.backward(dz);
+      lap(prof.encoder);
     } else {
       if (!polishLatents.defined()) {
         // Freeze the encoder: from here on the decoder fits the latents that will be stored.
         polishLatents = encodeAll(encoder, x);
         for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
       }
+      lap(prof.encoder);
       loss = backprop.trainStep(polishLatents.index_select(0, tileGroup), dirs, targets, perTile, dz);
+      lap(prof.decoder);
     }
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
                   " (loss is not finite); lower optimizer.learning_rate");
     optimizer->step();
+    lap(prof.optimizer);
     ++step;
     emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;
 

@@ -92,6 +92,11 @@ struct TrainResult {
   double decoderGflops = 0;             // samplesPerSecond x 3 x forward flops of the decoder
   double finalLoss = 0;                 // smoothed training loss at the end (MSE vs cluster means)
   int encoderBlocks = 0;                // conv blocks used for this N
+  // Where the loop's time went (seconds): drawing samples and gathering targets, encoder
+  // forward + backward, the decoder's forward + backward, the optimizer update.
+  struct Profile {
+    double sampling = 0, encoder = 0, decoder = 0, optimizer = 0;
+  } profile;
 };
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config);
