@@ -48,6 +48,8 @@ int runEval(const cxxopts::ParseResult& args) {
   std::filesystem::path probeDir = std::filesystem::path(outDir).parent_path();
   if (!probeDir.empty() && !std::filesystem::is_directory(probeDir))
     throw fileError(outDir, "the folder it would be created in does not exist");
+  if (std::filesystem::exists(outDir) && !std::filesystem::is_directory(outDir))
+    throw fileError(outDir, "exists and is not a folder");
 
   CompressedBtf btf = readNbtf(file);
   std::uint64_t fileBytes = std::filesystem::file_size(file);

@@ -95,5 +95,20 @@ TEST(Sweep, WritesDataSortedByRatioAndAScriptGnuplotRuns) {
   EXPECT_EQ(png[1], 'P');
 }
 
+TEST(Sweep, OddMaterialNamesAreQuotedForGnuplot) {
+  test::TempDir tmp;
+  std::vector<SweepEntry> e = {entry("o'brien_wool", "clustered-neural", 500, 5127, 0.03),
+                               entry("o'brien_wool", "clustered-neural", 1000, 4633, 0.029)};
+  SweepFiles f = writeSweepSummary(e, tmp / "sweep");
+  std::string gp = slurp(f.scripts[0]);
+  EXPECT_NE(gp.find("'Rate-distortion: o''brien_wool'"), std::string::npos) << gp;
+  EXPECT_NE(gp.find("noenhanced"), std::string::npos) << "underscores must not become subscripts";
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot not installed";
+  std::string cmd = "cd '" + (tmp / "sweep") + "' && gnuplot '" + std::filesystem::path(f.scripts[0]).filename().string() +
+                    "' 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_TRUE(std::filesystem::exists(f.plots[0]));
+}
+
 }  // namespace
 }  // namespace nbtf

@@ -91,6 +91,7 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
 
 std::string methodDescription(const CompressedBtf& btf) {
   if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
+  if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
   return codecMethodName(btf.method);
 }
 

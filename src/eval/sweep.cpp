@@ -50,6 +50,13 @@ std::string slug(const std::string& s) {
   return out;
 }
 
+// Inside a single-quoted gnuplot string, a quote is written twice.
+std::string gnuplotQuoted(const std::string& s) {
+  std::string out;
+  for (char c : s) out += c == '\'' ? std::string("''") : std::string(1, c);
+  return out;
+}
+
 // Family order in tables and plots: the baseline first, then the paper's methods.
 int familyRank(const std::string& f) {
   if (f == "pca") return 0;
@@ -159,12 +166,12 @@ std::string rateDistortionScript(const std::string& material, const std::vector<
   gp << "# Rate-distortion plot for " << material << " (written by nbtf eval --summarize; run: gnuplot "
      << "<this file>)\n"
      << "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
-     << "  set terminal pngcairo size 960,620 enhanced font 'DejaVu Sans,12'\n"
+     << "  set terminal pngcairo size 960,620 noenhanced font 'DejaVu Sans,12'\n"
      << "} else {\n"
-     << "  set terminal png size 960,620\n"
+     << "  set terminal png size 960,620 noenhanced\n"
      << "}\n"
-     << "set output '" << pngFile << "'\n"
-     << "set title 'Rate-distortion: " << material << "'\n"
+     << "set output '" << gnuplotQuoted(pngFile) << "'\n"
+     << "set title 'Rate-distortion: " << gnuplotQuoted(material) << "'\n"
      << "set logscale x 10\n"
      << "set xlabel 'compression ratio (raw float32 / total), log scale'\n"
      << "set ylabel 'RMSE (linear RGB / alpha, eq. 10)'\n"
@@ -177,9 +184,9 @@ std::string rateDistortionScript(const std::string& material, const std::vector<
   for (std::size_t i = 0; i < families.size(); ++i) {
     int rank = familyRank(families[i]);
     const char* color = colors[rank < 3 ? rank : 3 + i % 2];
-    gp << "  '" << dataFiles[i] << "' using 1:2 with linespoints lw 2 pt 7 ps 1.2 lc rgb '" << color << "' title '"
-       << familyTitle(families[i]) << "', \\\n"
-       << "  '" << dataFiles[i] << "' using 1:2:5 with labels rotate by 35 left offset 0.6,0.6 tc rgb '" << color << "' notitle"
+    gp << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2 with linespoints lw 2 pt 7 ps 1.2 lc rgb '" << color << "' title '"
+       << gnuplotQuoted(familyTitle(families[i])) << "', \\\n"
+       << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2:5 with labels rotate by 35 left offset 0.6,0.6 tc rgb '" << color << "' notitle"
        << (i + 1 < families.size() ? ", \\\n" : "\n");
   }
   return gp.str();
