@@ -62,7 +62,7 @@ int runEval(const cxxopts::ParseResult& args) {
   BtfStack reference = loadBtfStack(referencePath, load);
   checkReferenceMatches(btf, reference, file, referencePath);
 
-  CompressedReconstruction reconstruction(btf);
+  CompressedReconstruction reconstruction(btf, file);
   EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
   EvalResult result = evaluate(inputs, options);
   ReportPaths paths = writeReport(result, outDir);

@@ -7,7 +7,7 @@ namespace nbtf {
 namespace {
 
 TEST(Canvas, ViridisEndsAndIsMonotoneInLightness) {
-  Rgb lo = viridis(0), hi = viridis(1);
+  Color8 lo = viridis(0), hi = viridis(1);
   // matplotlib's viridis: #440154 at 0, #fde725 at 1 (OpenCV's table within a few codes).
   EXPECT_NEAR(lo.r, 0x44, 4);
   EXPECT_NEAR(lo.g, 0x01, 4);
@@ -17,7 +17,7 @@ TEST(Canvas, ViridisEndsAndIsMonotoneInLightness) {
   EXPECT_NEAR(hi.b, 0x25, 6);
   double last = -1;
   for (int i = 0; i <= 10; ++i) {
-    Rgb c = viridis(i / 10.0);
+    Color8 c = viridis(i / 10.0);
     double luma = 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
     EXPECT_GT(luma, last);
     last = luma;

@@ -12,14 +12,14 @@
 namespace nbtf {
 namespace {
 
-Rgb pixel(const Image8& img, int x, int y) {
+Color8 pixel(const Image8& img, int x, int y) {
   const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
   return {p[0], p[1], p[2]};
 }
-bool same(Rgb a, Rgb b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+bool same(Color8 a, Color8 b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
 
 // Finds the first pixel of colour c scanning rows from the top, left of maxX.
-bool find(const Image8& img, Rgb c, int& fx, int& fy, int maxX = 1 << 30) {
+bool find(const Image8& img, Color8 c, int& fx, int& fy, int maxX = 1 << 30) {
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < std::min(img.width, maxX); ++x)
       if (same(pixel(img, x, y), c)) return fx = x, fy = y, true;

@@ -15,7 +15,7 @@ constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 const std::string kDegree = "\xC2\xB0";
 
 cv::Mat wrap(Image8& img) { return cv::Mat(img.height, img.width, CV_8UC3, img.rgb.data()); }
-cv::Scalar scalar(Rgb c) { return cv::Scalar(c.r, c.g, c.b); }
+cv::Scalar scalar(Color8 c) { return cv::Scalar(c.r, c.g, c.b); }
 
 double fontScale(int size) {
   static const int capHeight = [] {
@@ -39,7 +39,7 @@ int degreeAdvance(int size) { return std::max(4, size * 2 / 3); }
 
 }  // namespace
 
-Canvas::Canvas(int width, int height, Rgb background) {
+Canvas::Canvas(int width, int height, Color8 background) {
   if (width <= 0 || height <= 0) throw Error("canvas: size must be positive");
   image_.width = width, image_.height = height;
   image_.rgb.resize(static_cast<std::size_t>(width) * height * 3);
@@ -47,23 +47,23 @@ Canvas::Canvas(int width, int height, Rgb background) {
     image_.rgb[i] = background.r, image_.rgb[i + 1] = background.g, image_.rgb[i + 2] = background.b;
 }
 
-void Canvas::fillRect(int x, int y, int w, int h, Rgb color) {
+void Canvas::fillRect(int x, int y, int w, int h, Color8 color) {
   if (w <= 0 || h <= 0) return;
   cv::Mat m = wrap(image_);
   cv::rectangle(m, cv::Rect(x, y, w, h), scalar(color), cv::FILLED);
 }
 
-void Canvas::strokeRect(int x, int y, int w, int h, Rgb color, int thickness) {
+void Canvas::strokeRect(int x, int y, int w, int h, Color8 color, int thickness) {
   cv::Mat m = wrap(image_);
   cv::rectangle(m, cv::Rect(x, y, w, h), scalar(color), thickness, cv::LINE_8);
 }
 
-void Canvas::line(int x0, int y0, int x1, int y1, Rgb color, int thickness) {
+void Canvas::line(int x0, int y0, int x1, int y1, Color8 color, int thickness) {
   cv::Mat m = wrap(image_);
   cv::line(m, {x0, y0}, {x1, y1}, scalar(color), thickness, cv::LINE_AA);
 }
 
-void Canvas::circle(int cx, int cy, int radius, Rgb color, bool filled) {
+void Canvas::circle(int cx, int cy, int radius, Color8 color, bool filled) {
   cv::Mat m = wrap(image_);
   cv::circle(m, {cx, cy}, radius, scalar(color), filled ? cv::FILLED : 1, cv::LINE_AA);
 }
@@ -78,7 +78,7 @@ int Canvas::textWidth(const std::string& text, int size) const {
   return width;
 }
 
-void Canvas::text(const std::string& text, int x, int y, int size, Rgb color, Align align, bool vertical) {
+void Canvas::text(const std::string& text, int x, int y, int size, Color8 color, Align align, bool vertical) {
   if (vertical) {
     // Draw horizontally on a scratch canvas, rotate, and copy the inked pixels.
     int w = textWidth(text, size) + 4, h = size * 2 + 4;
@@ -136,13 +136,13 @@ void Canvas::blit(const Image8& img, int x, int y) {
 
 // ---- Colour map
 
-Rgb viridis(double t) {
+Color8 viridis(double t) {
   // OpenCV's COLORMAP_VIRIDIS table (BGR), read once into RGB.
-  static const std::vector<Rgb> table = [] {
+  static const std::vector<Color8> table = [] {
     cv::Mat ramp(1, 256, CV_8UC1), colored;
     for (int i = 0; i < 256; ++i) ramp.at<std::uint8_t>(0, i) = static_cast<std::uint8_t>(i);
     cv::applyColorMap(ramp, colored, cv::COLORMAP_VIRIDIS);
-    std::vector<Rgb> out(256);
+    std::vector<Color8> out(256);
     for (int i = 0; i < 256; ++i) {
       auto bgr = colored.at<cv::Vec3b>(0, i);
       out[i] = {bgr[2], bgr[1], bgr[0]};

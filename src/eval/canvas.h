@@ -12,32 +12,32 @@
 
 namespace nbtf {
 
-struct Rgb {
+struct Color8 {
   std::uint8_t r = 0, g = 0, b = 0;
 };
-constexpr Rgb kWhite{255, 255, 255};
-constexpr Rgb kBlack{0, 0, 0};
-constexpr Rgb kGrey{128, 128, 128};
-constexpr Rgb kLightGrey{225, 225, 225};
+constexpr Color8 kWhite{255, 255, 255};
+constexpr Color8 kBlack{0, 0, 0};
+constexpr Color8 kGrey{128, 128, 128};
+constexpr Color8 kLightGrey{225, 225, 225};
 
 enum class Align { Left, Center, Right };
 
 class Canvas {
  public:
-  Canvas(int width, int height, Rgb background = kWhite);
+  Canvas(int width, int height, Color8 background = kWhite);
   int width() const { return image_.width; }
   int height() const { return image_.height; }
 
-  void fillRect(int x, int y, int w, int h, Rgb color);
-  void strokeRect(int x, int y, int w, int h, Rgb color, int thickness = 1);
-  void line(int x0, int y0, int x1, int y1, Rgb color, int thickness = 1);
-  void circle(int cx, int cy, int radius, Rgb color, bool filled = true);
+  void fillRect(int x, int y, int w, int h, Color8 color);
+  void strokeRect(int x, int y, int w, int h, Color8 color, int thickness = 1);
+  void line(int x0, int y0, int x1, int y1, Color8 color, int thickness = 1);
+  void circle(int cx, int cy, int radius, Color8 color, bool filled = true);
 
   // Text whose vertical centre is at y; x is its left edge, centre or right edge by `align`.
   // `size` is the height of a capital letter in pixels. A UTF-8 degree sign (U+00B0) is drawn
   // as a small ring (the Hershey fonts have none). vertical = rotated 90 degrees counter-
   // clockwise (reads bottom to top), centred on (x, y).
-  void text(const std::string& text, int x, int y, int size, Rgb color = kBlack, Align align = Align::Left,
+  void text(const std::string& text, int x, int y, int size, Color8 color = kBlack, Align align = Align::Left,
             bool vertical = false);
   int textWidth(const std::string& text, int size) const;
 
@@ -52,7 +52,7 @@ class Canvas {
 };
 
 // The viridis colour map (matplotlib's perceptually uniform default), t in [0, 1] (clamped).
-Rgb viridis(double t);
+Color8 viridis(double t);
 
 // 3 to ~maxTicks round tick values (steps of 1, 2 or 5 x 10^k) covering [lo, hi]; the first
 // tick >= lo, the last <= hi.

@@ -8,10 +8,6 @@
 namespace nbtf {
 namespace {
 
-// Rows decoded per forward call: bounds the hidden activations per thread (per-texel mode on
-// large textures has hundreds of thousands of rows).
-constexpr int kBatchRows = 4096;
-
 bool sameDirection(const Direction& a, const Direction& b) {
   auto u = a.unitVector(), v = b.unitVector();
   double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
@@ -31,37 +27,25 @@ void checkDirections(const std::vector<Direction>& ref, const std::vector<Direct
 
 }  // namespace
 
-CompressedReconstruction::CompressedReconstruction(const CompressedBtf& btf) : btf_(btf) {
+namespace {
+const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
   if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != 3)
     throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
                 std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
                 std::to_string(btf.latentDim) + ") + 4 direction inputs and 3 outputs (RGB)");
-  for (const auto& d : btf.lights) lightXY_.push_back(stereographic(d));
-  for (const auto& d : btf.views) viewXY_.push_back(stereographic(d));
+  return btf;
 }
+}  // namespace
+
+CompressedReconstruction::CompressedReconstruction(const CompressedBtf& btf, const std::string& name)
+    : decoder_(checkedDecoderShape(btf), DecoderOptions{}, name) {}
 
 void CompressedReconstruction::image(int image, float* out) const {
-  const int nv = static_cast<int>(btf_.views.size());
-  const auto& l = lightXY_.at(static_cast<std::size_t>(image / nv));
-  const auto& v = viewXY_.at(static_cast<std::size_t>(image % nv));
-  const int rows = btf_.latentRows, dim = btf_.latentDim;
-  std::vector<float> decoded(static_cast<std::size_t>(rows) * 3);
-  for (int begin = 0; begin < rows; begin += kBatchRows) {
-    int n = std::min(kBatchRows, rows - begin);
-    Mlp::RowMatrix in(n, dim + 4);
-    for (int r = 0; r < n; ++r) {
-      const float* z = btf_.latents.data() + static_cast<std::size_t>(begin + r) * dim;
-      for (int c = 0; c < dim; ++c) in(r, c) = z[c];
-      in(r, dim) = l[0], in(r, dim + 1) = l[1], in(r, dim + 2) = v[0], in(r, dim + 3) = v[1];
-    }
-    Mlp::RowMatrix y = btf_.decoder.forward(in);
-    std::copy(y.data(), y.data() + static_cast<std::size_t>(n) * 3, decoded.begin() + static_cast<std::size_t>(begin) * 3);
-  }
-  const float alpha = btf_.alpha;
-  for (int t = 0, texels = btf_.numTexels(); t < texels; ++t) {
-    const float* src = &decoded[static_cast<std::size_t>(btf_.latentRowOfTexel(t)) * 3];
-    out[3 * t] = src[0] * alpha, out[3 * t + 1] = src[1] * alpha, out[3 * t + 2] = src[2] * alpha;
-  }
+  const int nv = static_cast<int>(decoder_.views().size());
+  // Images are decoded in parallel by the caller, so each decode runs on one thread.
+  decoder_.decodeImage(decoder_.lights().at(static_cast<std::size_t>(image / nv)),
+                       decoder_.views().at(static_cast<std::size_t>(image % nv)), out, OutputScale::Linear, 0, 0,
+                       false);
 }
 
 void checkReferenceMatches(const CompressedBtf& btf, const BtfStack& ref, const std::string& fileName,

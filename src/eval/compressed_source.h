@@ -2,15 +2,17 @@
 // material the file was made from (texel size, light and view directions), and reconstructs
 // images with the decoder.
 //
-// One image needs one decoder evaluation per latent row, not per texel: in the clustered
-// mode every texel of a cluster shares its latent, so the k latents are decoded for the
-// image's (light, view) and scattered to the texels by the id list.
+// Decoding goes through the codec's decoder API (codec/decoder.h), so the evaluation measures
+// exactly what `nbtf decode` and a renderer get. One image needs one decoder evaluation per
+// latent row, not per texel: in the clustered mode the k latents are decoded for the image's
+// (light, view) and scattered to the texels by the id list.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "codec/decoder.h"
 #include "codec/nbtf_file.h"
 #include "eval/evaluate.h"
 #include "io/btf_stack.h"
@@ -19,20 +21,20 @@ namespace nbtf {
 
 class CompressedReconstruction {
  public:
-  // Keeps a reference to `btf`, which must outlive this object. Throws nbtf::Error if the
-  // decoder does not take latentDim + 4 inputs and give 3 outputs.
-  explicit CompressedReconstruction(const CompressedBtf& btf);
+  // Copies `btf` into a decoder. Throws nbtf::Error if the decoder does not take
+  // latentDim + 4 inputs and give 3 outputs, or the material is otherwise invalid.
+  explicit CompressedReconstruction(const CompressedBtf& btf, const std::string& name = "compressed BTF");
 
   // Image `image` (= light * views + view) as linear RGB: decoder output x alpha, not
   // clamped (the metric sees what the model predicts). width * height * 3 floats.
   // Thread-safe.
   void image(int image, float* linearRgb) const;
   // Decoder evaluations per image: k (clustered) or the texel count (per-texel).
-  int evaluationsPerImage() const { return btf_.latentRows; }
+  int evaluationsPerImage() const { return decoder_.latentRows(); }
+  const NbtfDecoder& decoder() const { return decoder_; }
 
  private:
-  const CompressedBtf& btf_;
-  std::vector<std::array<float, 2>> lightXY_, viewXY_;  // stereographic, eq. (7)-(9)
+  NbtfDecoder decoder_;
 };
 
 // Throws nbtf::Error naming both sources and the first thing that differs: texel size, number

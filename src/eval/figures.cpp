@@ -10,7 +10,7 @@
 namespace nbtf {
 namespace {
 
-constexpr Rgb kMarkColor{230, 40, 40};
+constexpr Color8 kMarkColor{230, 40, 40};
 
 // Consecutive runs of directions on one elevation ring: [begin, end) index ranges.
 struct Ring {
@@ -235,7 +235,7 @@ Image8 renderComparison(const float* reference, const float* reconstruction, int
   err.width = width, err.height = height;
   err.rgb.resize(static_cast<std::size_t>(texels) * 3);
   for (int t = 0; t < texels; ++t) {
-    Rgb col = viridis(e[static_cast<std::size_t>(t)] * magnification);
+    Color8 col = viridis(e[static_cast<std::size_t>(t)] * magnification);
     err.rgb[3 * t] = col.r, err.rgb[3 * t + 1] = col.g, err.rgb[3 * t + 2] = col.b;
   }
   err = displayScale(err, 240, 360);

@@ -35,7 +35,7 @@ Image8 renderDirectionHeatMap(const std::vector<double>& values, const std::vect
 struct ChartSeries {
   std::string name;
   std::vector<double> x, y;
-  Rgb color;
+  Color8 color;
 };
 
 // y axis from 0; x ticks where given (else nice ticks); legend in the top-right corner.
