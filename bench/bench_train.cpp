@@ -49,6 +49,40 @@ BtfStack analyticStack(int size, int directionsPerAxis) {
   return stack;
 }
 
+// Reference RMSEs (linear / alpha, over texels x images x channels): predicting each
+// image's mean colour, and replacing every texel by its cluster's mean ABRDF (the floor of
+// any model with one latent per cluster).
+void printReferenceRmse(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int k) {
+  const int M = stack.numTexels(), N = stack.numImages();
+  std::vector<double> sse(N, 0.0), sseCluster(N, 0.0);
+  parallelFor(N, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> rgb(static_cast<std::size_t>(M) * 3);
+    std::vector<double> sum(static_cast<std::size_t>(std::max(k, 1)) * 3), count(std::max(k, 1));
+    for (std::size_t i = begin; i < end; ++i) {
+      stack.imageLinear(static_cast<int>(i), rgb.data());
+      for (auto& v : rgb) v /= alpha;
+      double mean[3] = {0, 0, 0};
+      for (int t = 0; t < M; ++t)
+        for (int c = 0; c < 3; ++c) mean[c] += rgb[3 * t + c];
+      for (int t = 0; t < M; ++t)
+        for (int c = 0; c < 3; ++c) sse[i] += std::pow(rgb[3 * t + c] - mean[c] / M, 2);
+      if (ids.empty()) continue;
+      std::fill(sum.begin(), sum.end(), 0.0);
+      std::fill(count.begin(), count.end(), 0.0);
+      for (int t = 0; t < M; ++t) {
+        count[ids[t]] += 1;
+        for (int c = 0; c < 3; ++c) sum[3 * ids[t] + c] += rgb[3 * t + c];
+      }
+      for (int t = 0; t < M; ++t)
+        for (int c = 0; c < 3; ++c) sseCluster[i] += std::pow(rgb[3 * t + c] - sum[3 * ids[t] + c] / count[ids[t]], 2);
+    }
+  });
+  double a = 0, b = 0;
+  for (int i = 0; i < N; ++i) a += sse[i], b += sseCluster[i];
+  std::printf("reference_rmse_image_mean %.6f\n", std::sqrt(a / (3.0 * M * N)));
+  if (!ids.empty()) std::printf("reference_rmse_cluster_mean %.6f\n", std::sqrt(b / (3.0 * M * N)));
+}
+
 void printResult(const std::string& prefix, const TrainResult& r) {
   std::printf("%s_rmse_train %.6f\n", prefix.c_str(), r.rmseTrain);
   std::printf("%s_rmse_holdout %.6f\n", prefix.c_str(), r.rmseHoldout);
@@ -82,6 +116,9 @@ int main(int argc, char** argv) {
                                                   cxxopts::value<int>()->default_value("0"))(
       "decoder-only", "Measure the decoder's training pass alone")(
       "steps", "Steps for --decoder-only", cxxopts::value<int>()->default_value("40"))(
+      "crop", "--converge: crop X,Y,W,H", cxxopts::value<std::string>())(
+      "trace", "Print the training's course every this many seconds (0 = off)",
+      cxxopts::value<double>()->default_value("0"))(
       "progress", "Show progress bars")("h,help", "Help");
   try {
     auto args = options.parse(argc, argv);
@@ -93,6 +130,7 @@ int main(int argc, char** argv) {
     const int threads = threadCount();
     const bool progress = args.count("progress") > 0;
     std::printf("threads %d\n", threads);
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);  // line-buffered: scripts see figures as they come
     if (args.count("matmul")) {
       int n = args["n"].as<int>();
       std::printf("matmul_n %d\nmatmul_gflops %.2f\n", n, matmulGflops(n, threads, 3.0));
@@ -112,6 +150,17 @@ int main(int argc, char** argv) {
     if (args.count("epochs")) config.epochs = args["epochs"].as<int>();
     config.threads = threads;
     config.progress = progress;
+    const double traceEvery = args["trace"].as<double>();
+    double nextTrace = 0;
+    if (traceEvery > 0)
+      config.monitor = [&](const TrainStatus& s) {
+        if (s.seconds < nextTrace) return;
+        nextTrace = s.seconds + traceEvery;
+        std::printf("trace step %lld seconds %.1f loss %.4e rmse_est %.5f lr %.2e samples_per_second %.0f%s\n",
+                    static_cast<long long>(s.step), s.seconds, s.loss, s.rmseEstimate, s.learningRate,
+                    s.samplesPerSecond, s.polish ? " polish" : "");
+        std::fflush(stdout);
+      };
     const int k = args["clusters"].as<int>();
 
     if (args.count("throughput")) {
@@ -144,6 +193,7 @@ int main(int argc, char** argv) {
       auto t0 = Clock::now();
       LoadOptions lo;
       lo.progress = progress;
+      if (args.count("crop")) lo.crop = parseCrop(args["crop"].as<std::string>());
       BtfStack stack = loadBtfStack(dir, lo);
       std::printf("converge_texels %d\nconverge_images %d\n", stack.numTexels(), stack.numImages());
       std::printf("converge_load_seconds %.2f\n", since(t0));
@@ -167,6 +217,7 @@ int main(int argc, char** argv) {
       } else {
         in.encoderInputs = &x;
       }
+      printReferenceRmse(stack, in.alpha, in.ids, k);
       TrainResult r = trainModel(in, config);
       printResult("converge", r);
       int factor = args["long-factor"].as<int>();

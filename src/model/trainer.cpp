@@ -103,8 +103,9 @@ std::vector<std::uint8_t> serializeModule(torch::nn::Module& module) {
 std::string formatStatus(double loss, double rmse, double samplesPerSecond, double gflops, int epoch, int epochs,
                          bool polish) {
   char buf[192];
-  std::snprintf(buf, sizeof buf, "ep %d/%d  loss %.3e  rmse~ %.4f  %.0fk smp/s  %.1f GF/s%s", epoch,
-                epochs, loss, rmse, samplesPerSecond / 1e3, gflops, polish ? "  (decoder polish)" : "");
+  const std::string ep = epochs > 0 ? std::to_string(epoch) + "/" + std::to_string(epochs) : std::to_string(epoch);
+  std::snprintf(buf, sizeof buf, "ep %s  loss %.3e  rmse~ %.4f  %.0fk smp/s  %.1f GF/s%s", ep.c_str(), loss, rmse,
+                samplesPerSecond / 1e3, gflops, polish ? "  (decoder polish)" : "");
   return buf;
 }
 
@@ -163,19 +164,28 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   for (int i : set.trainImages()) withinTrain += set.withinSse(i);
   withinTrain /= static_cast<double>(set.texels()) * trainImages * 3;
 
-  auto progressOf = [&](std::int64_t s, double elapsed) {
-    double p = 0;
-    if (totalSteps > 0) p = static_cast<double>(s) / totalSteps;
-    if (config.timeBudgetSeconds > 0) p = std::max(p, elapsed / config.timeBudgetSeconds);
-    return std::min(1.0, p);
-  };
-
   Progress bar("train", 1000, config.progress);
   std::size_t shownPermille = 0;
   const auto loopStart = Clock::now();
   auto lastCheckpoint = loopStart, lastStatus = loopStart;
   const std::int64_t firstStep = step;
-  auto elapsedTotal = [&] { return priorSeconds + since(loopStart); };
+  // The time budget covers the whole call: the set-up above, the loop (over resumed runs too)
+  // and the final exact evaluation, whose cost is estimated from the measured step rate
+  // (a forward pass over every group x image costs about a third of a training sample).
+  auto elapsedTotal = [&] { return priorSeconds + since(callStart); };
+  const double evalSamples = static_cast<double>(set.groups()) * set.images();
+  auto finalEvalSeconds = [&] {
+    const double loopSeconds = since(loopStart);
+    if (step == firstStep || loopSeconds < 0.5) return 0.0;
+    const double sps = (step - firstStep) * static_cast<double>(batch) / loopSeconds;
+    return evalSamples / (3 * sps);
+  };
+  auto progressOf = [&](std::int64_t s, double elapsed) {
+    double p = 0;
+    if (totalSteps > 0) p = static_cast<double>(s) / totalSteps;
+    if (config.timeBudgetSeconds > 0) p = std::max(p, (elapsed + finalEvalSeconds()) / config.timeBudgetSeconds);
+    return std::min(1.0, p);
+  };
   auto writeCheckpointNow = [&] {
     if (config.checkpointPath.empty()) return;
     meta.step = step;
@@ -189,7 +199,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   while (true) {
     const double elapsed = elapsedTotal();
     if (totalSteps > 0 && step >= totalSteps) break;
-    if (config.timeBudgetSeconds > 0 && elapsed >= config.timeBudgetSeconds) break;
+    if (config.timeBudgetSeconds > 0 && elapsed + finalEvalSeconds() >= config.timeBudgetSeconds) break;
     if ((config.stopFlag && config.stopFlag->load()) || (config.stopAtStep > 0 && step >= config.stopAtStep)) {
       result.interrupted = true;
       writeCheckpointNow();
@@ -260,8 +270,15 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     const double now = elapsedTotal();
     std::size_t permille = static_cast<std::size_t>(progressOf(step, now) * 1000);
     if (permille > shownPermille) bar.advance(permille - shownPermille), shownPermille = permille;
+    const double sps = (step - firstStep) * static_cast<double>(batch) / std::max(1e-9, since(loopStart));
+    if (config.monitor) {
+      TrainStatus st;
+      st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
+      st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss + withinTrain), st.samplesPerSecond = sps;
+      st.learningRate = config.learningRate * scheduleFactor(config, p), st.polish = polish;
+      config.monitor(st);
+    }
     if (since(lastStatus) > 0.5) {
-      double sps = (step - firstStep) * static_cast<double>(batch) / since(loopStart);
       bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
                                  static_cast<int>(step / stepsPerEpoch), config.epochs, polish));
       lastStatus = Clock::now();

@@ -19,7 +19,7 @@ struct ModelConfig {
   int latentDim = 8;
   // One conv block (Conv1d k3 s1 p1 -> MaxPool1d k3 s3 -> BatchNorm1d) per entry, at most:
   // fewer are used when the ABRDF is too short (see encoderBlockCount).
-  std::vector<int> encoderChannels = {16, 32, 64};
+  std::vector<int> encoderChannels = {4, 8, 16};
   int decoderWidth = 106;
   int decoderLayers = 4;  // linear layers, ReLU between, linear RGB output
 };
@@ -31,6 +31,18 @@ int encoderBlockCount(int imageCount, int configured);
 // for the defaults.
 Mlp decoderShape(const ModelConfig& model);
 
+// A snapshot of a running training, for callers that log or plot its course.
+struct TrainStatus {
+  std::int64_t step = 0, totalSteps = 0;  // totalSteps 0: bounded by the time budget only
+  double seconds = 0;                     // training time so far (including resumed runs)
+  double progress = 0;                    // 0..1, what the schedule and the ETA follow
+  double loss = 0;                        // smoothed MSE against the targets (cluster means)
+  double rmseEstimate = 0;                // per-texel RMSE estimate: sqrt(loss + within-cluster term)
+  double samplesPerSecond = 0;
+  double learningRate = 0;
+  bool polish = false;                    // encoder frozen, decoder fitting the final latents
+};
+
 // The training recipe (configs/*.json, one object per component: "model", "optimizer",
 // "training"; see docs/model.md).
 struct TrainConfig {
@@ -41,8 +53,8 @@ struct TrainConfig {
   double momentum = 0;             // sgd only
   // ---- training
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
-  int imagesPerInput = 2048;       // images per encoder input in a step (a "tile"); clamped to the training images
-  int epochs = 30;                 // one epoch = (encoder inputs) x (training images) decoder samples
+  int imagesPerInput = 256;        // images per encoder input in a step (a "tile"); clamped to the training images
+  int epochs = 20;                 // one epoch = (encoder inputs) x (training images) decoder samples
   double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
   std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
   double warmupFraction = 0.02;    // linear learning-rate warm-up, fraction of the run
@@ -57,6 +69,7 @@ struct TrainConfig {
   // ---- run control (not in config files)
   std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
   std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done
+  std::function<void(const TrainStatus&)> monitor;  // called after every step (keep it cheap)
 };
 
 // Loads a config file; unknown keys and wrong types are errors naming the file and key.

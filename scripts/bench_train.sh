@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Benchmark of training (issue 4), all in one run on this machine:
+#   1. the machine's float32 matrix-multiply rate (libtorch mm, 2048 x 2048, all threads);
+#   2. nbtf's training throughput with configs/default.json (decoder samples/s and decoder
+#      GFLOP/s, forward + backward), whole training step and the decoder's pass alone;
+#   3. time to converge on a 100 x 100-texel, 6561-image synthetic material with k = 500,
+#      and the RMSE of a run 4x as long.
+# Targets: training >= 50% of the matmul rate; convergence < 600 s, RMSE within 5% of the 4x run.
+# Usage: scripts/bench_train.sh [--quick]   (--quick: skip the 4x run)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+"$root/scripts/setup.sh"
+"$root/scripts/build.sh" "$root/build"
+bin=$root/build/bin
+config=$root/configs/default.json
+factor=4
+[[ ${1:-} == --quick ]] && factor=0
+data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric100_ubo2003
+if [[ ! -f "$data/synth.json" ]]; then
+  echo "== generating the 100 x 100 UBO2003 fabric (once; cached in $data)"
+  "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -o "$data"
+fi
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+echo "== $(nproc) cores; config $config"
+echo "== 1. matmul rate"
+"$bin/nbtf-bench-train" --matmul | tee -a "$log"
+echo "== 2. training throughput (in-memory 100 x 100 material, k = 500, 30 s)"
+"$bin/nbtf-bench-train" --throughput --config "$config" --seconds 30 | tee -a "$log"
+"$bin/nbtf-bench-train" --decoder-only --config "$config" | tee -a "$log"
+echo "== 3. convergence on $data (k = 500, then ${factor}x as long)"
+"$bin/nbtf-bench-train" --converge "$data" --config "$config" --clusters 500 --long-factor "$factor" \
+  --trace 30 | tee -a "$log"
+
+python3 - "$log" "$factor" <<'PY'
+import sys
+v = {}
+for line in open(sys.argv[1]):
+    parts = line.split()
+    if len(parts) == 2:
+        try: v[parts[0]] = float(parts[1])
+        except ValueError: pass
+factor = int(sys.argv[2])
+mm = v["matmul_gflops"]
+train = v["throughput_decoder_gflops"]
+dec = v["decoder_only_gflops"]
+print(f"matmul {mm:.1f} GFLOP/s; training step {train:.1f} GFLOP/s ({v['throughput_samples_per_second']:.0f} "
+      f"decoder samples/s); decoder pass alone {dec:.1f} GFLOP/s ({v['decoder_only_samples_per_second']:.0f} samples/s)")
+print(f"convergence: reference RMSEs (linear / alpha): image mean {v['reference_rmse_image_mean']:.4f}, "
+      f"cluster-mean floor {v['reference_rmse_cluster_mean']:.4f}")
+ok = lambda c: "PASS" if c else "FAIL"
+print(f"bench train_throughput: {train:.1f} GFLOP/s = {100 * train / mm:.0f}% of matmul {mm:.1f} GFLOP/s "
+      f"(target >= 50%) {ok(train >= 0.5 * mm)}")
+t = v["converge_seconds"]
+print(f"bench train_converge_time: {t:.0f} s training to RMSE {v['converge_rmse_train']:.5f} "
+      f"(target < 600 s) {ok(t < 600)}")
+if factor > 0:
+    short, long_ = v["converge_rmse_train"], v["long_rmse_train"]
+    gap = short / long_ - 1
+    print(f"bench train_converge_quality: RMSE {short:.5f} vs {long_:.5f} for {factor}x as long "
+          f"({v['long_seconds']:.0f} s), {100 * gap:+.1f}% (target <= +5%) {ok(gap <= 0.05)}")
+PY
