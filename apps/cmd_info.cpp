@@ -1,10 +1,13 @@
-// nbtf info <path>: describe a BTF image stack (or, once written, a .nbtf file).
+// nbtf info <path>: describe a BTF image stack folder or a compressed .nbtf file.
 #include <cstdio>
 #include <filesystem>
 
 #include "cli_common.h"
+#include "codec/nbtf_describe.h"
+#include "codec/nbtf_file.h"
 #include "commands.h"
 #include "io/btf_loader.h"
+#include "util/atomic_file.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -43,13 +46,31 @@ int infoStack(const std::string& path, const cxxopts::ParseResult& args) {
   return 0;
 }
 
+// A .nbtf file: recognised by its magic bytes, or by its extension (so a damaged file
+// still gets the reader's precise error instead of "not a folder").
+bool looksLikeNbtf(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
+  return hasNbtfMagic(path) || std::filesystem::path(path).extension() == ".nbtf";
+}
+
+int infoNbtf(const std::string& path, const cxxopts::ParseResult& args) {
+  for (const char* stackOnly : {"layout", "crop"})
+    if (args.count(stackOnly))
+      throw Error(std::string("--") + stackOnly + " applies to image stacks, not to .nbtf files");
+  std::vector<std::uint8_t> bytes = readFileBytes(path);
+  CompressedBtf btf = parseNbtf(bytes.data(), bytes.size(), path);
+  std::fputs(describeNbtf(btf, path, bytes.size()).c_str(), stdout);
+  return 0;
+}
+
 }  // namespace
 
 int infoMain(int argc, char** argv) {
   return runGuarded("info", [&] {
-    cxxopts::Options options("nbtf info", "Describe a BTF image stack folder");
+    cxxopts::Options options("nbtf info", "Describe a BTF image stack folder or a compressed .nbtf file");
     options.positional_help("<path>");
-    options.add_options()("path", "BTF stack folder", cxxopts::value<std::string>())(
+    options.add_options()("path", "BTF stack folder or .nbtf file", cxxopts::value<std::string>())(
         "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "q,quiet", "No progress bar");
@@ -60,7 +81,8 @@ int infoMain(int argc, char** argv) {
     applyCommonOptions(args);
     if (args.count("quiet")) Progress::setQuiet(true);
     if (!args.count("path")) throw Error("missing <path> (see 'nbtf info --help')");
-    return infoStack(args["path"].as<std::string>(), args);
+    std::string path = args["path"].as<std::string>();
+    return looksLikeNbtf(path) ? infoNbtf(path, args) : infoStack(path, args);
   });
 }
 

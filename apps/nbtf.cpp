@@ -8,6 +8,10 @@ namespace nbtf::cli {
 namespace {
 const Command kCommands[] = {
     {"info", infoMain, "Describe a BTF image stack or a .nbtf file"},
+    {"compress", compressMain, "Compress a BTF image stack into a .nbtf file (clustered neural BTF)"},
+    {"decode", decodeMain, "Reconstruct images from a .nbtf file (any angles, any size)"},
+    {"query", queryMain, "Decoded RGB at texels and directions (single or CSV batch)"},
+    {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
 };
 

@@ -1,14 +1,31 @@
 #!/usr/bin/env bash
-# The main job on the built-in default material: set up, build, generate the material,
-# and load it. Output goes to demo_out/ (or $1).
+# The main job on the built-in default material: set up, build, generate the material
+# (synthetic fabric, 100 x 100 texels, all 81 x 81 light/view images, UBO2003 layout),
+# compress it with k = 500 clusters, and evaluate the result against the stack.
+# Output goes to demo_out/ (or $1). NBTF_DEMO_BUDGET sets the training time budget (s).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/demo_out}
+budget=${NBTF_DEMO_BUDGET:-300}
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh" "$root/build"
 bin=$root/build/bin
 mkdir -p "$out"
-echo "== generating the default material (fabric, 100 x 100 texels, UBO2003 layout)"
+
+echo "== 1/5 generating the default material (fabric, 100 x 100 texels, UBO2003 JPEG)"
 "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 -o "$out/fabric"
-echo "== loading it"
-"$bin/nbtf" info "$out/fabric"
+
+echo "== 2/5 loading it"
+"$bin/nbtf" info "$out/fabric" -q
+
+echo "== 3/5 compressing it (k = 500, 10% of the images held out, ${budget} s training budget)"
+"$bin/nbtf" compress "$out/fabric" -o "$out/fabric.nbtf" --clusters 500 --holdout 0.1 \
+  --time-budget "$budget" --seed 1 --stats-json "$out/fabric_stats.json"
+
+echo "== 4/5 the compressed file"
+"$bin/nbtf" info "$out/fabric.nbtf"
+
+echo "== 5/5 evaluating it against the stack"
+"$bin/nbtf" eval "$out/fabric.nbtf" --reference "$out/fabric" -o "$out/report" -q
+echo
+echo "report: $out/report/report.html (also report.md, report.json)"

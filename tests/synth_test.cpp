@@ -529,6 +529,8 @@ TEST(SynthCli, ListsPresetsAndRejectsBadOptions) {
   EXPECT_EQ(runSynth("--size 8x8 --layout bonn" + o, &out), 1);
   EXPECT_EQ(runSynth("--size 8x8", &out), 1);  // no -o
   EXPECT_NE(out.find("-o"), std::string::npos) << out;
+  EXPECT_EQ(runSynth("--size 8x8 -q -o ''", &out), 1);
+  EXPECT_NE(out.find("empty"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir.path()));  // nothing written by any rejected run
 }
 

@@ -168,6 +168,7 @@ void removeEarlierOutput(const std::string& outDir, const std::string& jsonPath)
 }
 
 void prepareOutputFolder(const std::string& outDir) {
+  if (outDir.empty()) throw Error("the output folder path is empty");
   std::error_code ec;
   if (fs::exists(outDir, ec) && !fs::is_directory(outDir, ec)) throw fileError(outDir, "exists and is not a folder");
   if (!fs::exists(outDir, ec)) {

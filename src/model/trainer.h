@@ -1,6 +1,7 @@
 // Training the asymmetric encoder/decoder of the clustered neural BTF (sections 2.2-2.4,
 // 3.1). Torch lives in the .cpp files of this folder only; this header is torch-free.
 #pragma once
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -12,35 +13,57 @@
 
 namespace nbtf {
 
-// Network shape. Defaults are the paper's (8-dim latent, 4 linear decoder layers of 106).
+// Network shape. Defaults are the paper's (8-dim latent, 4 linear decoder layers of 106);
+// the encoder's channel widths are ours (the paper gives none).
 struct ModelConfig {
   int latentDim = 8;
-  std::vector<int> encoderChannels = {16, 32, 64};  // one conv block per entry
+  // One conv block (Conv1d k3 s1 p1 -> MaxPool1d k3 s3 -> BatchNorm1d) per entry, at most:
+  // fewer are used when the ABRDF is too short (see encoderBlockCount).
+  std::vector<int> encoderChannels = {16, 32, 64};
   int decoderWidth = 106;
   int decoderLayers = 4;  // linear layers, ReLU between, linear RGB output
 };
 
-// The training recipe (configs/*.json, one object per component).
+// Conv blocks actually used for N images: as many of `configured` as keep the pooled
+// length >= 2 (6561 -> 2187 -> 729 -> 243 with 3 blocks; 4 images -> 0 blocks).
+int encoderBlockCount(int imageCount, int configured);
+// The decoder as an Mlp shape (input latent + 4, RGB out), weights zero; 24,383 parameters
+// for the defaults.
+Mlp decoderShape(const ModelConfig& model);
+
+// The training recipe (configs/*.json, one object per component: "model", "optimizer",
+// "training"; see docs/model.md).
 struct TrainConfig {
   ModelConfig model;
+  // ---- optimizer
   std::string optimizer = "adam";  // "sgd" | "adam"
-  double learningRate = 1e-3;
+  double learningRate = 2e-3;
   double momentum = 0;             // sgd only
-  int batchSize = 4096;            // decoder samples per step
-  int epochs = 20;
-  double timeBudgetSeconds = 0;    // 0 = no limit; stops after the epoch that passes it
-  std::string schedule = "cosine"; // "constant" | "cosine" | "step"
+  // ---- training
+  int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
+  int imagesPerInput = 2048;       // images per encoder input in a step (a "tile"); clamped to the training images
+  int epochs = 30;                 // one epoch = (encoder inputs) x (training images) decoder samples
+  double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
+  std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
+  double warmupFraction = 0.02;    // linear learning-rate warm-up, fraction of the run
+  double polishFraction = 0.1;     // last fraction: encoder frozen (eval mode), decoder fitted to the final latents
   double holdoutFraction = 0;      // fraction of (light, view) images kept out of training
   std::uint64_t seed = 1;
-  int threads = 0;                 // 0 = all cores
-  double checkpointSeconds = 300;  // checkpoint interval (0 = never)
+  int threads = 0;                 // 0 = threadCount() (all cores unless --threads)
+  double checkpointSeconds = 300;  // checkpoint interval (0 = only when stopped)
   std::string checkpointPath;      // "" = no checkpoints
-  bool resume = false;             // continue from checkpointPath if present
+  bool resume = false;             // continue from checkpointPath if it exists
   bool progress = true;
+  // ---- run control (not in config files)
+  std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
+  std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done
 };
 
 // Loads a config file; unknown keys and wrong types are errors naming the file and key.
+// Keys that are absent keep the defaults above.
 TrainConfig loadTrainConfig(const std::string& path);
+// Throws nbtf::Error naming `source` and the key when a value is out of range.
+void validateTrainConfig(const TrainConfig& config, const std::string& source);
 
 // What training needs. In the clustered mode the encoder sees one representative per
 // cluster; in the per-texel mode (ids empty) it sees every texel's own ABRDF.
@@ -59,9 +82,21 @@ struct TrainResult {
   std::vector<int> holdoutImages;       // image indices kept out of training
   double rmseTrain = 0;                 // eq. (10) on linear values / alpha, training images
   double rmseHoldout = -1;              // same on held-out images; -1 when none
-  double seconds = 0;
-  int epochsRun = 0;
-  double samplesPerSecond = 0;          // decoder samples (forward + backward)
+  double seconds = 0;                   // whole call: setup, training, evaluation
+  double trainSeconds = 0;              // the optimization loop only
+  int epochsRun = 0;                    // completed epochs
+  std::int64_t steps = 0;               // optimizer steps done (including resumed ones)
+  std::int64_t resumedFromStep = 0;     // 0 = fresh start
+  bool interrupted = false;             // stopped early (stopFlag / stopAtStep); rmse* are then -1
+  double samplesPerSecond = 0;          // decoder samples (forward + backward) per second of the loop
+  double decoderGflops = 0;             // samplesPerSecond x 3 x forward flops of the decoder
+  double finalLoss = 0;                 // smoothed training loss at the end (MSE vs cluster means)
+  int encoderBlocks = 0;                // conv blocks used for this N
+  // Where the loop's time went (seconds): drawing samples and gathering targets, encoder
+  // forward + backward, the decoder's forward + backward, the optimizer update.
+  struct Profile {
+    double sampling = 0, encoder = 0, decoder = 0, optimizer = 0;
+  } profile;
 };
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config);

@@ -1,0 +1,154 @@
+// nbtf compress <input> -o <out.nbtf>: the whole pipeline (load, preprocess, PCA,
+// k-means++, train, write) with a summary table at the end.
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+
+#include "cli_common.h"
+#include "codec/compressor.h"
+#include "commands.h"
+#include "util/atomic_file.h"
+#include "util/progress.h"
+
+namespace nbtf::cli {
+namespace {
+
+// SIGINT: the first Ctrl-C asks training to checkpoint and stop; SA_RESETHAND restores the
+// default action, so a second Ctrl-C ends the process at once.
+std::atomic<bool> gStopRequested{false};
+
+extern "C" void onInterrupt(int) {
+  gStopRequested.store(true);
+  const char msg[] = "\nnbtf compress: interrupt received, stopping after a checkpoint (Ctrl-C again to abort)\n";
+  ssize_t ignored = ::write(STDERR_FILENO, msg, sizeof msg - 1);
+  (void)ignored;
+}
+
+void installInterruptHandler() {
+  struct sigaction sa;
+  std::memset(&sa, 0, sizeof sa);
+  sa.sa_handler = onInterrupt;
+  sa.sa_flags = SA_RESETHAND;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+}
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// Config file (or the compiled-in defaults, identical to configs/default.json), then the
+// command-line options on top.
+TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string& output) {
+  TrainConfig c = args.count("config") ? loadTrainConfig(args["config"].as<std::string>()) : TrainConfig{};
+  if (args.count("holdout")) {
+    c.holdoutFraction = args["holdout"].as<double>();
+    if (!(c.holdoutFraction >= 0 && c.holdoutFraction < 1))
+      throw Error("--holdout must be a fraction in [0, 1), got " + number(c.holdoutFraction));
+  }
+  if (args.count("epochs")) {
+    c.epochs = args["epochs"].as<int>();
+    if (c.epochs < 1) throw Error("--epochs must be >= 1, got " + std::to_string(c.epochs));
+  }
+  if (args.count("time-budget")) {
+    c.timeBudgetSeconds = args["time-budget"].as<double>();
+    if (!(c.timeBudgetSeconds > 0 && std::isfinite(c.timeBudgetSeconds)))
+      throw Error("--time-budget must be a positive number of seconds, got " + number(c.timeBudgetSeconds));
+    if (!args.count("epochs")) c.epochs = 0;  // a budget alone: train until it is spent
+  }
+  if (args.count("seed")) {
+    long long seed = args["seed"].as<long long>();
+    if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
+    c.seed = static_cast<std::uint64_t>(seed);
+  }
+  if (args.count("threads")) c.threads = args["threads"].as<int>();
+  if (args.count("resume")) c.resume = true;
+  if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
+  validateTrainConfig(c, args.count("config") ? args["config"].as<std::string>() + " + command line" : "command line");
+  return c;
+}
+
+}  // namespace
+
+int compressMain(int argc, char** argv) {
+  return runGuarded("compress", [&] {
+    cxxopts::Options options("nbtf compress", "Compress a BTF image stack into a .nbtf file");
+    options.positional_help("<input> -o <out.nbtf>");
+    options.add_options()("input", "BTF stack folder (UBO2003 or UTIA layout)", cxxopts::value<std::string>())(
+        "o,output", "Output .nbtf file", cxxopts::value<std::string>())(
+        "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
+        cxxopts::value<int>()->default_value("500"))(
+        "config", "Training config JSON (default: built-in, identical to configs/default.json)",
+        cxxopts::value<std::string>())("crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
+        "layout", "Force the input layout: ubo2003 or utia", cxxopts::value<std::string>())(
+        "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
+        "epochs", "Training epochs (overrides the config)", cxxopts::value<int>())(
+        "time-budget", "Training time budget in seconds (alone: train until it is spent)",
+        cxxopts::value<double>())("seed", "Random seed (clustering and training)", cxxopts::value<long long>())(
+        "stats-json", "Also write the summary as JSON to this file", cxxopts::value<std::string>())(
+        "save-encoder", "Also write this .nbtf file with the encoder inside (for fine-tuning)",
+        cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
+        "components", "PCA components before k-means (default 32, capped by the data)",
+        cxxopts::value<int>()->default_value("0"))("q,quiet", "No progress bars");
+    addCommonOptions(options);
+    options.parse_positional({"input"});
+    cxxopts::ParseResult args;
+    if (!parseOptions(options, argc, argv, args)) return 0;
+    applyCommonOptions(args);
+    if (args.count("quiet")) Progress::setQuiet(true);
+    if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
+    if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
+    const std::string input = args["input"].as<std::string>();
+    const std::string output = args["output"].as<std::string>();
+
+    CompressOptions o;
+    o.train = buildTrainConfig(args, output);
+    if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
+    o.clusters = args["clusters"].as<int>();
+    if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
+    o.pcaComponents = args["components"].as<int>();
+    if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
+    if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
+    if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
+    if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
+    std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
+    if (!statsPath.empty()) checkWritable(statsPath);  // the rest is checked by compressBtf
+    if (o.train.resume) {
+      std::error_code ec;
+      if (std::filesystem::exists(o.train.checkpointPath, ec))
+        std::fprintf(stderr, "nbtf compress: resuming from %s\n", o.train.checkpointPath.c_str());
+      else
+        std::fprintf(stderr, "nbtf compress: --resume: no checkpoint at %s, starting from the beginning\n",
+                     o.train.checkpointPath.c_str());
+    }
+    o.stopFlag = &gStopRequested;
+    installInterruptHandler();
+
+    CompressStats stats = compressBtf(input, output, o);
+    if (stats.interrupted) {
+      std::error_code ec;
+      if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
+        std::fprintf(stderr,
+                     "nbtf compress: interrupted; nothing written to %s. Training state is in %s: run the same "
+                     "command with --resume to continue.\n",
+                     output.c_str(), stats.checkpointPath.c_str());
+      else
+        std::fprintf(stderr, "nbtf compress: interrupted before training started; nothing written to %s.\n",
+                     output.c_str());
+      if (!statsPath.empty()) writeFileAtomic(statsPath, compressStatsJson(stats));
+      return 130;
+    }
+    std::printf("\n%s", formatCompressSummary(stats).c_str());
+    if (!statsPath.empty()) writeFileAtomic(statsPath, compressStatsJson(stats));
+    return 0;
+  });
+}
+
+}  // namespace nbtf::cli

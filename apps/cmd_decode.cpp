@@ -1,0 +1,71 @@
+// nbtf decode <file.nbtf> -o <dir>: reconstruct the image stack (all measured images, a
+// subset, or unmeasured angles) in the layout and naming the loaders read.
+#include <cstdio>
+#include <tuple>
+
+#include "cli_common.h"
+#include "codec/decoder.h"
+#include "codec/decoder_output.h"
+#include "commands.h"
+#include "util/progress.h"
+
+namespace nbtf::cli {
+
+int decodeMain(int argc, char** argv) {
+  return runGuarded("decode", [&] {
+    cxxopts::Options options("nbtf decode",
+                             "Reconstruct a BTF image stack from a .nbtf file (all images, a subset, or any angles)");
+    options.positional_help("<file.nbtf> -o <dir>");
+    options.add_options()("file", "Compressed material (.nbtf)", cxxopts::value<std::string>())(
+        "o,output", "Output folder (created if missing; existing images are replaced)", cxxopts::value<std::string>())(
+        "layout", "Output layout and names: ubo2003 or utia (default: the source's)", cxxopts::value<std::string>())(
+        "format", "png or jpg (8-bit sRGB) or exr (linear half float) (default: exr for half-float sources, else png)",
+        cxxopts::value<std::string>())(
+        "lights", "Lights to decode: 'all' or comma-separated N, N-M, tTHETApPHI (e.g. 0-5,t37.5p200)",
+        cxxopts::value<std::string>())("views", "Views to decode, same LIST syntax as --lights",
+                                       cxxopts::value<std::string>())(
+        "light", "One light THETA,PHI in degrees (measured or not); same as --lights tTHETApPHI",
+        cxxopts::value<std::string>())("view", "One view THETA,PHI in degrees; same as --views tTHETApPHI",
+                                       cxxopts::value<std::string>())(
+        "size", "Output image size WxH; the texture tiles (wraps) to fill it (default: the material's)",
+        cxxopts::value<std::string>())("jpeg-quality", "JPEG quality 1..100",
+                                       cxxopts::value<int>()->default_value("95"))(
+        "isa", "Decoder kernels: auto, portable, avx2, avx512", cxxopts::value<std::string>()->default_value("auto"))(
+        "q,quiet", "No progress bar or summary");
+    addCommonOptions(options);
+    options.parse_positional({"file"});
+    cxxopts::ParseResult args;
+    if (!parseOptions(options, argc, argv, args)) return 0;
+    applyCommonOptions(args);
+    const bool quiet = args.count("quiet") > 0;
+    if (quiet) Progress::setQuiet(true);
+    if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf decode --help')");
+    if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf decode --help')");
+    for (auto [one, list] : {std::pair{"light", "lights"}, std::pair{"view", "views"}})
+      if (args.count(one) && args.count(list))
+        throw Error(std::string("--") + one + " and --" + list + " both choose the " + list + "; give one of them");
+
+    DecoderOptions decoderOptions;
+    decoderOptions.isa = parseDecoderIsa(args["isa"].as<std::string>());
+    NbtfDecoder decoder = NbtfDecoder::open(args["file"].as<std::string>(), decoderOptions);
+
+    DecodeStackOptions o;
+    if (args.count("layout")) o.layout = parseLayout(args["layout"].as<std::string>());
+    if (args.count("format")) o.format = parseImageFormat(args["format"].as<std::string>());
+    if (args.count("lights")) o.lights = parseDirectionList(args["lights"].as<std::string>(), decoder.lights(), "--lights");
+    if (args.count("views")) o.views = parseDirectionList(args["views"].as<std::string>(), decoder.views(), "--views");
+    if (args.count("light"))
+      o.lights = {chooseDirection(parseDirection(args["light"].as<std::string>(), "--light"), decoder.lights())};
+    if (args.count("view"))
+      o.views = {chooseDirection(parseDirection(args["view"].as<std::string>(), "--view"), decoder.views())};
+    if (args.count("size")) std::tie(o.width, o.height) = parseImageSize(args["size"].as<std::string>(), "--size");
+    o.jpegQuality = args["jpeg-quality"].as<int>();
+    o.progress = !quiet;
+
+    DecodeStackResult result = writeDecodedStack(decoder, args["output"].as<std::string>(), o);
+    if (!quiet) std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);
+    return 0;
+  });
+}
+
+}  // namespace nbtf::cli

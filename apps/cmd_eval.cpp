@@ -1,0 +1,117 @@
+// nbtf eval <file.nbtf> --reference <stack> -o <dir>: decode every image of a compressed
+// material, compare it with the measured reference, and write report.md / .html / .json.
+#include <cstdio>
+#include <filesystem>
+
+#include "cli_common.h"
+#include "codec/nbtf_file.h"
+#include "commands.h"
+#include "eval/compressed_source.h"
+#include "eval/report.h"
+#include "eval/sweep.h"
+#include "io/btf_loader.h"
+#include "util/progress.h"
+
+namespace nbtf::cli {
+namespace {
+
+// --summarize: many report.json files -> sweep tables and rate-distortion plot scripts.
+int runSummarize(const cxxopts::ParseResult& args) {
+  if (!args.count("output")) throw Error("missing -o <folder> for the sweep summary (see 'nbtf eval --help')");
+  if (!args.count("files")) throw Error("--summarize needs report.json files");
+  std::vector<SweepEntry> entries;
+  for (const auto& path : args["files"].as<std::vector<std::string>>()) entries.push_back(readSweepEntry(path));
+  SweepFiles files = writeSweepSummary(entries, args["output"].as<std::string>());
+  std::printf("%s", sweepTablesMarkdown(entries).c_str());
+  std::printf("table           %s\n", files.table.c_str());
+  for (std::size_t i = 0; i < files.scripts.size(); ++i)
+    std::printf("gnuplot script  %s -> %s\n", files.scripts[i].c_str(), files.plots[i].c_str());
+  return 0;
+}
+
+int runEval(const cxxopts::ParseResult& args) {
+  if (args.count("summarize")) return runSummarize(args);
+  if (!args.count("files")) throw Error("missing <file.nbtf> (see 'nbtf eval --help')");
+  const auto& files = args["files"].as<std::vector<std::string>>();
+  if (files.size() != 1) throw Error("expected one <file.nbtf>, got " + std::to_string(files.size()));
+  if (!args.count("reference")) throw Error("missing --reference <stack folder> (see 'nbtf eval --help')");
+  if (!args.count("output")) throw Error("missing -o <report folder> (see 'nbtf eval --help')");
+  const std::string file = files.front();
+  const std::string referencePath = args["reference"].as<std::string>();
+  const std::string outDir = args["output"].as<std::string>();
+  EvalOptions options;
+  options.blurSampleImages = args["blur-images"].as<int>();
+  if (options.blurSampleImages < 0) throw Error("--blur-images must be >= 0");
+  options.progress = !args.count("quiet");
+
+  // Fail on an unwritable output before decoding anything.
+  std::filesystem::path probeDir = std::filesystem::path(outDir).parent_path();
+  if (!probeDir.empty() && !std::filesystem::is_directory(probeDir))
+    throw fileError(outDir, "the folder it would be created in does not exist");
+  if (std::filesystem::exists(outDir) && !std::filesystem::is_directory(outDir))
+    throw fileError(outDir, "exists and is not a folder");
+
+  CompressedBtf btf = readNbtf(file);
+  std::uint64_t fileBytes = std::filesystem::file_size(file);
+
+  // The reference, cut the way the file was made unless told otherwise.
+  LoadOptions load;
+  load.progress = options.progress;
+  load.crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : btf.crop;
+  load.layout = args.count("layout") ? parseLayout(args["layout"].as<std::string>()) : btf.layout;
+  BtfStack reference = loadBtfStack(referencePath, load);
+  checkReferenceMatches(btf, reference, file, referencePath);
+
+  CompressedReconstruction reconstruction(btf, file);
+  EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
+  EvalResult result = evaluate(inputs, options);
+  ReportPaths paths = writeReport(result, outDir);
+
+  std::printf("method          %s (%d decoder evaluations per image)\n", result.method.c_str(),
+              reconstruction.evaluationsPerImage());
+  std::printf("RMSE            %.5f (linear RGB / alpha, eq. 10), %.3f (sRGB 8-bit codes)\n", result.all.rmse,
+              result.all.rmseSrgb8);
+  std::printf("PSNR            %.2f dB (linear / alpha, peak 1), %.2f dB (sRGB 8-bit, peak 255)\n", result.all.psnr,
+              result.all.psnrSrgb8);
+  if (result.hasHoldout())
+    std::printf("held-out RMSE   %.5f (linear RGB / alpha) over %zu images; training %.5f\n", result.holdout.rmse,
+                result.holdoutImages.size(), result.training.rmse);
+  else
+    std::printf("held-out RMSE   none (the file records no held-out images)\n");
+  std::printf("ratio           1 : %.0f (raw float32 / total)\n", result.sizes.ratio());
+  int atBound = 0;
+  for (const auto& s : result.blurSamples) atBound += s.estimate.atUpperBound;
+  std::printf("blur sigma      %.3f texels (median of %zu images%s)\n", result.blurSigmaMedian, result.blurSamples.size(),
+              atBound ? (", " + std::to_string(atBound) + " at the upper bound: no detail left").c_str() : "");
+  std::printf("time            %.1f s\n", result.seconds);
+  std::printf("report          %s\n                %s\n                %s\n", paths.html.c_str(), paths.markdown.c_str(),
+              paths.json.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int evalMain(int argc, char** argv) {
+  return runGuarded("eval", [&] {
+    cxxopts::Options options("nbtf eval", "Compare a compressed material with its reference; write an RMSE report");
+    options.positional_help("<file.nbtf> --reference <stack> -o <report folder>  |  --summarize -o <folder> <report.json>...");
+    options.add_options()("files", "Compressed material (.nbtf); with --summarize: report.json files",
+                          cxxopts::value<std::vector<std::string>>())(
+        "r,reference", "The measured BTF image stack it was made from", cxxopts::value<std::string>())(
+        "o,output", "Report folder (created if missing)", cxxopts::value<std::string>())(
+        "crop", "Crop X,Y,W,H of the reference (default: the file's crop)", cxxopts::value<std::string>())(
+        "layout", "Reference layout: ubo2003 or utia (default: the file's)", cxxopts::value<std::string>())(
+        "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
+        cxxopts::value<int>()->default_value("8"))("q,quiet", "No progress bars")(
+        "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plot scripts)");
+    addCommonOptions(options);
+    options.parse_positional({"files"});
+    cxxopts::ParseResult args;
+    if (!parseOptions(options, argc, argv, args)) return 0;
+    applyCommonOptions(args);
+    if (args.count("quiet")) Progress::setQuiet(true);
+    return runEval(args);
+  });
+}
+
+}  // namespace nbtf::cli

@@ -1,0 +1,187 @@
+// nbtf-bench-train: the numbers behind scripts/bench_train.sh.
+//   --matmul                 libtorch float32 mm rate (n x n, all threads)
+//   --throughput             training throughput on an in-memory material (k clusters, N images)
+//   --converge DIR           the whole pipeline on a stack on disk (preprocess, k-means, train),
+//                            training with the config, then again with `--long-factor` x the epochs
+// Every figure is printed as "key value" lines for the script to pick up.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cxxopts.hpp>
+#include <iostream>
+
+#include "cluster/clustering.h"
+#include "io/btf_loader.h"
+#include "model/torch_reference.h"
+#include "model/trainer.h"
+#include "preprocess/abrdf_matrix.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+using namespace nbtf;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// A smooth analytic material (diffuse x cos + a glossy lobe, per-texel albedo), for
+// throughput only: the cost of a training step does not depend on the values.
+BtfStack analyticStack(int size, int directionsPerAxis) {
+  const auto& h81 = hemisphere81();
+  std::vector<Direction> dirs;
+  for (int i = 0; i < directionsPerAxis; ++i) dirs.push_back(h81[i * 81 / directionsPerAxis]);
+  BtfStack stack(dirs, dirs, size, size, SampleType::Srgb8);
+  const int M = size * size;
+  parallelFor(stack.numImages(), [&](std::size_t begin, std::size_t end) {
+    std::vector<float> rgb(static_cast<std::size_t>(M) * 3);
+    for (std::size_t img = begin; img < end; ++img) {
+      auto l = dirs[img / stack.numViews()].unitVector();
+      auto v = dirs[img % stack.numViews()].unitVector();
+      double lobe = std::pow(std::max(0.0, -l[0] * v[0] - l[1] * v[1] + l[2] * v[2]), 8.0);
+      for (int t = 0; t < M; ++t) {
+        double a = 0.3 + 0.25 * std::sin(0.11 * t), g = 0.5 + 0.4 * std::cos(0.07 * t);
+        for (int c = 0; c < 3; ++c) rgb[3 * t + c] = static_cast<float>((a + 0.1 * c) * l[2] * 0.8 + g * lobe * 0.5);
+      }
+      stack.setImageLinear(static_cast<int>(img), rgb.data());
+    }
+  });
+  return stack;
+}
+
+void printResult(const std::string& prefix, const TrainResult& r) {
+  std::printf("%s_rmse_train %.6f\n", prefix.c_str(), r.rmseTrain);
+  std::printf("%s_rmse_holdout %.6f\n", prefix.c_str(), r.rmseHoldout);
+  std::printf("%s_seconds %.2f\n", prefix.c_str(), r.seconds);
+  std::printf("%s_train_seconds %.2f\n", prefix.c_str(), r.trainSeconds);
+  std::printf("%s_epochs %d\n", prefix.c_str(), r.epochsRun);
+  std::printf("%s_steps %lld\n", prefix.c_str(), static_cast<long long>(r.steps));
+  std::printf("%s_samples_per_second %.0f\n", prefix.c_str(), r.samplesPerSecond);
+  std::printf("%s_decoder_gflops %.2f\n", prefix.c_str(), r.decoderGflops);
+  std::printf("%s_profile_seconds sampling %.2f encoder %.2f decoder %.2f optimizer %.2f\n", prefix.c_str(),
+              r.profile.sampling, r.profile.encoder, r.profile.decoder, r.profile.optimizer);
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  cxxopts::Options options("nbtf-bench-train", "Training benchmarks (see scripts/bench_train.sh)");
+  options.add_options()("matmul", "Measure libtorch mm rate")("n", "Matrix size for --matmul",
+                                                             cxxopts::value<int>()->default_value("2048"))(
+      "throughput", "Measure training throughput on an in-memory material")(
+      "converge", "Pipeline + training on this stack folder", cxxopts::value<std::string>())(
+      "config", "Training config", cxxopts::value<std::string>())(
+      "clusters", "k (0 = per-texel)", cxxopts::value<int>()->default_value("500"))(
+      "size", "Texels per side (--throughput)", cxxopts::value<int>()->default_value("100"))(
+      "directions", "Directions per axis (--throughput)", cxxopts::value<int>()->default_value("81"))(
+      "seconds", "Training time for --throughput", cxxopts::value<double>()->default_value("30"))(
+      "epochs", "Override the config's epochs", cxxopts::value<int>())(
+      "long-factor", "--converge: also train this many times as long (0 = skip)",
+      cxxopts::value<int>()->default_value("4"))("threads", "Threads (0 = all)",
+                                                  cxxopts::value<int>()->default_value("0"))(
+      "decoder-only", "Measure the decoder's training pass alone")(
+      "steps", "Steps for --decoder-only", cxxopts::value<int>()->default_value("40"))(
+      "progress", "Show progress bars")("h,help", "Help");
+  try {
+    auto args = options.parse(argc, argv);
+    if (args.count("help")) {
+      std::cout << options.help() << std::endl;
+      return 0;
+    }
+    setThreadCount(args["threads"].as<int>());
+    const int threads = threadCount();
+    const bool progress = args.count("progress") > 0;
+    std::printf("threads %d\n", threads);
+    if (args.count("matmul")) {
+      int n = args["n"].as<int>();
+      std::printf("matmul_n %d\nmatmul_gflops %.2f\n", n, matmulGflops(n, threads, 3.0));
+    }
+    if (args.count("decoder-only")) {
+      // The decoder's training pass alone, at the configured step geometry.
+      TrainConfig c = args.count("config") ? loadTrainConfig(args["config"].as<std::string>()) : TrainConfig{};
+      int tiles = std::max(1, c.batchSize / c.imagesPerInput);
+      DecoderStepRate r = decoderStepRate(c.model, tiles, c.imagesPerInput, args["steps"].as<int>(), threads);
+      double flops = decoderShape(c.model).flopsPerSample() * 3;
+      std::printf("decoder_only_samples_per_second %.0f\ndecoder_only_gflops %.2f\ndecoder_only_cpu_gflops_per_thread %.2f\n",
+                  r.samplesPerSecond, r.samplesPerSecond * flops / 1e9,
+                  r.samplesPerSecond * r.wallSeconds / r.cpuSeconds * flops / 1e9);
+    }
+    TrainConfig config;
+    if (args.count("config")) config = loadTrainConfig(args["config"].as<std::string>());
+    if (args.count("epochs")) config.epochs = args["epochs"].as<int>();
+    config.threads = threads;
+    config.progress = progress;
+    const int k = args["clusters"].as<int>();
+
+    if (args.count("throughput")) {
+      auto t0 = Clock::now();
+      BtfStack stack = analyticStack(args["size"].as<int>(), args["directions"].as<int>());
+      MatrixXfCol x = abrdfMatrix(stack, progress);
+      standardizeInPlace(x);
+      TrainInputs in;
+      in.stack = &stack;
+      in.alpha = targetAlpha(stack);
+      MatrixXfCol reps;
+      if (k > 0) {
+        // Any assignment will do for timing: texel t -> t mod k.
+        in.ids.resize(stack.numTexels());
+        for (int t = 0; t < stack.numTexels(); ++t) in.ids[t] = t % k;
+        reps = clusterRepresentatives(x, in.ids, k, Representative::Mean);
+        in.encoderInputs = &reps;
+      } else {
+        in.encoderInputs = &x;
+      }
+      std::printf("throughput_setup_seconds %.2f\n", since(t0));
+      config.epochs = 0;
+      config.timeBudgetSeconds = args["seconds"].as<double>();
+      TrainResult r = trainModel(in, config);
+      printResult("throughput", r);
+    }
+
+    if (args.count("converge")) {
+      const std::string dir = args["converge"].as<std::string>();
+      auto t0 = Clock::now();
+      LoadOptions lo;
+      lo.progress = progress;
+      BtfStack stack = loadBtfStack(dir, lo);
+      std::printf("converge_texels %d\nconverge_images %d\n", stack.numTexels(), stack.numImages());
+      std::printf("converge_load_seconds %.2f\n", since(t0));
+      t0 = Clock::now();
+      MatrixXfCol x = abrdfMatrix(stack, progress);
+      standardizeInPlace(x);
+      std::printf("converge_preprocess_seconds %.2f\n", since(t0));
+      TrainInputs in;
+      in.stack = &stack;
+      in.alpha = targetAlpha(stack);
+      ClusteringResult clusters;
+      if (k > 0) {
+        t0 = Clock::now();
+        ClusteringOptions co;
+        co.clusters = k;
+        co.progress = progress;
+        clusters = clusterAbrdfs(x, co);
+        std::printf("converge_cluster_seconds %.2f\n", since(t0));
+        in.ids = clusters.ids;
+        in.encoderInputs = &clusters.representatives;
+      } else {
+        in.encoderInputs = &x;
+      }
+      TrainResult r = trainModel(in, config);
+      printResult("converge", r);
+      int factor = args["long-factor"].as<int>();
+      if (factor > 0) {
+        TrainConfig longer = config;
+        longer.epochs = config.epochs * factor;
+        if (config.timeBudgetSeconds > 0) longer.timeBudgetSeconds = config.timeBudgetSeconds * factor;
+        TrainResult rl = trainModel(in, longer);
+        printResult("long", rl);
+        std::printf("long_factor %d\n", factor);
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "nbtf-bench-train: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

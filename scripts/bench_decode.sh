@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Benchmark of decoding (issue 5): a 100 x 100-texel material of the paper's shape
+# (decoder 12-106-106-106-3, 81 x 81 images) compressed with k = 500 and the same material
+# per-texel, measured in one run: seconds to reconstruct all 6561 images (in memory as an
+# 8-bit sRGB stack, and written as PNG files), batched query throughput, and the
+# machine's float matmul rate (Eigen and libtorch mm, 2048^2, all threads).
+# Targets: clustered reconstruction >= 10x faster than per-texel (in memory); batched
+# query throughput >= 50% of the matmul rate in decoder FLOP terms (queries/s x FLOPs of
+# one full decoder evaluation, against the faster of Eigen and libtorch mm).
+# The .nbtf files have random weights, latents and ids (decode speed depends on the
+# shapes only). Pass --quick for a smoke run (8 lights x 81 views, 200k queries).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+"$root/scripts/setup.sh"
+"$root/scripts/build.sh" "$root/build"
+work=${NBTF_BENCH_DATA:-$root/build/bench_data}/decode
+echo "== $(nproc) cores; work folder $work"
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+"$root/build/bin/bench_decode" "$work" "$@" | tee "$log"
+python3 - "$log" <<'PY'
+import sys
+r = {}
+for line in open(sys.argv[1]):
+    if line.startswith("result "):
+        _, key, value = line.split(maxsplit=2)
+        r[key] = value.strip()
+f = {k: float(v) for k, v in r.items() if k != "isa"}
+images = int(f["images"])
+speedup = f["mem_per_texel_s"] / f["mem_clustered_s"]
+png_speedup = f["png_per_texel_s"] / f["png_clustered_s"]
+matmul = max(f["eigen_gflops"], f["torch_gflops"])
+which = "libtorch mm" if f["torch_gflops"] >= f["eigen_gflops"] else "Eigen"
+qps = min(f["query_clustered_qps"], f["query_per_texel_qps"])
+gflops = qps * f["flops_per_eval"] / 1e9
+share = gflops / matmul
+print(f"all {images} images in memory: clustered {f['mem_clustered_s']:.2f} s, per-texel {f['mem_per_texel_s']:.2f} s")
+print(f"all {images} images as PNG:    clustered {f['png_clustered_s']:.2f} s, per-texel {f['png_per_texel_s']:.2f} s "
+      f"({png_speedup:.1f}x; file writes with fsync included)")
+print(f"batched queries: clustered {f['query_clustered_qps']:.3g}/s, per-texel {f['query_per_texel_qps']:.3g}/s "
+      f"({r['isa']} kernels); matmul rate {matmul:.1f} GFLOP/s ({which}, 2048^2 float, all threads)")
+print(f"bench decode_clustered_speedup: {speedup:.1f}x faster than per-texel, all {images} images in memory "
+      f"(target >= 10x) {'PASS' if speedup >= 10 else 'FAIL'}")
+print(f"bench decode_query_throughput: {qps:.3g} queries/s = {gflops:.1f} GFLOP/s = {100 * share:.0f}% of the "
+      f"{which} matmul rate (target >= 50%) {'PASS' if share >= 0.5 else 'FAIL'}")
+PY

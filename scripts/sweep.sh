@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# Rate-distortion sweep of one material: compresses it with the PCA baseline at several
+# component counts (when this build has `nbtf compress --method pca`), the per-texel neural
+# BTF and the clustered neural BTF at several k, evaluates each against the reference with
+# `nbtf eval`, and writes the paper-style table (sweep.md) and a rate-distortion plot
+# (rd_<material>.png, gnuplot) into the output folder.
+#
+# usage: scripts/sweep.sh <input stack> [options] [-- extra nbtf compress options]
+#   -o DIR            output folder (default: sweep_<material>)
+#   --k "LIST"        cluster counts (default: "500 1000 2000")
+#   --pca "LIST"      PCA component counts (default: "4 8 16 32")
+#   --no-per-texel    skip the per-texel neural BTF
+#   --crop X,Y,W,H    crop (default: whole images; the paper used 100 x 100)
+#   --holdout F       fraction of images kept out of training (interpolation error)
+#   --epochs N | --time-budget S | --config FILE | --seed N | --threads N
+#                     passed to every `nbtf compress`
+# Several materials: run once per material, then combine the reports:
+#   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json && (cd all && gnuplot rd_*.gp)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+nbtf=${NBTF_BIN:-$root/build/bin/nbtf}
+
+die() { echo "sweep: $*" >&2; exit 1; }
+[[ $# -ge 1 && $1 != -* ]] || { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+input=$1; shift
+[[ -d "$input" ]] || die "input '$input' is not a folder"
+material=$(basename "$(cd "$input" && pwd)")
+out="sweep_$material"
+ks="500 1000 2000"
+pcas="4 8 16 32"
+per_texel=1
+common=()
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    -o) out=$2; shift;;
+    --k) ks=$2; shift;;
+    --pca) pcas=$2; shift;;
+    --no-per-texel) per_texel=0;;
+    --crop|--holdout|--epochs|--time-budget|--config|--seed|--threads|--layout) common+=("$1" "$2"); shift;;
+    --) shift; common+=("$@"); break;;
+    *) die "unknown option '$1' (see the header of $0)";;
+  esac
+  shift
+done
+
+# ---- Tools: the nbtf binary, its compress command, gnuplot.
+[[ -x "$nbtf" ]] || "$root/scripts/build.sh" "$root/build"
+[[ -x "$nbtf" ]] || die "no nbtf binary at $nbtf"
+compress_help=$("$nbtf" compress --help 2>&1) || die "this build of nbtf has no 'compress' command yet"
+if ! command -v gnuplot >/dev/null 2>&1; then
+  "$root/scripts/setup.sh" --with gnuplot-nox || true
+fi
+command -v gnuplot >/dev/null 2>&1 ||
+  die "gnuplot is needed for the rate-distortion plot: install it with 'scripts/setup.sh --with gnuplot-nox'"
+has_pca=0
+grep -q -- "--method" <<<"$compress_help" && grep -qi "pca" <<<"$compress_help" && has_pca=1
+
+mkdir -p "$out"
+runs=()    # label|compress options
+if [[ $has_pca -eq 1 ]]; then
+  for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
+fi
+[[ $per_texel -eq 1 ]] && runs+=("per_texel|--clusters 0")
+for k in $ks; do runs+=("k$k|--clusters $k"); done
+
+# ---- Compress and evaluate each setting (a finished report is kept: re-running resumes).
+reports=()
+for run in "${runs[@]}"; do
+  label=${run%%|*}
+  read -r -a opts <<<"${run#*|}"
+  file="$out/$label.nbtf"
+  report="$out/$label/report.json"
+  if [[ ! -f "$report" ]]; then
+    echo "== $material: $label"
+    "$nbtf" compress "$input" -o "$file" "${opts[@]}" ${common[@]+"${common[@]}"}
+    "$nbtf" eval "$file" --reference "$input" -o "$out/$label"
+  else
+    echo "== $material: $label (report exists, kept)"
+  fi
+  reports+=("$report")
+done
+
+# ---- Table and plot.
+"$nbtf" eval --summarize -o "$out" "${reports[@]}"
+(cd "$out" && for gp in rd_*.gp; do gnuplot "$gp"; done)
+echo "sweep: table $out/sweep.md, plot(s): $(ls "$out"/rd_*.png | tr '\n' ' ')"
+if [[ $has_pca -eq 0 ]]; then
+  echo "sweep: PCA baseline pending: this build's 'nbtf compress' has no '--method pca' (issue 6); neural methods only"
+fi

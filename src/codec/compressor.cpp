@@ -1,0 +1,312 @@
+#include "codec/compressor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "cluster/clustering.h"
+#include "preprocess/abrdf_matrix.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace nbtf {
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kDefaultPcaComponents = 32;
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+bool stopRequested(const CompressOptions& o) { return o.stopFlag && o.stopFlag->load(); }
+
+json nullable(double v) { return v < 0 ? json(nullptr) : json(v); }
+
+std::string checkpointPathFor(const std::string& output, const CompressOptions& o) {
+  if (!o.checkpointPath.empty()) return o.checkpointPath;
+  if (!o.train.checkpointPath.empty()) return o.train.checkpointPath;
+  return defaultCheckpointPath(output);
+}
+
+// Rejects k larger than the texel count, as early as the texel count is known.
+void checkClusterCount(int clusters, std::int64_t texels, const std::string& what) {
+  if (clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(clusters));
+  if (clusters > texels)
+    throw Error("--clusters " + std::to_string(clusters) + " is larger than the " + std::to_string(texels) +
+                " texels of " + what + " (k must be at most the texel count; 0 = per-texel)");
+}
+
+// Provenance stored in the file. Only what does not vary between identical runs: no
+// timings, no output or checkpoint paths, so the same seed gives the same bytes.
+std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const TrainConfig& config,
+                         const TrainResult& train, const ClusteringResult* clustering, int pcaComponents) {
+  json meta;
+  meta["config"] = json::parse(trainConfigJson(config));
+  meta["seed"] = config.seed;
+  meta["threads"] = config.threads > 0 ? config.threads : threadCount();
+  json source;
+  source["path"] = stack.source;
+  source["layout"] = layoutName(stack.layout);
+  source["sample_type"] = sampleTypeName(stack.sampleType());
+  source["crop"] = stack.crop.empty() ? json(nullptr)
+                                      : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
+  meta["source"] = source;
+  json t;
+  t["rmse_train"] = train.rmseTrain;
+  t["rmse_holdout"] = nullable(train.rmseHoldout);
+  t["rmse_space"] = "linear RGB / alpha (eq. 10)";
+  t["epochs"] = train.epochsRun;
+  t["steps"] = train.steps;
+  t["holdout_fraction"] = config.holdoutFraction;
+  t["encoder_blocks"] = train.encoderBlocks;
+  meta["training"] = t;
+  if (clustering) {
+    json c;
+    c["k"] = o.clusters;
+    c["pca_components"] = pcaComponents;
+    c["pca_explained_variance_ratio"] = clustering->explainedVarianceRatio;
+    c["kmeans_iterations"] = clustering->iterations;
+    c["kmeans_inertia"] = clustering->inertia;
+    c["representative"] = "median";
+    meta["clustering"] = c;
+  }
+  return meta.dump();
+}
+
+}  // namespace
+
+std::string defaultCheckpointPath(const std::string& output) { return output + ".ckpt"; }
+
+std::string trainConfigJson(const TrainConfig& c) {
+  json j;
+  j["model"] = {{"latent_dim", c.model.latentDim},
+                {"encoder_channels", c.model.encoderChannels},
+                {"decoder_width", c.model.decoderWidth},
+                {"decoder_layers", c.model.decoderLayers}};
+  j["optimizer"] = {{"name", c.optimizer}, {"learning_rate", c.learningRate}, {"momentum", c.momentum}};
+  j["training"] = {{"batch_size", c.batchSize},
+                   {"images_per_input", c.imagesPerInput},
+                   {"epochs", c.epochs},
+                   {"time_budget_seconds", c.timeBudgetSeconds},
+                   {"schedule", c.schedule},
+                   {"warmup_fraction", c.warmupFraction},
+                   {"polish_fraction", c.polishFraction},
+                   {"holdout_fraction", c.holdoutFraction},
+                   {"seed", c.seed},
+                   {"threads", c.threads}};
+  return j.dump();
+}
+
+CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
+  const int texels = stack.numTexels();
+  stats.texels = texels;
+  stats.images = stack.numImages();
+  stats.clusters = o.clusters;
+  stats.method = o.clusters > 0 ? CodecMethod::ClusteredNeural : CodecMethod::PerTexelNeural;
+  checkClusterCount(o.clusters, texels, stack.source.empty() ? "the material" : stack.source);
+
+  // ---- Preprocess: linear ABRDF matrix, log + standardize (eq. 1-4), alpha (eq. 5)
+  auto t = Clock::now();
+  const float alpha = targetAlpha(stack);
+  stats.alpha = alpha;
+  MatrixXfCol x = abrdfMatrix(stack, o.progress);
+  standardizeInPlace(x);
+  stats.seconds.preprocess = secondsSince(t);
+
+  // ---- Cluster (PCA + k-means++ + per-cluster medians), or per-texel: X itself
+  TrainInputs inputs;
+  inputs.stack = &stack;
+  inputs.alpha = alpha;
+  ClusteringResult clustering;
+  int pcaComponents = 0;
+  t = Clock::now();
+  if (o.clusters > 0) {
+    ClusteringOptions co;
+    co.clusters = o.clusters;
+    int maxComponents = static_cast<int>(std::min<Eigen::Index>(x.rows(), x.cols()));
+    if (o.pcaComponents > maxComponents)
+      throw Error("--components " + std::to_string(o.pcaComponents) + " exceeds the " +
+                  std::to_string(maxComponents) + " the data allows (min of texels and 3 x images)");
+    pcaComponents = o.pcaComponents > 0 ? o.pcaComponents : std::min(kDefaultPcaComponents, maxComponents);
+    co.pca.components = pcaComponents;
+    co.pca.seed = o.train.seed;
+    if (o.kmeansIterations > 0) co.kmeans.maxIterations = o.kmeansIterations;
+    co.kmeans.seed = o.train.seed;
+    co.seed = o.train.seed;
+    co.progress = o.progress;
+    clustering = clusterAbrdfs(x, co);
+    x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
+    stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+    inputs.encoderInputs = &clustering.representatives;
+    inputs.ids = clustering.ids;
+  } else {
+    inputs.encoderInputs = &x;
+  }
+  stats.seconds.cluster = secondsSince(t);
+  if (stopRequested(o)) {
+    stats.interrupted = true;
+    return {};
+  }
+
+  // ---- Train
+  TrainConfig config = o.train;
+  config.progress = config.progress && o.progress;
+  config.stopFlag = o.stopFlag;
+  config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
+  stats.checkpointPath = config.checkpointPath;
+  t = Clock::now();
+  TrainResult train = trainModel(inputs, config);
+  stats.seconds.train = secondsSince(t);
+  stats.epochs = train.epochsRun;
+  stats.steps = train.steps;
+  stats.samplesPerSecond = train.samplesPerSecond;
+  stats.decoderGflops = train.decoderGflops;
+  if (train.interrupted) {
+    stats.interrupted = true;
+    return {};
+  }
+  stats.rmseTrain = train.rmseTrain;
+  stats.rmseHoldout = train.rmseHoldout;
+
+  // ---- Assemble the compressed material
+  CompressedBtf b;
+  b.method = stats.method;
+  b.width = stack.width();
+  b.height = stack.height();
+  b.crop = stack.crop;
+  // In-memory stacks (tests, benchmarks) may not say where they came from.
+  b.sourceWidth = stack.sourceWidth > 0 ? stack.sourceWidth : stack.width();
+  b.sourceHeight = stack.sourceHeight > 0 ? stack.sourceHeight : stack.height();
+  b.layout = stack.layout;
+  b.sourceSampleType = stack.sampleType();
+  b.lights = stack.lights();
+  b.views = stack.views();
+  b.alpha = alpha;
+  b.decoder = std::move(train.decoder);
+  b.latentDim = config.model.latentDim;
+  b.latentRows = train.latentRows;
+  b.latents = std::move(train.latents);
+  if (o.clusters > 0) b.ids = std::move(inputs.ids);
+  b.holdoutImages = train.holdoutImages;
+  std::sort(b.holdoutImages.begin(), b.holdoutImages.end());
+  b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
+  stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
+  b.encoderState = std::move(train.encoderState);
+  b.metadataJson = metadataJson(stack, o, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents);
+  b.validate("compressed result");
+  stats.sizes = computeSizes(b);
+  return b;
+}
+
+CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options) {
+  // ---- Fail before hours of work: every output must be creatable now.
+  checkWritable(output);
+  if (!options.saveEncoderPath.empty()) {
+    if (options.saveEncoderPath == output) throw Error("--save-encoder must name a file other than the output");
+    checkWritable(options.saveEncoderPath);
+  }
+  CompressOptions o = options;
+  o.checkpointPath = checkpointPathFor(output, options);
+  checkWritable(o.checkpointPath);
+  if (!o.load.crop.empty())
+    checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
+                      "the crop");
+
+  CompressStats stats;
+  stats.output = output;
+  auto t = Clock::now();
+  LoadOptions load = o.load;
+  load.progress = load.progress && o.progress;
+  BtfStack stack = loadBtfStack(input, load);
+  stats.seconds.load = secondsSince(t);
+  if (stopRequested(o)) {
+    stats.interrupted = true;
+    return stats;
+  }
+
+  CompressedBtf btf = compressStack(stack, o, stats);  // fills the other stages' seconds
+  if (stats.interrupted) return stats;
+
+  // ---- Write (atomic); the encoder copy is the same file plus the encoder section.
+  t = Clock::now();
+  std::vector<std::uint8_t> encoder = std::move(btf.encoderState);
+  btf.encoderState.clear();
+  stats.sizes.fileBytes = writeNbtf(output, btf);
+  if (!o.saveEncoderPath.empty()) {
+    if (encoder.empty()) throw Error("--save-encoder: the trainer returned no encoder state");
+    btf.encoderState = std::move(encoder);
+    writeNbtf(o.saveEncoderPath, btf);
+  }
+  stats.seconds.write = secondsSince(t);
+  // A finished run's default checkpoint is stale: remove it (a configured one is kept).
+  if (o.checkpointPath == defaultCheckpointPath(output)) {
+    std::error_code ec;
+    std::filesystem::remove(o.checkpointPath, ec);
+  }
+  return stats;
+}
+
+// ---- Reporting
+
+std::string formatCompressSummary(const CompressStats& s) {
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
+                s.clusters > 0 ? (", k = " + std::to_string(s.clusters)).c_str() : "");
+  out += line;
+  out += formatSizeTable(s.sizes);
+  std::snprintf(line, sizeof line,
+                "error: RMSE of eq. (10) over texels x images x RGB, on linear RGB / alpha (alpha = %.6g)\n",
+                s.alpha);
+  out += line;
+  int trainImages = s.images - s.holdoutImages;
+  std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", "training images", s.rmseTrain, trainImages);
+  out += line;
+  if (s.rmseHoldout >= 0)
+    std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", "held-out images", s.rmseHoldout, s.holdoutImages);
+  else
+    std::snprintf(line, sizeof line, "  %-16s none (use --holdout F to measure interpolation)\n", "held-out images");
+  out += line;
+  std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
+                s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops);
+  out += line;
+  const StageSeconds& t = s.seconds;
+  std::snprintf(line, sizeof line,
+                "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | write %.2f | total "
+                "%.2f\n",
+                t.load, t.preprocess, t.cluster, t.train, t.write, t.total());
+  out += line;
+  return out;
+}
+
+std::string compressStatsJson(const CompressStats& s) {
+  json j;
+  j["output"] = s.output;
+  j["method"] = codecMethodName(s.method);
+  j["clusters"] = s.clusters;
+  j["texels"] = s.texels;
+  j["images"] = s.images;
+  j["holdout_images"] = s.holdoutImages;
+  j["alpha"] = s.alpha;
+  j["rmse_train"] = nullable(s.rmseTrain);
+  j["rmse_holdout"] = nullable(s.rmseHoldout);
+  j["rmse_space"] = "linear RGB / alpha (eq. 10)";
+  j["ratio"] = s.sizes.ratio;
+  j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
+                {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
+  j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
+                  {"train", s.seconds.train}, {"write", s.seconds.write},           {"total", s.seconds.total()}};
+  j["epochs"] = s.epochs;
+  j["steps"] = s.steps;
+  j["samples_per_second"] = s.samplesPerSecond;
+  j["decoder_gflops"] = s.decoderGflops;
+  j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
+  j["interrupted"] = s.interrupted;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace nbtf

@@ -1,0 +1,320 @@
+#include "codec/decoder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <sstream>
+
+#include "codec/decoder_kernels.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace nbtf {
+namespace {
+
+// Batches below this many samples run on the calling thread: starting threads costs more.
+constexpr std::size_t kMinParallelSamples = 4096;
+
+// Per-thread scratch, so single evaluations allocate nothing after the first.
+float* threadScratch(std::size_t floats) {
+  thread_local detail::AlignedFloats scratch;
+  if (scratch.size() < floats) scratch.resize(floats);
+  return scratch.data();
+}
+
+std::string describeTexel(int x, int y) {
+  return "texel (" + std::to_string(x) + ", " + std::to_string(y) + ")";
+}
+
+}  // namespace
+
+// ---- Instruction sets -------------------------------------------------------------------
+
+std::string decoderIsaName(DecoderIsa isa) {
+  switch (isa) {
+    case DecoderIsa::Auto: return "auto";
+    case DecoderIsa::Portable: return "portable";
+    case DecoderIsa::Avx2: return "avx2+fma";
+    case DecoderIsa::Avx512: return "avx512";
+  }
+  return "unknown";
+}
+
+DecoderIsa parseDecoderIsa(const std::string& text) {
+  if (text == "auto") return DecoderIsa::Auto;
+  if (text == "portable") return DecoderIsa::Portable;
+  if (text == "avx2") return DecoderIsa::Avx2;
+  if (text == "avx512") return DecoderIsa::Avx512;
+  throw Error("unknown instruction set '" + text + "' (expected auto, portable, avx2 or avx512)");
+}
+
+// ---- Direction inputs ---------------------------------------------------------------------
+
+std::array<float, 4> decoderDirectionInput(const Direction& light, const Direction& view) {
+  auto l = stereographic(light), v = stereographic(view);
+  return {l[0], l[1], v[0], v[1]};
+}
+
+std::array<float, 2> stereographicFromVector(const std::array<float, 3>& dir, const std::string& what) {
+  double x = dir[0], y = dir[1], z = dir[2];
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+    throw Error(what + " direction vector is not finite");
+  double n = std::sqrt(x * x + y * y + z * z);
+  if (!(n > 0)) throw Error(what + " direction vector has zero length");
+  x /= n, y /= n, z /= n;
+  if (z < 0) {
+    std::ostringstream s;
+    s << what << " direction (" << dir[0] << ", " << dir[1] << ", " << dir[2]
+      << ") points below the horizon (z < 0; z is the surface normal)";
+    throw Error(s.str());
+  }
+  // tan(theta / 2) (cos phi, sin phi) = (x, y) / (1 + z): eq. (7)-(9) without trigonometry.
+  return {static_cast<float>(x / (1 + z)), static_cast<float>(y / (1 + z))};
+}
+
+// ---- Construction -------------------------------------------------------------------------
+
+NbtfDecoder NbtfDecoder::open(const std::string& path, const DecoderOptions& options) {
+  return NbtfDecoder(readNbtf(path), options, path);
+}
+
+NbtfDecoder::NbtfDecoder(CompressedBtf material, const DecoderOptions& options, const std::string& name)
+    : material_(std::move(material)), name_(name) {
+  material_.validate(name_);
+  build(options);
+}
+
+NbtfDecoder::NbtfDecoder(NbtfDecoder&& o) noexcept = default;
+NbtfDecoder& NbtfDecoder::operator=(NbtfDecoder&& o) noexcept = default;
+NbtfDecoder::~NbtfDecoder() = default;
+
+void NbtfDecoder::build(const DecoderOptions& options) {
+  isa_ = options.isa == DecoderIsa::Auto ? detail::bestSupportedIsa() : options.isa;
+  if (!decoderIsaSupported(isa_))
+    throw Error("instruction set '" + decoderIsaName(isa_) + "' is not supported by this CPU");
+  packed_ = std::make_unique<detail::PackedDecoder>(detail::packDecoder(material_.decoder, material_.latentDim));
+  packed_->latents = material_.latents.data();
+  // The per-row half of the first layer, once, with the same kernel the evaluation uses
+  // (so cached and uncached rows give identical results).
+  std::size_t bytes = static_cast<std::size_t>(material_.latentRows) * packed_->pad0 * sizeof(float);
+  if (bytes <= options.maxCachedFirstLayerBytes) {
+    packed_->rowPart.assign(static_cast<std::size_t>(material_.latentRows) * packed_->pad0, 0.0f);
+    auto kernel = detail::kernelsFor(isa_).rowPart;
+    parallelFor(
+        static_cast<std::size_t>(material_.latentRows),
+        [&](std::size_t b, std::size_t e) { kernel(*packed_, static_cast<int>(b), static_cast<int>(e), packed_->rowPart.data()); },
+        4096);
+  }
+}
+
+double NbtfDecoder::flopsPerEvaluation() const {
+  double f = 0;
+  for (const DenseLayer& l : material_.decoder.layers) f += 2.0 * l.in * l.out;
+  return f;
+}
+
+// ---- Checks -------------------------------------------------------------------------------
+
+void NbtfDecoder::checkTexel(int x, int y) const {
+  if (x < 0 || y < 0 || x >= width() || y >= height())
+    throw Error(describeTexel(x, y) + " is outside the " + std::to_string(width()) + " x " +
+                std::to_string(height()) + " material (0 <= x < " + std::to_string(width()) + ", 0 <= y < " +
+                std::to_string(height()) + ")");
+}
+
+int NbtfDecoder::texelOfUv(float u, float v) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) throw Error("texture coordinate (u, v) is not finite");
+  auto wrap = [](float t, int n) {
+    double i = std::floor(static_cast<double>(t) * n);
+    double m = std::fmod(i, static_cast<double>(n));
+    if (m < 0) m += n;
+    return std::min(static_cast<int>(m), n - 1);
+  };
+  return wrap(v, height()) * width() + wrap(u, width());
+}
+
+// ---- Evaluation core ----------------------------------------------------------------------
+
+void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const float* dirs, std::size_t n, float* rgb,
+                                  OutputScale scale) const {
+  // Used for single evaluations: n is small, one thread.
+  auto tile = detail::kernelsFor(isa_).tile;
+  float* scratch = threadScratch(packed_->scratchFloats());
+  for (std::size_t begin = 0; begin < n; begin += detail::kTileRows) {
+    detail::TileArgs a;
+    a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, n - begin));
+    a.rows = rows + begin;
+    a.dirs = dirs + 4 * begin;
+    a.out = rgb + 3 * begin;
+    a.scratch = scratch;
+    tile(*packed_, a);
+  }
+  if (scale == OutputScale::Linear)
+    for (std::size_t i = 0; i < 3 * n; ++i) rgb[i] *= material_.alpha;
+}
+
+namespace {
+// Runs `count` samples in tiles, in parallel when worth it. fill(begin, n, rows, dirs)
+// writes the latent rows and direction inputs of samples [begin, begin + n).
+void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std::size_t count, float* rgb, float alpha,
+              OutputScale scale, bool parallel,
+              const std::function<void(std::size_t, int, std::int32_t*, float*)>& fill) {
+  const std::size_t tiles = (count + detail::kTileRows - 1) / detail::kTileRows;
+  auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
+    float* scratch = threadScratch(packed.scratchFloats());
+    std::int32_t rows[detail::kTileRows];
+    float dirs[4 * detail::kTileRows];
+    for (std::size_t t = tileBegin; t < tileEnd; ++t) {
+      std::size_t begin = t * detail::kTileRows;
+      detail::TileArgs a;
+      a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, count - begin));
+      fill(begin, a.n, rows, dirs);
+      a.rows = rows;
+      a.dirs = dirs;
+      a.prefetchRows = true;
+      a.out = rgb + 3 * begin;
+      a.scratch = scratch;
+      tile(packed, a);
+      if (scale == OutputScale::Linear)
+        for (int i = 0; i < 3 * a.n; ++i) a.out[i] *= alpha;
+    }
+  };
+  if (parallel && count >= kMinParallelSamples) parallelFor(tiles, body, 8);
+  else body(0, tiles);
+}
+}  // namespace
+
+// ---- Single evaluations -------------------------------------------------------------------
+
+Rgb NbtfDecoder::evaluate(int x, int y, const Direction& light, const Direction& view, OutputScale scale) const {
+  TexelQuery q{x, y, light, view};
+  Rgb out;
+  evaluate(&q, 1, &out.r, scale);
+  return out;
+}
+
+Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Direction& view, OutputScale scale) const {
+  checkHemisphere(light, "light");
+  checkHemisphere(view, "view");
+  int texel = texelOfUv(u, v);
+  std::int32_t row = latentRowOfTexel(texel);
+  auto dirs = decoderDirectionInput(light, view);
+  Rgb out;
+  evaluateSamples(&row, dirs.data(), 1, &out.r, scale);
+  return out;
+}
+
+Rgb NbtfDecoder::evaluate(const UvQuery& query, OutputScale scale) const {
+  Rgb out;
+  evaluate(&query, 1, &out.r, scale);
+  return out;
+}
+
+// ---- Batches ------------------------------------------------------------------------------
+
+void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* rgb, OutputScale scale) const {
+  // Check everything first: a bad query fails the call before any work.
+  for (std::size_t i = 0; i < count; ++i) {
+    const TexelQuery& q = queries[i];
+    try {
+      checkTexel(q.x, q.y);
+      checkHemisphere(q.light, "light");
+      checkHemisphere(q.view, "view");
+    } catch (const Error& e) {
+      throw Error(count == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
+    }
+  }
+  runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
+           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
+             // Consecutive queries often share directions: convert each distinct one once.
+             const Direction* lastLight = nullptr;
+             const Direction* lastView = nullptr;
+             std::array<float, 2> l{}, v{};
+             for (int i = 0; i < n; ++i) {
+               const TexelQuery& q = queries[begin + i];
+               rows[i] = latentRowOfTexel(q.y * width() + q.x);
+               if (!lastLight || !(q.light == *lastLight)) l = stereographic(q.light), lastLight = &q.light;
+               if (!lastView || !(q.view == *lastView)) v = stereographic(q.view), lastView = &q.view;
+               dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
+             }
+           });
+}
+
+void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb, OutputScale scale) const {
+  for (std::size_t i = 0; i < count; ++i) {
+    try {
+      texelOfUv(queries[i].u, queries[i].v);
+      stereographicFromVector(queries[i].light, "light");
+      stereographicFromVector(queries[i].view, "view");
+    } catch (const Error& e) {
+      throw Error(count == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
+    }
+  }
+  runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
+           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
+             for (int i = 0; i < n; ++i) {
+               const UvQuery& q = queries[begin + i];
+               rows[i] = latentRowOfTexel(texelOfUv(q.u, q.v));
+               auto l = stereographicFromVector(q.light, "light");
+               auto v = stereographicFromVector(q.view, "view");
+               dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
+             }
+           });
+}
+
+// ---- Images -------------------------------------------------------------------------------
+
+void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, float* rgb, OutputScale scale,
+                             bool parallel) const {
+  checkHemisphere(light, "light");
+  checkHemisphere(view, "view");
+  const auto dirs = decoderDirectionInput(light, view);
+  const std::size_t count = static_cast<std::size_t>(latentRows());
+  auto tile = detail::kernelsFor(isa_).tile;
+  const std::size_t tiles = (count + detail::kTileRows - 1) / detail::kTileRows;
+  auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
+    float* scratch = threadScratch(packed_->scratchFloats());
+    std::int32_t rows[detail::kTileRows];
+    for (std::size_t t = tileBegin; t < tileEnd; ++t) {
+      std::size_t begin = t * detail::kTileRows;
+      detail::TileArgs a;
+      a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, count - begin));
+      for (int i = 0; i < a.n; ++i) rows[i] = static_cast<std::int32_t>(begin + i);
+      a.rows = rows;
+      a.dirs = dirs.data();
+      a.dirStride = 0;  // one direction for the whole image: its first-layer part once per tile
+      a.out = rgb + 3 * begin;
+      a.scratch = scratch;
+      tile(*packed_, a);
+    }
+  };
+  if (parallel && count >= kMinParallelSamples) parallelFor(tiles, body, 8);
+  else body(0, tiles);
+  if (scale == OutputScale::Linear)
+    for (std::size_t i = 0; i < 3 * count; ++i) rgb[i] *= material_.alpha;
+}
+
+void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, float* rgb, OutputScale scale,
+                              int outWidth, int outHeight, bool parallel) const {
+  if (outWidth == 0) outWidth = width();
+  if (outHeight == 0) outHeight = height();
+  if (outWidth < 0 || outHeight < 0)
+    throw Error("image size " + std::to_string(outWidth) + " x " + std::to_string(outHeight) + " is negative");
+  // Per-texel material at its own size: the rows are the image.
+  if (!clustered() && outWidth == width() && outHeight == height()) {
+    decodeRows(light, view, rgb, scale, parallel);
+    return;
+  }
+  std::vector<float> rows(3 * static_cast<std::size_t>(latentRows()));
+  decodeRows(light, view, rows.data(), scale, parallel);
+  for (int y = 0; y < outHeight; ++y) {
+    const int sy = y % height();
+    float* dst = rgb + static_cast<std::size_t>(y) * outWidth * 3;
+    for (int x = 0, sx = 0; x < outWidth; ++x, sx = sx + 1 == width() ? 0 : sx + 1) {
+      const float* src = rows.data() + 3 * static_cast<std::size_t>(latentRowOfTexel(sy * width() + sx));
+      dst[3 * x + 0] = src[0], dst[3 * x + 1] = src[1], dst[3 * x + 2] = src[2];
+    }
+  }
+}
+
+}  // namespace nbtf

@@ -1,0 +1,156 @@
+// Decoding a compressed material: the small API a renderer embeds (no torch anywhere
+// behind it). Open a .nbtf once, then ask for RGB at (texel or texture coordinate, light
+// direction, view direction), one at a time or in batches, or for whole images.
+//
+//   nbtf::NbtfDecoder dec = nbtf::NbtfDecoder::open("wool.nbtf");
+//   nbtf::Rgb c = dec.evaluate(12, 40, {30, 60}, {45, 180});       // linear RGB
+//   std::vector<float> img(3 * dec.width() * dec.height());
+//   dec.decodeImage({37.5, 200}, {10, 45}, img.data());            // any angles
+//
+// Value spaces (eq. 5 of the paper): the decoder outputs linear RGB (sRGB primaries)
+// divided by the material's alpha ("normalized"); OutputScale::Linear multiplies alpha
+// back. Values are the network's own: not clamped, so they can be slightly negative where
+// the network undershoots (clamp before display). See docs/decoding.md.
+//
+// Speed: the first layer W1 [z; l; v] + b is split into (W1_z z + b), computed once per
+// latent row when the file is opened, and W1_dir [l; v], computed once per image (or per
+// query), so the first layer costs an add. In the clustered mode an image needs one
+// decoder evaluation per cluster (k), not per texel: decodeRows() evaluates the k rows,
+// decodeImage() scatters them by the texel -> id list. The remaining layers run as small
+// register-blocked matrix products (AVX-512, AVX2+FMA or portable SIMD, picked at run
+// time). All methods are const and thread-safe.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "codec/nbtf_file.h"
+#include "io/directions.h"
+
+namespace nbtf {
+
+enum class OutputScale {
+  Linear,      // linear RGB (sRGB primaries) = decoder output x alpha
+  Normalized,  // the decoder's raw output: linear RGB / alpha
+};
+
+struct Rgb {
+  float r = 0, g = 0, b = 0;
+};
+
+// A query by texel: x in [0, width), y in [0, height) of the material (after the crop
+// the file was made from; y = 0 is the top row).
+struct TexelQuery {
+  int x = 0, y = 0;
+  Direction light, view;
+};
+
+// A query by texture coordinate and unit vectors, the form a renderer has at hand.
+// (u, v) wrap (the texture tiles): texel x = floor(u * width) mod width, y likewise with
+// v (v grows downwards, with the image rows). Directions are unit vectors in the local
+// frame (z = surface normal); they are normalized here, and z < 0 is an error.
+struct UvQuery {
+  float u = 0, v = 0;
+  std::array<float, 3> light{0, 0, 1}, view{0, 0, 1};
+};
+
+// Instruction set of the evaluation kernels. Auto picks the best the CPU supports.
+enum class DecoderIsa { Auto, Portable, Avx2, Avx512 };
+std::string decoderIsaName(DecoderIsa isa);      // "portable" | "avx2+fma" | "avx512"
+bool decoderIsaSupported(DecoderIsa isa);        // by this CPU and this build
+DecoderIsa parseDecoderIsa(const std::string& text);  // "auto" | "portable" | "avx2" | "avx512"
+
+struct DecoderOptions {
+  DecoderIsa isa = DecoderIsa::Auto;
+  // The per-row first-layer products (rows x first-layer width floats) are cached when
+  // they fit in this many bytes; beyond it (huge per-texel materials) they are computed
+  // per evaluation, which costs latentDim extra multiply-adds per first-layer unit.
+  std::size_t maxCachedFirstLayerBytes = std::size_t(1) << 30;
+};
+
+namespace detail {
+struct PackedDecoder;
+}
+
+class NbtfDecoder {
+ public:
+  // Reads and validates the file (every nbtf::Error names it).
+  static NbtfDecoder open(const std::string& path, const DecoderOptions& options = {});
+  // From a material in memory; `name` is used in error messages.
+  explicit NbtfDecoder(CompressedBtf material, const DecoderOptions& options = {},
+                       const std::string& name = "compressed BTF");
+  NbtfDecoder(NbtfDecoder&&) noexcept;
+  NbtfDecoder& operator=(NbtfDecoder&&) noexcept;
+  ~NbtfDecoder();
+
+  // ---- The material
+  const CompressedBtf& material() const { return material_; }
+  const std::string& name() const { return name_; }
+  int width() const { return material_.width; }
+  int height() const { return material_.height; }
+  int numTexels() const { return material_.numTexels(); }
+  const std::vector<Direction>& lights() const { return material_.lights; }
+  const std::vector<Direction>& views() const { return material_.views; }
+  int numImages() const { return material_.numImages(); }
+  float alpha() const { return material_.alpha; }
+  bool clustered() const { return material_.method == CodecMethod::ClusteredNeural; }
+  // Decoder evaluations per image: k (clustered) or texels (per-texel).
+  int latentRows() const { return material_.latentRows; }
+  int latentRowOfTexel(int texel) const { return material_.latentRowOfTexel(texel); }
+  DecoderIsa isa() const { return isa_; }
+  // FLOPs of one full decoder evaluation (every layer, multiply-add = 2), the unit
+  // throughput figures are quoted in. The split first layer actually does less.
+  double flopsPerEvaluation() const;
+
+  // ---- Single evaluations (throw nbtf::Error on bad input; see the checks below)
+  Rgb evaluate(int x, int y, const Direction& light, const Direction& view,
+               OutputScale scale = OutputScale::Linear) const;
+  Rgb evaluateUv(float u, float v, const Direction& light, const Direction& view,
+                 OutputScale scale = OutputScale::Linear) const;
+  Rgb evaluate(const UvQuery& query, OutputScale scale = OutputScale::Linear) const;
+
+  // ---- Batches: rgb receives 3 floats per query. Every query is checked before any is
+  // evaluated (the error names the query's index); evaluation runs on threadCount()
+  // threads for large batches. Results equal the single evaluations bit for bit.
+  void evaluate(const TexelQuery* queries, std::size_t count, float* rgb,
+                OutputScale scale = OutputScale::Linear) const;
+  void evaluate(const UvQuery* queries, std::size_t count, float* rgb,
+                OutputScale scale = OutputScale::Linear) const;
+
+  // ---- Whole images at any (light, view), measured or not.
+  // One value per latent row: rgb receives 3 x latentRows() floats.
+  void decodeRows(const Direction& light, const Direction& view, float* rgb,
+                  OutputScale scale = OutputScale::Linear, bool parallel = false) const;
+  // An image of outWidth x outHeight texels (0 = the material's size; larger sizes tile
+  // the texture, texel (x mod width, y mod height)), interleaved RGB, top row first.
+  void decodeImage(const Direction& light, const Direction& view, float* rgb,
+                   OutputScale scale = OutputScale::Linear, int outWidth = 0, int outHeight = 0,
+                   bool parallel = false) const;
+
+  // ---- Checks and mappings used by the above (exposed for front ends)
+  void checkTexel(int x, int y) const;  // throws unless 0 <= x < width, 0 <= y < height
+  int texelOfUv(float u, float v) const;  // wraps; throws on non-finite coordinates
+
+ private:
+  void build(const DecoderOptions& options);
+  // The inner evaluation: n samples (latent row + 4 stereographic coordinates each).
+  void evaluateSamples(const std::int32_t* rows, const float* dirs, std::size_t n, float* rgb,
+                       OutputScale scale) const;
+
+  CompressedBtf material_;
+  std::string name_;
+  DecoderIsa isa_ = DecoderIsa::Portable;
+  std::unique_ptr<detail::PackedDecoder> packed_;
+};
+
+// The decoder's direction input for a (light, view) pair: stereographic (x, y) of each,
+// eq. (7)-(9), exactly as training computed it.
+std::array<float, 4> decoderDirectionInput(const Direction& light, const Direction& view);
+// The same from unit vectors (x/(1+z), y/(1+z)); normalizes, throws when z < 0 or the
+// vector is zero or not finite. `what` names the direction in messages.
+std::array<float, 2> stereographicFromVector(const std::array<float, 3>& dir, const std::string& what);
+
+}  // namespace nbtf

@@ -1,0 +1,121 @@
+#include "codec/nbtf_describe.h"
+
+#include <cstdio>
+#include <string>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace nbtf {
+namespace {
+
+std::string activationName(Activation a) {
+  switch (a) {
+    case Activation::Relu: return "ReLU";
+    case Activation::Sigmoid: return "sigmoid";
+    default: return "linear";
+  }
+}
+
+// "12 -> 106 (ReLU) -> 106 (ReLU) -> 3 (linear)"
+std::string decoderShape(const Mlp& mlp) {
+  std::string s = mlp.layers.empty() ? "none" : std::to_string(mlp.layers.front().in);
+  for (const auto& l : mlp.layers) s += " -> " + std::to_string(l.out) + " (" + activationName(l.activation) + ")";
+  return s;
+}
+
+std::string number(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// One metadata value as text, or "" when absent / not a number.
+std::string jsonNumber(const nlohmann::json& j, const char* a, const char* b = nullptr) {
+  const nlohmann::json* v = &j;
+  for (const char* key : {a, b}) {
+    if (!key) break;
+    if (!v->is_object() || !v->contains(key)) return "";
+    v = &(*v)[key];
+  }
+  return v->is_number() ? number(v->get<double>()) : "";
+}
+
+}  // namespace
+
+std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std::uint64_t fileBytes) {
+  std::ostringstream o;
+  char line[512];
+  auto field = [&](const char* name, const std::string& value) {
+    std::snprintf(line, sizeof line, "%-15s%s\n", name, value.c_str());
+    o << line;
+  };
+  field("file", path + " (.nbtf format " + std::to_string(btf.formatMajor) + "." + std::to_string(btf.formatMinor) + ")");
+  std::string method = codecMethodName(btf.method);
+  if (btf.method == CodecMethod::ClusteredNeural) method += ", k = " + std::to_string(btf.latentRows) + " clusters";
+  else if (btf.method == CodecMethod::PerTexelNeural) method += ", one latent per texel";
+  field("method", method);
+  std::string texels = std::to_string(btf.width) + " x " + std::to_string(btf.height) + " = " +
+                       std::to_string(btf.numTexels());
+  if (!btf.crop.empty())
+    texels += " (crop " + std::to_string(btf.crop.x) + "," + std::to_string(btf.crop.y) + "," +
+              std::to_string(btf.crop.width) + "," + std::to_string(btf.crop.height) + " of " +
+              std::to_string(btf.sourceWidth) + " x " + std::to_string(btf.sourceHeight) + " source images)";
+  field("texels", texels);
+  field("images", std::to_string(btf.numImages()) + " (" + std::to_string(btf.lights.size()) + " lights x " +
+                      std::to_string(btf.views.size()) + " views)");
+  field("source", "layout " + layoutName(btf.layout) + ", " + sampleTypeName(btf.sourceSampleType));
+  field("directions", "stereographic projection (eq. 7-9), light then view");
+  field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
+  std::size_t params = 0;
+  for (const auto& l : btf.decoder.layers) params += l.parameterCount();
+  std::string digits = std::to_string(params), grouped;
+  for (std::size_t i = 0; i < digits.size(); ++i) grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
+  field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
+  field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
+  if (btf.holdoutImages.empty()) {
+    field("hold-out", "none (every image was used for training)");
+  } else {
+    std::snprintf(line, sizeof line, "%zu images (%.1f%%) kept out of training", btf.holdoutImages.size(),
+                  100.0 * btf.holdoutImages.size() / btf.numImages());
+    field("hold-out", line);
+  }
+  field("encoder", btf.encoderState.empty() ? "not stored"
+                                            : "stored (" + std::to_string(btf.encoderState.size()) + " bytes)");
+  if (!btf.skippedSections.empty()) {
+    std::string s;
+    for (const auto& t : btf.skippedSections) s += (s.empty() ? "" : ", ") + t;
+    field("skipped", "optional sections unknown to this nbtf: " + s);
+  }
+
+  // Training statistics recorded by `nbtf compress` (see compressor.cpp for the keys).
+  nlohmann::json meta = nlohmann::json::parse(btf.metadataJson, nullptr, /*allow_exceptions=*/false);
+  std::string train = jsonNumber(meta, "training", "rmse_train");
+  if (!train.empty()) {
+    std::string holdout = jsonNumber(meta, "training", "rmse_holdout");
+    std::string text = "RMSE " + train + " on training images";
+    if (!holdout.empty()) text += ", " + holdout + " on held-out images";
+    field("training", text + " (linear RGB / alpha, eq. 10)");
+    std::string epochs = jsonNumber(meta, "training", "epochs");
+    std::string seed = jsonNumber(meta, "seed");
+    std::string threads = jsonNumber(meta, "threads");
+    std::string run;
+    if (!epochs.empty()) run += epochs + " epochs";
+    if (!seed.empty()) run += (run.empty() ? "" : ", ") + std::string("seed ") + seed;
+    if (!threads.empty()) run += (run.empty() ? "" : ", ") + threads + " threads";
+    if (meta.contains("config") && meta["config"].is_object() && meta["config"].contains("optimizer") &&
+        meta["config"]["optimizer"].is_string())
+      run += (run.empty() ? "" : ", ") + meta["config"]["optimizer"].get<std::string>();
+    if (!run.empty()) field("run", run);
+  }
+  std::string explained = jsonNumber(meta, "clustering", "pca_explained_variance_ratio");
+  if (!explained.empty()) {
+    std::snprintf(line, sizeof line, "%.1f%%", 100 * std::stod(explained));
+    field("clustering", "PCA with " + jsonNumber(meta, "clustering", "pca_components") + " components explains " +
+                            line + " of the variance (standardized log ABRDFs); k-means " +
+                            jsonNumber(meta, "clustering", "kmeans_iterations") + " iterations");
+  }
+  o << "\n" << formatSizeTable(computeSizes(btf, fileBytes));
+  return o.str();
+}
+
+}  // namespace nbtf

@@ -1,0 +1,709 @@
+#include "codec/nbtf_file.h"
+
+#include <algorithm>
+#include <cinttypes>
+#include <climits>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "codec/byte_io.h"
+#include "codec/crc32.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+// ---- Layout constants (docs/file_format.md)
+
+constexpr std::size_t kHeaderSize = 32;
+constexpr std::size_t kHeaderCrcOffset = 28;  // header CRC covers bytes [0, 28)
+constexpr std::size_t kSectionHeaderSize = 24;
+constexpr std::size_t kAlign = 8;             // payloads are zero-padded to a multiple of 8
+constexpr std::uint32_t kSectionRequired = 1; // a reader that does not know the tag must refuse
+
+// Limits that keep every derived size far from overflow; real materials are far below.
+constexpr std::uint32_t kMaxSide = 1u << 20;
+constexpr std::uint32_t kMaxLatentDim = 4096;
+constexpr std::uint32_t kMaxLayers = 256;
+constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
+constexpr int kMaxJsonDepth = 64;
+
+constexpr std::uint32_t tag(const char (&s)[5]) {
+  return std::uint32_t(std::uint8_t(s[0])) | std::uint32_t(std::uint8_t(s[1])) << 8 |
+         std::uint32_t(std::uint8_t(s[2])) << 16 | std::uint32_t(std::uint8_t(s[3])) << 24;
+}
+constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag("DECD"), kLatents = tag("LATN"),
+                        kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META");
+
+std::string tagText(std::uint32_t t) {
+  std::string s;
+  for (int i = 0; i < 4; ++i) {
+    auto c = static_cast<unsigned char>(t >> (8 * i));
+    if (c >= 0x20 && c < 0x7F) {
+      s += static_cast<char>(c);
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", c);
+      s += buf;
+    }
+  }
+  return s;
+}
+
+std::string sectionLabel(std::uint32_t t) {
+  const char* what = t == kInfo      ? "material info"
+                     : t == kDirs    ? "directions"
+                     : t == kDecoder ? "decoder"
+                     : t == kLatents ? "latents"
+                     : t == kIds     ? "id list"
+                     : t == kHoldout ? "hold-out images"
+                     : t == kEncoder ? "encoder"
+                     : t == kMeta    ? "metadata"
+                                     : nullptr;
+  return "section '" + tagText(t) + "'" + (what ? std::string(" (") + what + ")" : std::string());
+}
+
+std::string hex32(std::uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%08" PRIx32, v);
+  return buf;
+}
+
+// Stored enum codes: independent of the in-memory enums so those can change freely.
+std::uint8_t layoutCode(Layout l) { return l == Layout::Ubo2003 ? 1 : l == Layout::Utia ? 2 : 0; }
+Layout layoutFromCode(std::uint8_t c) { return c == 1 ? Layout::Ubo2003 : c == 2 ? Layout::Utia : Layout::Unknown; }
+std::uint8_t sampleTypeCode(SampleType t) { return t == SampleType::Srgb8 ? 1 : 2; }
+
+// ---- Validation helpers
+
+bool allFinite(const std::vector<float>& v) {
+  return std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); });
+}
+
+// Nesting depth of a JSON text (brackets outside strings); bounds the parser's work on
+// hostile metadata before nlohmann sees it.
+int jsonDepth(const std::string& text) {
+  int depth = 0, maxDepth = 0;
+  bool inString = false, escape = false;
+  for (char c : text) {
+    if (inString) {
+      if (escape) escape = false;
+      else if (c == '\\') escape = true;
+      else if (c == '"') inString = false;
+    } else if (c == '"') {
+      inString = true;
+    } else if (c == '{' || c == '[') {
+      maxDepth = std::max(maxDepth, ++depth);
+    } else if (c == '}' || c == ']') {
+      --depth;
+    }
+  }
+  return maxDepth;
+}
+
+void checkMetadata(const std::string& json, const std::string& name) {
+  if (jsonDepth(json) > kMaxJsonDepth)
+    throw fileError(name, "metadata JSON is nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  auto first = json.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos || json[first] != '{' || !nlohmann::json::accept(json))
+    throw fileError(name, "metadata is not a valid JSON object");
+}
+
+}  // namespace
+
+// ---- Names, sizes
+
+std::string codecMethodName(CodecMethod m) {
+  switch (m) {
+    case CodecMethod::ClusteredNeural: return "clustered-neural";
+    case CodecMethod::PerTexelNeural: return "per-texel-neural";
+    case CodecMethod::Pca: return "pca";
+  }
+  return "unknown";
+}
+
+int idWidthForClusters(std::int64_t k) {
+  if (k <= 0x100) return 1;
+  if (k <= 0x10000) return 2;
+  return 4;
+}
+
+NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
+  NbtfSizes s;
+  for (const auto& layer : btf.decoder.layers) s.decoderParameters += layer.parameterCount();
+  s.decoder = s.decoderParameters * 4;
+  s.latentRows = static_cast<std::uint64_t>(std::max(btf.latentRows, 0));
+  s.latentDim = btf.latentDim;
+  s.latents = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0)) * 4;
+  s.texels = static_cast<std::uint64_t>(std::max(btf.numTexels(), 0));
+  s.images = static_cast<std::uint64_t>(btf.numImages());
+  if (btf.method == CodecMethod::ClusteredNeural) {
+    s.idWidth = idWidthForClusters(btf.latentRows);
+    s.ids = s.texels * static_cast<std::uint64_t>(s.idWidth);
+    s.idsPaper = s.texels * 4;
+  }
+  s.total = s.decoder + s.latents + s.ids;
+  s.totalPaper = s.decoder + s.latents + s.idsPaper;
+  s.rawFloat32 = s.texels * s.images * 3 * 4;
+  s.fileBytes = fileBytes;
+  s.ratio = s.total ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.total) : 0;
+  s.ratioPaper = s.totalPaper ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.totalPaper) : 0;
+  return s;
+}
+
+namespace {
+std::string withCommas(std::uint64_t v) {
+  std::string digits = std::to_string(v), out;
+  for (std::size_t i = 0; i < digits.size(); ++i) {
+    if (i && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+std::string kib(std::uint64_t bytes) {
+  char buf[32];
+  if (bytes >= 10u << 20) std::snprintf(buf, sizeof buf, "%.1f MiB", bytes / (1024.0 * 1024.0));
+  else std::snprintf(buf, sizeof buf, "%.1f KiB", bytes / 1024.0);
+  return buf;
+}
+std::string row(const char* part, std::uint64_t bytes, const std::string& note) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "  %-12s %14s B %14s  %s\n", part, withCommas(bytes).c_str(), kib(bytes).c_str(),
+                note.c_str());
+  return buf;
+}
+}  // namespace
+
+std::string formatSizeTable(const NbtfSizes& s) {
+  std::string out = "sizes (as in the paper's Table 1; KiB = 1024 bytes, the paper's KB)\n";
+  out += row("decoder", s.decoder, withCommas(s.decoderParameters) + " parameters x 4 bytes (float32)");
+  out += row("latents", s.latents,
+             withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + " x 4 bytes (float32)");
+  if (s.idWidth)
+    out += row("id list", s.ids,
+               withCommas(s.texels) + " texels x " + std::to_string(s.idWidth) + " byte" +
+                   (s.idWidth > 1 ? "s" : "") + " (smallest width that fits k; the paper used 4)");
+  else
+    out += row("id list", 0, "none (per-texel: one latent per texel)");
+  out += row("total", s.total, "decoder + latents + id list");
+  out += row("raw float32", s.rawFloat32,
+             withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes");
+  char ratio[160];
+  std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
+  out += ratio;
+  if (s.idWidth && s.idWidth != 4) {
+    std::snprintf(ratio, sizeof ratio, "  %-12s total %s, 1 : %.1f (with the paper's 4-byte ids)\n", "paper-style",
+                  kib(s.totalPaper).c_str(), s.ratioPaper);
+    out += ratio;
+  }
+  if (s.fileBytes)
+    out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
+  return out;
+}
+
+// ---- Validation
+
+void CompressedBtf::validate(const std::string& name) const {
+  auto fail = [&](const std::string& m) { return fileError(name, m); };
+  if (method == CodecMethod::Pca)
+    throw fail("method 'pca' is reserved for the PCA baseline and not supported by this nbtf version");
+  if (method != CodecMethod::ClusteredNeural && method != CodecMethod::PerTexelNeural)
+    throw fail("unknown method code " + std::to_string(static_cast<int>(method)));
+  if (directionEncoding != DirectionEncoding::Stereographic)
+    throw fail("unknown direction encoding code " + std::to_string(static_cast<int>(directionEncoding)));
+  if (valueSpace != ValueSpace::LinearOverAlpha)
+    throw fail("unknown value space code " + std::to_string(static_cast<int>(valueSpace)));
+
+  // Geometry
+  if (width < 1 || height < 1 || width > int(kMaxSide) || height > int(kMaxSide))
+    throw fail("texel size " + std::to_string(width) + " x " + std::to_string(height) + " is out of range");
+  if (static_cast<std::int64_t>(width) * height > INT_MAX) throw fail("too many texels");
+  if (sourceWidth < 1 || sourceHeight < 1 || sourceWidth > int(kMaxSide) || sourceHeight > int(kMaxSide))
+    throw fail("source image size " + std::to_string(sourceWidth) + " x " + std::to_string(sourceHeight) +
+               " is out of range");
+  if (crop.empty()) {
+    if (width != sourceWidth || height != sourceHeight)
+      throw fail("texel size differs from the source image size but no crop is recorded");
+  } else {
+    if (crop.x < 0 || crop.y < 0 || crop.width < 1 || crop.height < 1 ||
+        static_cast<std::int64_t>(crop.x) + crop.width > sourceWidth ||
+        static_cast<std::int64_t>(crop.y) + crop.height > sourceHeight)
+      throw fail("crop " + std::to_string(crop.x) + "," + std::to_string(crop.y) + "," + std::to_string(crop.width) +
+                 "," + std::to_string(crop.height) + " lies outside the " + std::to_string(sourceWidth) + " x " +
+                 std::to_string(sourceHeight) + " source images");
+    if (crop.width != width || crop.height != height) throw fail("crop size differs from the texel size");
+  }
+  if (lights.empty() || views.empty()) throw fail("no light or view directions");
+  if (static_cast<std::int64_t>(lights.size()) * static_cast<std::int64_t>(views.size()) > INT_MAX)
+    throw fail("too many images");
+  for (std::size_t i = 0; i < lights.size(); ++i) {
+    try {
+      checkHemisphere(lights[i], "light " + std::to_string(i));
+    } catch (const Error& e) {
+      throw fail(e.what());
+    }
+  }
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    try {
+      checkHemisphere(views[i], "view " + std::to_string(i));
+    } catch (const Error& e) {
+      throw fail(e.what());
+    }
+  }
+  if (!std::isfinite(alpha) || !(alpha > 0)) throw fail("alpha must be a finite positive number");
+
+  // Decoder: latent + 2 + 2 stereographic coordinates in, RGB out, shapes chained.
+  if (latentDim < 1 || latentDim > int(kMaxLatentDim)) throw fail("latent dimension " + std::to_string(latentDim) + " is out of range");
+  if (decoder.layers.empty()) throw fail("decoder has no layers");
+  for (std::size_t i = 0; i < decoder.layers.size(); ++i) {
+    const DenseLayer& l = decoder.layers[i];
+    std::string which = "decoder layer " + std::to_string(i);
+    if (l.in < 1 || l.out < 1 || l.in > int(kMaxLayerWidth) || l.out > int(kMaxLayerWidth))
+      throw fail(which + " has shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
+    int expectedIn = i == 0 ? latentDim + 4 : decoder.layers[i - 1].out;
+    if (l.in != expectedIn)
+      throw fail(which + " takes " + std::to_string(l.in) + " inputs, expected " + std::to_string(expectedIn) +
+                 (i == 0 ? " (latent + 2 + 2 stereographic coordinates)" : " (previous layer's outputs)"));
+    if (l.weight.size() != static_cast<std::size_t>(l.in) * l.out || l.bias.size() != static_cast<std::size_t>(l.out))
+      throw fail(which + " has " + std::to_string(l.weight.size()) + " weights and " + std::to_string(l.bias.size()) +
+                 " biases for shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
+    if (l.activation != Activation::None && l.activation != Activation::Relu && l.activation != Activation::Sigmoid)
+      throw fail(which + " has unknown activation code " + std::to_string(static_cast<int>(l.activation)));
+    if (!allFinite(l.weight) || !allFinite(l.bias)) throw fail(which + " has non-finite parameters (NaN or Inf)");
+  }
+  if (decoder.layers.back().out != 3)
+    throw fail("decoder outputs " + std::to_string(decoder.layers.back().out) + " values, expected 3 (RGB)");
+
+  // Latents and ids
+  if (latentRows < 1) throw fail("no latents");
+  if (latents.size() != static_cast<std::size_t>(latentRows) * latentDim)
+    throw fail("latents hold " + std::to_string(latents.size()) + " values, expected " + std::to_string(latentRows) +
+               " x " + std::to_string(latentDim));
+  if (!allFinite(latents)) throw fail("latents contain non-finite values (NaN or Inf)");
+  int texels = numTexels();
+  if (method == CodecMethod::ClusteredNeural) {
+    if (ids.size() != static_cast<std::size_t>(texels))
+      throw fail("id list has " + std::to_string(ids.size()) + " entries, expected one per texel (" +
+                 std::to_string(texels) + ")");
+    for (std::size_t t = 0; t < ids.size(); ++t)
+      if (ids[t] < 0 || ids[t] >= latentRows)
+        throw fail("id of texel " + std::to_string(t) + " is " + std::to_string(ids[t]) + ", outside [0, " +
+                   std::to_string(latentRows) + ")");
+  } else {
+    if (!ids.empty()) throw fail("per-texel file has an id list");
+    if (latentRows != texels)
+      throw fail("per-texel file has " + std::to_string(latentRows) + " latents for " + std::to_string(texels) +
+                 " texels");
+  }
+
+  // Provenance
+  for (std::size_t i = 0; i < holdoutImages.size(); ++i) {
+    int h = holdoutImages[i];
+    if (h < 0 || h >= numImages())
+      throw fail("hold-out image index " + std::to_string(h) + " is outside [0, " + std::to_string(numImages()) + ")");
+    if (i && h <= holdoutImages[i - 1]) throw fail("hold-out image indices are not strictly ascending");
+  }
+  checkMetadata(metadataJson, name);
+}
+
+// ---- Writing
+
+namespace {
+
+void addSection(ByteWriter& file, std::uint32_t t, bool required, ByteWriter& payload) {
+  const auto& p = payload.bytes();
+  file.u32(t);
+  file.u32(required ? kSectionRequired : 0);
+  file.u64(p.size());
+  file.u32(crc32(p.data(), p.size()));
+  file.u32(0);
+  file.raw(p.data(), p.size());
+  file.zeros((kAlign - p.size() % kAlign) % kAlign);
+}
+
+void writeFloats(ByteWriter& w, const std::vector<float>& v) {
+  for (float x : v) w.f32(x);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
+  btf.validate();
+  ByteWriter file;
+  file.raw(kNbtfMagic, sizeof kNbtfMagic);
+  file.u16(kNbtfFormatMajor);
+  file.u16(kNbtfFormatMinor);
+  file.u32(0);  // header flags (none defined)
+  file.u64(0);  // file size, patched below
+  file.u32(0);  // body CRC, patched below
+  file.u32(0);  // header CRC, patched below
+
+  {
+    ByteWriter w;
+    w.u8(static_cast<std::uint8_t>(btf.method));
+    w.u8(static_cast<std::uint8_t>(btf.directionEncoding));
+    w.u8(static_cast<std::uint8_t>(btf.valueSpace));
+    w.u8(layoutCode(btf.layout));
+    w.u8(sampleTypeCode(btf.sourceSampleType));
+    w.zeros(3);
+    w.u32(static_cast<std::uint32_t>(btf.width));
+    w.u32(static_cast<std::uint32_t>(btf.height));
+    w.u32(static_cast<std::uint32_t>(btf.sourceWidth));
+    w.u32(static_cast<std::uint32_t>(btf.sourceHeight));
+    w.u32(static_cast<std::uint32_t>(btf.crop.x));
+    w.u32(static_cast<std::uint32_t>(btf.crop.y));
+    w.u32(static_cast<std::uint32_t>(btf.crop.width));
+    w.u32(static_cast<std::uint32_t>(btf.crop.height));
+    w.f32(btf.alpha);
+    w.u32(static_cast<std::uint32_t>(btf.latentDim));
+    w.u32(static_cast<std::uint32_t>(btf.latentRows));
+    w.u32(0);  // reserved
+    addSection(file, kInfo, true, w);
+  }
+  {
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.lights.size()));
+    w.u32(static_cast<std::uint32_t>(btf.views.size()));
+    for (const auto* set : {&btf.lights, &btf.views})
+      for (const Direction& d : *set) {
+        w.f64(d.thetaDeg);
+        w.f64(d.phiDeg);
+      }
+    addSection(file, kDirs, true, w);
+  }
+  {
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.decoder.layers.size()));
+    for (const DenseLayer& l : btf.decoder.layers) {
+      w.u32(static_cast<std::uint32_t>(l.in));
+      w.u32(static_cast<std::uint32_t>(l.out));
+      w.u8(static_cast<std::uint8_t>(l.activation));
+      w.zeros(3);
+      writeFloats(w, l.weight);
+      writeFloats(w, l.bias);
+    }
+    addSection(file, kDecoder, true, w);
+  }
+  {
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.latentRows));
+    w.u32(static_cast<std::uint32_t>(btf.latentDim));
+    writeFloats(w, btf.latents);
+    addSection(file, kLatents, true, w);
+  }
+  if (btf.method == CodecMethod::ClusteredNeural) {
+    ByteWriter w;
+    int width = idWidthForClusters(btf.latentRows);
+    w.u32(static_cast<std::uint32_t>(btf.ids.size()));
+    w.u8(static_cast<std::uint8_t>(width));
+    w.zeros(3);
+    for (std::int32_t id : btf.ids) {
+      auto v = static_cast<std::uint32_t>(id);
+      if (width == 1) w.u8(static_cast<std::uint8_t>(v));
+      else if (width == 2) w.u16(static_cast<std::uint16_t>(v));
+      else w.u32(v);
+    }
+    addSection(file, kIds, true, w);
+  }
+  if (!btf.holdoutImages.empty()) {
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.holdoutImages.size()));
+    for (int h : btf.holdoutImages) w.u32(static_cast<std::uint32_t>(h));
+    addSection(file, kHoldout, false, w);
+  }
+  if (!btf.encoderState.empty()) {
+    ByteWriter w;
+    w.raw(btf.encoderState.data(), btf.encoderState.size());
+    addSection(file, kEncoder, false, w);
+  }
+  {
+    ByteWriter w;
+    w.raw(btf.metadataJson.data(), btf.metadataJson.size());
+    addSection(file, kMeta, false, w);
+  }
+
+  auto& bytes = file.bytes();
+  file.patchU64(16, bytes.size());
+  file.patchU32(24, crc32(bytes.data() + kHeaderSize, bytes.size() - kHeaderSize));
+  file.patchU32(kHeaderCrcOffset, crc32(bytes.data(), kHeaderCrcOffset));
+  return std::move(bytes);
+}
+
+std::size_t writeNbtf(const std::string& path, const CompressedBtf& btf) {
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = serializeNbtf(btf);
+  } catch (const Error& e) {
+    throw fileError(path, std::string("refusing to write an invalid compressed BTF: ") + e.what());
+  }
+  writeFileAtomic(path, bytes.data(), bytes.size());
+  return bytes.size();
+}
+
+// ---- Reading
+
+namespace {
+
+struct SectionRef {
+  std::uint32_t tag = 0;
+  std::uint32_t flags = 0;
+  std::size_t offset = 0;  // of the section header
+  const std::uint8_t* payload = nullptr;
+  std::size_t size = 0;
+  std::uint32_t crc = 0;
+};
+
+// Walks the section headers of [kHeaderSize, size). Throws on any structural problem.
+std::vector<SectionRef> listSections(const std::uint8_t* data, std::size_t size, const std::string& name) {
+  std::vector<SectionRef> sections;
+  std::size_t pos = kHeaderSize;
+  while (pos < size) {
+    ByteReader r(data + pos, size - pos, name, "section header", pos);
+    if (r.remaining() < kSectionHeaderSize)
+      throw r.fail("truncated: " + std::to_string(r.remaining()) + " bytes left, a section header needs " +
+                   std::to_string(kSectionHeaderSize));
+    SectionRef s;
+    s.offset = pos;
+    s.tag = r.u32();
+    s.flags = r.u32();
+    std::uint64_t payloadSize = r.u64();
+    s.crc = r.u32();
+    r.u32();  // reserved
+    std::uint64_t padded = payloadSize + (kAlign - payloadSize % kAlign) % kAlign;
+    if (payloadSize > r.remaining() || padded > r.remaining())
+      throw fileError(name, sectionLabel(s.tag) + " at offset " + std::to_string(pos) + " declares " +
+                                std::to_string(payloadSize) + " bytes, but only " + std::to_string(r.remaining()) +
+                                " remain in the file (truncated or corrupted)");
+    s.size = static_cast<std::size_t>(payloadSize);
+    s.payload = r.take(s.size, "payload");
+    const std::uint8_t* pad = r.take(static_cast<std::size_t>(padded - payloadSize), "padding");
+    for (std::size_t i = 0; i < padded - payloadSize; ++i)
+      if (pad[i] != 0) throw fileError(name, sectionLabel(s.tag) + ": non-zero padding bytes (corrupted)");
+    sections.push_back(s);
+    pos += kSectionHeaderSize + static_cast<std::size_t>(padded);
+  }
+  return sections;
+}
+
+// For the error message of a failed body checksum: which section is damaged, if the
+// section structure is still readable.
+std::string locateDamage(const std::uint8_t* data, std::size_t size, const std::string& name) {
+  try {
+    for (const SectionRef& s : listSections(data, size, name))
+      if (crc32(s.payload, s.size) != s.crc)
+        return "; damaged: " + sectionLabel(s.tag) + " at offset " + std::to_string(s.offset);
+    return "; the damage is in a section header or padding";
+  } catch (const Error&) {
+    return "; the section structure itself is damaged";
+  }
+}
+
+std::vector<float> readFloats(ByteReader& r, std::uint64_t count, const char* field) {
+  r.needItems(count, 4, field);
+  std::vector<float> v(static_cast<std::size_t>(count));
+  for (float& x : v) x = r.f32();
+  return v;
+}
+
+int checkedInt(ByteReader& r, std::uint32_t v, std::uint32_t maxValue, const char* field) {
+  if (v > maxValue)
+    throw r.fail(std::string(field) + " = " + std::to_string(v) + " exceeds the limit " + std::to_string(maxValue));
+  return static_cast<int>(v);
+}
+
+void parseInfo(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  btf.method = static_cast<CodecMethod>(r.u8());
+  btf.directionEncoding = static_cast<DirectionEncoding>(r.u8());
+  btf.valueSpace = static_cast<ValueSpace>(r.u8());
+  std::uint8_t layout = r.u8();
+  if (layout > 2) throw r.fail("unknown layout code " + std::to_string(layout));
+  btf.layout = layoutFromCode(layout);
+  std::uint8_t sampleType = r.u8();
+  if (sampleType != 1 && sampleType != 2) throw r.fail("unknown sample type code " + std::to_string(sampleType));
+  btf.sourceSampleType = sampleType == 1 ? SampleType::Srgb8 : SampleType::Half;
+  r.take(3, "reserved");
+  btf.width = checkedInt(r, r.u32(), kMaxSide, "width");
+  btf.height = checkedInt(r, r.u32(), kMaxSide, "height");
+  btf.sourceWidth = checkedInt(r, r.u32(), kMaxSide, "source width");
+  btf.sourceHeight = checkedInt(r, r.u32(), kMaxSide, "source height");
+  btf.crop.x = checkedInt(r, r.u32(), kMaxSide, "crop x");
+  btf.crop.y = checkedInt(r, r.u32(), kMaxSide, "crop y");
+  btf.crop.width = checkedInt(r, r.u32(), kMaxSide, "crop width");
+  btf.crop.height = checkedInt(r, r.u32(), kMaxSide, "crop height");
+  btf.alpha = r.f32();
+  btf.latentDim = checkedInt(r, r.u32(), kMaxLatentDim, "latent dimension");
+  btf.latentRows = checkedInt(r, r.u32(), INT_MAX, "latent rows");
+  r.u32();  // reserved; fields appended by later minor versions follow and are ignored
+}
+
+void parseDirections(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint64_t lights = r.u32(), views = r.u32();
+  r.needItems(lights + views, 16, "direction count");
+  btf.lights.resize(static_cast<std::size_t>(lights));
+  btf.views.resize(static_cast<std::size_t>(views));
+  for (auto* set : {&btf.lights, &btf.views})
+    for (Direction& d : *set) {
+      d.thetaDeg = r.f64();
+      d.phiDeg = r.f64();
+    }
+}
+
+void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t count = r.u32();
+  if (count < 1 || count > kMaxLayers) throw r.fail("layer count " + std::to_string(count) + " is out of range");
+  r.needItems(count, 12, "layer count");
+  btf.decoder.layers.resize(count);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    DenseLayer& l = btf.decoder.layers[i];
+    l.in = checkedInt(r, r.u32(), kMaxLayerWidth, "layer inputs");
+    l.out = checkedInt(r, r.u32(), kMaxLayerWidth, "layer outputs");
+    std::uint8_t act = r.u8();
+    if (act > 2) throw r.fail("layer " + std::to_string(i) + " has unknown activation code " + std::to_string(act));
+    l.activation = static_cast<Activation>(act);
+    r.take(3, "reserved");
+    l.weight = readFloats(r, static_cast<std::uint64_t>(l.in) * static_cast<std::uint64_t>(l.out), "layer weights");
+    l.bias = readFloats(r, static_cast<std::uint64_t>(l.out), "layer biases");
+  }
+  if (r.remaining()) throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after the last layer");
+}
+
+void parseLatents(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  int rows = checkedInt(r, r.u32(), INT_MAX, "rows");
+  int dim = checkedInt(r, r.u32(), kMaxLatentDim, "latent dimension");
+  if (rows != btf.latentRows || dim != btf.latentDim)
+    throw r.fail("shape " + std::to_string(rows) + " x " + std::to_string(dim) + " disagrees with the material info (" +
+                 std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim) + ")");
+  std::uint64_t count = static_cast<std::uint64_t>(rows) * static_cast<std::uint64_t>(dim);
+  if (count * 4 != r.remaining())
+    throw r.fail("holds " + std::to_string(r.remaining()) + " bytes of values, expected " + std::to_string(count * 4));
+  btf.latents = readFloats(r, count, "latents");
+}
+
+void parseIds(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t count = r.u32();
+  std::uint8_t width = r.u8();
+  r.take(3, "reserved");
+  if (width != 1 && width != 2 && width != 4) throw r.fail("id width " + std::to_string(width) + " is not 1, 2 or 4");
+  if (static_cast<std::uint64_t>(count) * width != r.remaining())
+    throw r.fail(std::to_string(count) + " ids of " + std::to_string(width) + " bytes need " +
+                 std::to_string(static_cast<std::uint64_t>(count) * width) + " bytes, the section holds " +
+                 std::to_string(r.remaining()));
+  btf.ids.resize(count);
+  for (auto& id : btf.ids) {
+    std::uint32_t v = width == 1 ? r.u8() : width == 2 ? r.u16() : r.u32();
+    if (v > static_cast<std::uint32_t>(INT_MAX)) throw r.fail("id " + std::to_string(v) + " is out of range");
+    id = static_cast<std::int32_t>(v);
+  }
+}
+
+void parseHoldout(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t count = r.u32();
+  if (static_cast<std::uint64_t>(count) * 4 != r.remaining())
+    throw r.fail(std::to_string(count) + " indices need " + std::to_string(static_cast<std::uint64_t>(count) * 4) +
+                 " bytes, the section holds " + std::to_string(r.remaining()));
+  btf.holdoutImages.resize(count);
+  for (int& h : btf.holdoutImages) h = checkedInt(r, r.u32(), INT_MAX, "hold-out image index");
+}
+
+}  // namespace
+
+CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::string& name,
+                        const NbtfParseOptions& options) {
+  // ---- Header: magic, version, size, checksums
+  bool magicPrefix = std::equal(data, data + std::min(size, sizeof kNbtfMagic), kNbtfMagic);
+  if (!magicPrefix) throw fileError(name, "not an .nbtf file (wrong magic bytes at the start)");
+  if (size < kHeaderSize)
+    throw fileError(name, "truncated: " + std::to_string(size) + " bytes, shorter than the " +
+                              std::to_string(kHeaderSize) + "-byte .nbtf header");
+  ByteReader h(data, kHeaderSize, name, "header");
+  h.take(sizeof kNbtfMagic, "magic");
+  std::uint16_t major = h.u16(), minor = h.u16();
+  h.u32();  // flags: none defined in major version 1; ignored so minor versions may add some
+  std::uint64_t declaredSize = h.u64();
+  std::uint32_t bodyCrc = h.u32(), headerCrc = h.u32();
+  if (options.verifyChecksums && crc32(data, kHeaderCrcOffset) != headerCrc)
+    throw fileError(name, "corrupted: header checksum mismatch (stored " + hex32(headerCrc) + ", computed " +
+                              hex32(crc32(data, kHeaderCrcOffset)) + ")");
+  std::string version = std::to_string(major) + "." + std::to_string(minor);
+  if (major > kNbtfFormatMajor)
+    throw fileError(name, "format version " + version + " is newer than this nbtf can read (" +
+                              std::to_string(kNbtfFormatMajor) + ".x); update nbtf");
+  if (major < 1) throw fileError(name, "invalid format version " + version);
+  if (declaredSize > size)
+    throw fileError(name, "truncated: the header declares " + std::to_string(declaredSize) + " bytes, the file has " +
+                              std::to_string(size) + " (" + std::to_string(declaredSize - size) + " missing)");
+  if (declaredSize < size)
+    throw fileError(name, std::to_string(size - declaredSize) + " unexpected bytes after the end of the data (the header declares " +
+                              std::to_string(declaredSize) + " bytes)");
+  if (declaredSize < kHeaderSize) throw fileError(name, "corrupted: declared size is smaller than the header");
+  if (options.verifyChecksums) {
+    std::uint32_t computed = crc32(data + kHeaderSize, size - kHeaderSize);
+    if (computed != bodyCrc)
+      throw fileError(name, "corrupted: checksum mismatch (CRC-32 stored " + hex32(bodyCrc) + ", computed " +
+                                hex32(computed) + ")" + locateDamage(data, size, name));
+  }
+
+  // ---- Sections
+  std::vector<SectionRef> sections = listSections(data, size, name);
+  if (sections.empty() || sections.front().tag != kInfo)
+    throw fileError(name, "corrupted: the first section must be 'INFO' (material info)");
+  CompressedBtf btf;
+  btf.formatMajor = major;
+  btf.formatMinor = minor;
+  btf.metadataJson.clear();
+  std::vector<std::uint32_t> seen;
+  for (const SectionRef& s : sections) {
+    if (std::find(seen.begin(), seen.end(), s.tag) != seen.end())
+      throw fileError(name, sectionLabel(s.tag) + " appears twice (offset " + std::to_string(s.offset) + ")");
+    seen.push_back(s.tag);
+    if (options.verifyChecksums && crc32(s.payload, s.size) != s.crc)
+      throw fileError(name, "corrupted: checksum mismatch in " + sectionLabel(s.tag) + " at offset " +
+                                std::to_string(s.offset));
+    if (s.tag == kInfo) parseInfo(s, btf, name);
+    else if (s.tag == kDirs) parseDirections(s, btf, name);
+    else if (s.tag == kDecoder) parseDecoder(s, btf, name);
+    else if (s.tag == kLatents) parseLatents(s, btf, name);
+    else if (s.tag == kIds) parseIds(s, btf, name);
+    else if (s.tag == kHoldout) parseHoldout(s, btf, name);
+    else if (s.tag == kEncoder) btf.encoderState.assign(s.payload, s.payload + s.size);
+    else if (s.tag == kMeta) btf.metadataJson.assign(reinterpret_cast<const char*>(s.payload), s.size);
+    else if (s.flags & kSectionRequired)
+      throw fileError(name, "required " + sectionLabel(s.tag) + " is unknown to this nbtf (format " + version +
+                                "; written by a newer nbtf?); update nbtf");
+    else
+      btf.skippedSections.push_back(tagText(s.tag));
+  }
+  auto has = [&](std::uint32_t t) { return std::find(seen.begin(), seen.end(), t) != seen.end(); };
+  for (std::uint32_t t : {kDirs, kDecoder, kLatents})
+    if (!has(t)) throw fileError(name, "missing " + sectionLabel(t));
+  if (btf.method == CodecMethod::ClusteredNeural && !has(kIds))
+    throw fileError(name, "missing " + sectionLabel(kIds) + " (required by the clustered method)");
+  if (btf.method != CodecMethod::ClusteredNeural && has(kIds))
+    throw fileError(name, sectionLabel(kIds) + " present, but the method is " + codecMethodName(btf.method));
+  if (!has(kMeta)) btf.metadataJson = "{}";
+  btf.validate(name);
+  return btf;
+}
+
+CompressedBtf readNbtf(const std::string& path) {
+  std::vector<std::uint8_t> bytes = readFileBytes(path);
+  return parseNbtf(bytes.data(), bytes.size(), path);
+}
+
+bool hasNbtfMagic(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char head[sizeof kNbtfMagic] = {};
+  if (!in.read(reinterpret_cast<char*>(head), sizeof head)) return false;
+  return std::equal(head, head + sizeof head, kNbtfMagic);
+}
+
+}  // namespace nbtf

@@ -1,0 +1,137 @@
+// The compressed material, `.nbtf`: one self-describing, checksummed binary file holding
+// everything decoding needs (decoder MLP, latents, texel -> latent id list, directions,
+// geometry, alpha) plus provenance (hold-out images, metadata JSON, optionally the
+// encoder). Byte layout and versioning rules: docs/file_format.md.
+//
+// The reader treats the file as untrusted input: parseNbtf() validates every size and
+// offset before use, never allocates more than the bytes present justify, and reports
+// each kind of damage (truncated, corrupted, wrong magic, newer version, inconsistent
+// content) as an nbtf::Error naming the file and what is wrong.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/btf_stack.h"
+#include "io/directions.h"
+#include "model/mlp.h"
+
+namespace nbtf {
+
+// Format version written by this build. A reader accepts any minor version of its major
+// (minor versions only add optional sections or append fields); a newer major is refused.
+constexpr std::uint16_t kNbtfFormatMajor = 1;
+constexpr std::uint16_t kNbtfFormatMinor = 0;
+// "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
+// conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
+constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
+
+// How the material is represented. Values are stored in the file; never renumber.
+enum class CodecMethod : std::uint8_t {
+  ClusteredNeural = 1,  // one latent per cluster + id list (the paper's method)
+  PerTexelNeural = 2,   // one latent per texel (the earlier neural BTF; our baseline)
+  Pca = 3,              // classic PCA baseline (issue 6); reserved: not readable yet
+};
+std::string codecMethodName(CodecMethod m);  // "clustered-neural", "per-texel-neural", "pca"
+
+// How light and view directions are fed to the decoder (after the latent).
+enum class DirectionEncoding : std::uint8_t {
+  Stereographic = 1,  // eq. (7)-(9): (x, y) of the light, then of the view
+};
+
+// What the decoder outputs: linear sRGB-primaries RGB divided by alpha (eq. 5).
+enum class ValueSpace : std::uint8_t { LinearOverAlpha = 1 };
+
+struct CompressedBtf {
+  CodecMethod method = CodecMethod::ClusteredNeural;
+  DirectionEncoding directionEncoding = DirectionEncoding::Stereographic;
+  ValueSpace valueSpace = ValueSpace::LinearOverAlpha;
+
+  // ---- The material's geometry and sampling
+  int width = 0, height = 0;              // texels (after the crop)
+  int sourceWidth = 0, sourceHeight = 0;  // image size on disk
+  Crop crop;                              // empty = whole image
+  Layout layout = Layout::Unknown;        // layout of the source stack (decode writes the same)
+  SampleType sourceSampleType = SampleType::Srgb8;
+  std::vector<Direction> lights, views;   // measured directions; image = light * views + view
+  float alpha = 1;                        // decoder output * alpha = linear value
+
+  // ---- The representation
+  Mlp decoder;                            // input: latent, light (x, y), view (x, y); output RGB
+  int latentDim = 8;
+  int latentRows = 0;                     // k (clustered) or texels (per-texel)
+  std::vector<float> latents;             // latentRows x latentDim, row-major
+  std::vector<std::int32_t> ids;          // texel -> latent row; empty in per-texel mode
+
+  // ---- Provenance (not needed to decode)
+  std::vector<int> holdoutImages;         // ascending image indices kept out of training
+  std::vector<std::uint8_t> encoderState; // serialized encoder; empty unless --save-encoder
+  std::string metadataJson = "{}";        // config, seed, training statistics (a JSON object)
+
+  // Filled by parseNbtf only: the file's format version and the optional sections this
+  // reader did not know (skipped). The writer always writes the current version.
+  std::uint16_t formatMajor = kNbtfFormatMajor, formatMinor = kNbtfFormatMinor;
+  std::vector<std::string> skippedSections;
+
+  int numImages() const { return static_cast<int>(lights.size() * views.size()); }
+  int numTexels() const { return width * height; }
+  int numClusters() const { return method == CodecMethod::ClusteredNeural ? latentRows : 0; }
+  // The latent row texel t decodes from.
+  int latentRowOfTexel(int texel) const { return ids.empty() ? texel : ids[static_cast<std::size_t>(texel)]; }
+  const float* latentOfTexel(int texel) const {
+    return latents.data() + static_cast<std::size_t>(latentRowOfTexel(texel)) * latentDim;
+  }
+
+  // Checks every invariant the reader checks (shapes agree, values finite, ids in range,
+  // directions on the hemisphere...). Throws nbtf::Error prefixed with `name`.
+  void validate(const std::string& name = "compressed BTF") const;
+};
+
+// Smallest unsigned integer width (1, 2 or 4 bytes) that holds every id in [0, k).
+int idWidthForClusters(std::int64_t k);
+
+// Sizes in bytes as in Table 1 of the paper: decoder = parameters x 4 (float32),
+// latents = rows x latentDim x 4, ids = texels x id width (the paper used 4-byte ids; we
+// store the smallest width that fits k), total = decoder + latents + ids (the paper's
+// definition: headers, directions and metadata are not counted; fileBytes is the actual
+// file size), raw = texels x images x 3 x 4 (float32 RGB), ratio = raw / total.
+struct NbtfSizes {
+  std::uint64_t decoderParameters = 0;
+  std::uint64_t latentRows = 0, texels = 0, images = 0;
+  int latentDim = 0;
+  std::uint64_t decoder = 0, latents = 0, ids = 0, total = 0;
+  std::uint64_t rawFloat32 = 0;
+  std::uint64_t fileBytes = 0;  // 0 when not known (not written yet)
+  int idWidth = 0;              // bytes per id; 0 in per-texel mode
+  double ratio = 0;             // rawFloat32 / total
+  // The same with the paper's 4-byte ids, to compare with its Table 1.
+  std::uint64_t idsPaper = 0, totalPaper = 0;
+  double ratioPaper = 0;
+};
+NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes = 0);
+
+// The Table-1-style size table as text lines (shared by `nbtf info` and `nbtf compress`).
+std::string formatSizeTable(const NbtfSizes& sizes);
+
+// ---- Reading and writing
+
+// Serializes to bytes (validates first). Deterministic: same content -> same bytes.
+std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf);
+// Writes atomically (temporary file + rename). Returns the number of bytes written.
+std::size_t writeNbtf(const std::string& path, const CompressedBtf& btf);
+
+struct NbtfParseOptions {
+  // Verify the header and body CRC-32s. Only the fuzzer turns this off, so that mutated
+  // inputs reach the structural checks behind the checksum.
+  bool verifyChecksums = true;
+};
+// Parses a complete file image. `name` is used in error messages (normally the path).
+CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::string& name,
+                        const NbtfParseOptions& options = {});
+CompressedBtf readNbtf(const std::string& path);
+
+// True when the file starts with the .nbtf magic (false for folders and unreadable paths).
+bool hasNbtfMagic(const std::string& path);
+
+}  // namespace nbtf

@@ -1,0 +1,107 @@
+#include "eval/compressed_source.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+bool sameDirection(const Direction& a, const Direction& b) {
+  auto u = a.unitVector(), v = b.unitVector();
+  double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+  return dot > std::cos(1e-3 * 3.14159265358979323846 / 180);
+}
+
+void checkDirections(const std::vector<Direction>& ref, const std::vector<Direction>& file, const char* what,
+                     const std::string& prefix) {
+  if (ref.size() != file.size())
+    throw Error(prefix + "the reference has " + std::to_string(ref.size()) + " " + what + " directions, the file " +
+                std::to_string(file.size()));
+  for (std::size_t i = 0; i < ref.size(); ++i)
+    if (!sameDirection(ref[i], file[i]))
+      throw Error(prefix + what + " direction " + std::to_string(i) + " is " + formatDirection(ref[i]) +
+                  " in the reference but " + formatDirection(file[i]) + " in the file");
+}
+
+}  // namespace
+
+namespace {
+const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
+  if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != 3)
+    throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
+                std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
+                std::to_string(btf.latentDim) + ") + 4 direction inputs and 3 outputs (RGB)");
+  return btf;
+}
+}  // namespace
+
+CompressedReconstruction::CompressedReconstruction(const CompressedBtf& btf, const std::string& name)
+    : decoder_(checkedDecoderShape(btf), DecoderOptions{}, name) {}
+
+void CompressedReconstruction::image(int image, float* out) const {
+  const int nv = static_cast<int>(decoder_.views().size());
+  // Images are decoded in parallel by the caller, so each decode runs on one thread.
+  decoder_.decodeImage(decoder_.lights().at(static_cast<std::size_t>(image / nv)),
+                       decoder_.views().at(static_cast<std::size_t>(image % nv)), out, OutputScale::Linear, 0, 0,
+                       false);
+}
+
+void checkReferenceMatches(const CompressedBtf& btf, const BtfStack& ref, const std::string& fileName,
+                           const std::string& referenceName) {
+  const std::string prefix = "reference '" + referenceName + "' does not match '" + fileName + "': ";
+  if (ref.width() != btf.width || ref.height() != btf.height) {
+    std::string crop = btf.crop.empty() ? "the whole image"
+                                        : "crop " + std::to_string(btf.crop.x) + "," + std::to_string(btf.crop.y) + "," +
+                                              std::to_string(btf.crop.width) + "," + std::to_string(btf.crop.height);
+    throw Error(prefix + "texel size is " + std::to_string(ref.width()) + " x " + std::to_string(ref.height()) +
+                " in the reference but " + std::to_string(btf.width) + " x " + std::to_string(btf.height) +
+                " in the file (which was made from " + crop + " of " + std::to_string(btf.sourceWidth) + " x " +
+                std::to_string(btf.sourceHeight) + " images)");
+  }
+  checkDirections(ref.lights(), btf.lights, "light", prefix);
+  checkDirections(ref.views(), btf.views, "view", prefix);
+}
+
+SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
+  NbtfSizes s = computeSizes(btf, fileBytes);
+  SizeTable t;
+  t.rawFloat32 = s.rawFloat32, t.decoder = s.decoder, t.latents = s.latents, t.ids = s.ids, t.total = s.total;
+  t.fileBytes = s.fileBytes;
+  t.idsPaper = s.idsPaper, t.totalPaper = s.totalPaper;
+  return t;
+}
+
+std::string methodDescription(const CompressedBtf& btf) {
+  if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
+  if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
+  return codecMethodName(btf.method);
+}
+
+EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& reference,
+                                const CompressedReconstruction& reconstruction, const std::string& fileName,
+                                const std::string& referenceName, std::uint64_t fileBytes) {
+  EvalInputs in;
+  in.reference = &reference;
+  in.alpha = btf.alpha;
+  in.reconstruct = [&reconstruction](int image, float* out) { reconstruction.image(image, out); };
+  in.holdoutImages = btf.holdoutImages;
+  in.sizes = sizeTableOf(btf, fileBytes);
+  in.method = methodDescription(btf);
+  in.methodFamily = codecMethodName(btf.method);
+  if (btf.method == CodecMethod::ClusteredNeural) in.methodParameter = btf.latentRows;
+  in.referenceName = referenceName;
+  in.compressedName = fileName;
+  std::string shape = std::to_string(btf.decoder.inputSize());
+  for (const auto& layer : btf.decoder.layers) shape += " -> " + std::to_string(layer.out);
+  in.details = {{"method", codecMethodName(btf.method)},
+                {"latent rows (k or texels)", std::to_string(btf.latentRows)},
+                {"latent dimension", std::to_string(btf.latentDim)},
+                {"decoder", shape + " (" + std::to_string(btf.decoder.parameterCount()) + " parameters)"},
+                {"decoder evaluations per image", std::to_string(reconstruction.evaluationsPerImage())},
+                {"held-out images", std::to_string(btf.holdoutImages.size())}};
+  return in;
+}
+
+}  // namespace nbtf

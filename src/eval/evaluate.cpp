@@ -1,0 +1,195 @@
+#include "eval/evaluate.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <set>
+
+#include "eval/figures.h"
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace {
+
+std::string formatAngle(double deg) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", std::round(deg * 1000) / 1000);
+  return buf;
+}
+
+bool sameDirection(const Direction& a, const Direction& b) {
+  auto u = a.unitVector(), v = b.unitVector();
+  double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+  return dot > std::cos(1e-3 * 3.14159265358979323846 / 180);  // within 0.001 degrees
+}
+
+std::string imageName(const EvalResult& r, int image) {
+  int nv = static_cast<int>(r.views.size());
+  return "image " + std::to_string(image) + " (light " + formatDirection(r.lights[image / nv]) + ", view " +
+         formatDirection(r.views[image % nv]) + ")";
+}
+
+}  // namespace
+
+std::string formatDirection(const Direction& d) {
+  return "(" + formatAngle(d.thetaDeg) + "\xC2\xB0, " + formatAngle(d.phiDeg) + "\xC2\xB0)";
+}
+
+std::vector<DirectionPair> paperFigure7Pairs() {
+  return {
+      {"Fig. 7, top row", {15, 60}, {30, 60}, "The paper's first direction pair"},
+      {"Fig. 7, bottom row (grazing)", {75, 345}, {75, 0},
+       "The paper's grazing pair; the paper prints the light as (345\xC2\xB0, 0\xC2\xB0), which is not a valid "
+       "direction, so (75\xC2\xB0, 0\xC2\xB0) is used"},
+  };
+}
+
+EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
+  auto start = std::chrono::steady_clock::now();
+  if (!in.reference) throw Error("evaluation: no reference stack");
+  if (!in.reconstruct) throw Error("evaluation: no reconstruction");
+  const BtfStack& ref = *in.reference;
+  if (ref.numImages() == 0 || ref.numTexels() == 0) throw Error("evaluation: the reference stack is empty");
+
+  EvalResult r;
+  r.method = in.method, r.referenceName = in.referenceName, r.compressedName = in.compressedName;
+  r.methodFamily = in.methodFamily.empty() ? in.method : in.methodFamily;
+  r.methodParameter = in.methodParameter;
+  r.details = in.details;
+  r.width = ref.width(), r.height = ref.height();
+  r.lights = ref.lights(), r.views = ref.views();
+  r.sizes = in.sizes;
+  r.blurOptions = options.blur;
+  checkHoldoutImages(in.holdoutImages, ref.numImages());
+  r.holdoutImages = in.holdoutImages;
+  std::sort(r.holdoutImages.begin(), r.holdoutImages.end());
+
+  r.alpha = in.alpha;
+  if (!(r.alpha > 0)) {
+    float lo, hi;
+    ref.valueRange(lo, hi);
+    if (!(hi > 0)) throw Error("evaluation: the reference is black everywhere; alpha (its maximum) would be 0");
+    r.alpha = hi, r.alphaFromReference = true;
+  }
+  if (!std::isfinite(r.alpha)) throw Error("evaluation: alpha is not finite");
+
+  // ---- Which reconstructions to keep: compared pairs and the blur sample.
+  const int numImages = ref.numImages(), nv = ref.numViews();
+  for (const auto& pair : options.pairs) {
+    Comparison c;
+    c.name = pair.name, c.note = pair.note, c.requested = pair;
+    c.light = nearestDirection(r.lights, pair.light);
+    c.view = nearestDirection(r.views, pair.view);
+    c.image = ref.imageIndex(c.light, c.view);
+    c.exact = sameDirection(r.lights[c.light], pair.light) && sameDirection(r.views[c.view], pair.view);
+    r.comparisons.push_back(c);
+  }
+  std::set<int> keep;
+  for (const auto& c : r.comparisons) keep.insert(c.image);
+  // Blur sample: lights evenly spaced, views along a golden-ratio sequence, so the sample
+  // spreads over the (light, view) square instead of a diagonal (a stride through image
+  // indices lands on light == view for 81 x 81).
+  int samples = std::min(options.blurSampleImages, numImages);
+  std::set<int> blurImages;
+  const int nl = ref.numLights();
+  for (int i = 0; i < samples; ++i) {
+    int light = static_cast<int>((i + 0.5) * nl / samples);
+    double frac = std::fmod(0.5 + i * 0.6180339887498949, 1.0);
+    blurImages.insert(ref.imageIndex(std::min(light, nl - 1), std::min(static_cast<int>(frac * nv), nv - 1)));
+  }
+  keep.insert(blurImages.begin(), blurImages.end());
+
+  // ---- The pass: every image once, errors per image.
+  const std::size_t n = static_cast<std::size_t>(ref.numTexels()) * 3;
+  r.table = ErrorTable(r.lights, r.views);
+  std::map<int, std::vector<float>> kept;  // image -> reconstruction
+  for (int i : keep) kept[i];              // create the slots before the threads run
+  const int workers = threadCount();
+  std::vector<std::vector<float>> refBuf(workers), recBuf(workers);
+  Progress progress("eval: reconstruct + compare", static_cast<std::size_t>(numImages), options.progress);
+  parallelForDynamic(static_cast<std::size_t>(numImages), [&](std::size_t index, int worker) {
+    int image = static_cast<int>(index);
+    auto& rb = refBuf[worker];
+    auto& cb = recBuf[worker];
+    rb.resize(n), cb.assign(n, std::numeric_limits<float>::quiet_NaN());  // unwritten values fail the check
+    try {
+      ref.imageLinear(image, rb.data());
+      in.reconstruct(image, cb.data());
+      r.table.set(image, errorSums(rb.data(), cb.data(), n, r.alpha));
+    } catch (const std::exception& e) {
+      throw Error(imageName(r, image) + ": " + e.what());
+    }
+    auto it = kept.find(image);
+    if (it != kept.end()) it->second = cb;
+    progress.advance();
+  });
+  progress.finish();
+
+  r.all = r.table.all();
+  r.training = r.hasHoldout() ? r.table.subset(r.holdoutImages, true) : r.all;
+  if (r.hasHoldout()) r.holdout = r.table.subset(r.holdoutImages, false);
+  r.byLightElevation = r.table.byLightElevation();
+  r.byViewElevation = r.table.byViewElevation();
+  r.worstImage = r.table.worstImage();
+
+  Comparison worst;
+  worst.name = "worst error";
+  worst.note = "The (light, view) pair with the largest RMSE";
+  worst.image = r.worstImage, worst.light = r.worstImage / nv, worst.view = r.worstImage % nv;
+  worst.requested = {worst.name, r.views[worst.view], r.lights[worst.light], worst.note};
+  r.comparisons.push_back(worst);
+  if (!kept.count(r.worstImage)) {
+    auto& buf = kept[r.worstImage];
+    buf.assign(n, std::numeric_limits<float>::quiet_NaN());
+    try {
+      in.reconstruct(r.worstImage, buf.data());
+    } catch (const std::exception& e) {
+      throw Error(imageName(r, r.worstImage) + ": " + e.what());
+    }
+  }
+  blurImages.insert(r.worstImage);
+  for (const auto& c : r.comparisons) blurImages.insert(c.image);
+
+  // ---- Effective blur on every kept image (in parallel; each estimate is independent).
+  std::vector<int> blurList(blurImages.begin(), blurImages.end());
+  r.blurSamples.resize(blurList.size());
+  Progress blurProgress("eval: effective blur", blurList.size(), options.progress);
+  parallelForDynamic(blurList.size(), [&](std::size_t k, int) {
+    int image = blurList[k];
+    std::vector<float> reference(n);
+    ref.imageLinear(image, reference.data());
+    BlurSample& s = r.blurSamples[k];
+    s.image = image, s.light = image / nv, s.view = image % nv;
+    s.estimate = estimateBlur(reference.data(), kept.at(image).data(), r.width, r.height, r.alpha, options.blur);
+    blurProgress.advance();
+  });
+  blurProgress.finish();
+  std::vector<double> sigmas;
+  for (const auto& s : r.blurSamples) sigmas.push_back(s.estimate.sigma);
+  std::sort(sigmas.begin(), sigmas.end());
+  std::size_t m = sigmas.size();
+  r.blurSigmaMedian = m % 2 ? sigmas[m / 2] : 0.5 * (sigmas[m / 2 - 1] + sigmas[m / 2]);
+
+  // ---- Comparison strips.
+  std::vector<float> reference(n);
+  for (auto& c : r.comparisons) {
+    c.error = r.table.image(c.image);
+    for (const auto& s : r.blurSamples)
+      if (s.image == c.image) c.blur = s.estimate;
+    ref.imageLinear(c.image, reference.data());
+    const auto& rec = kept.at(c.image);
+    c.magnification = chooseErrorMagnification(reference.data(), rec.data(), ref.numTexels(), r.alpha);
+    std::string title = c.name + ": light " + formatDirection(r.lights[c.light]) + ", view " +
+                        formatDirection(r.views[c.view]);
+    c.figure = renderComparison(reference.data(), rec.data(), r.width, r.height, r.alpha, c.magnification, title);
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+}  // namespace nbtf

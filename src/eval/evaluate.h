@@ -1,0 +1,119 @@
+// One evaluation pass: compares every image of a reference BTF with its reconstruction,
+// accumulating the metrics of eval/metrics.h per (light, view) image, then picks the
+// compared direction pairs (the paper's Fig. 7 pairs and the worst image), renders their
+// comparison strips and estimates the effective blur sigma on a sample of images.
+//
+// The reconstruction is abstract (a callback), so `nbtf eval` plugs in a .nbtf decoder and
+// tests plug in synthetic ones (the reference blurred, noisy, or scaled).
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "eval/blur.h"
+#include "eval/metrics.h"
+#include "io/btf_stack.h"
+#include "io/image_io.h"
+
+namespace nbtf {
+
+// Table 1 of the paper, in bytes. total = decoder + latents + ids (the paper's definition:
+// headers and metadata not counted); fileBytes = the file's actual size (0 = unknown).
+struct SizeTable {
+  std::uint64_t rawFloat32 = 0, decoder = 0, latents = 0, ids = 0, total = 0, fileBytes = 0;
+  // The same with the paper's 4-byte ids (0 = not given, or equal to the above).
+  std::uint64_t idsPaper = 0, totalPaper = 0;
+  bool known() const { return total > 0; }
+  double ratio() const { return total ? static_cast<double>(rawFloat32) / static_cast<double>(total) : 0; }
+};
+
+// A requested (view, light) pair to show side by side.
+struct DirectionPair {
+  std::string name;
+  Direction view, light;
+  std::string note;  // shown with the comparison (e.g. why this pair)
+};
+// The two pairs of the paper's Fig. 7: view (15, 60) with light (30, 60), and the grazing
+// view (75, 345) with light (75, 0) (the light printed in the paper, (345, 0), is no valid
+// direction).
+std::vector<DirectionPair> paperFigure7Pairs();
+
+struct EvalInputs {
+  const BtfStack* reference = nullptr;
+  float alpha = 0;  // the file's alpha; <= 0: the reference's largest linear value
+  // Writes image `image` (= light * numViews + view) as linear RGB, width * height * 3
+  // floats, on the reference's scale (decoder output times alpha). Called concurrently for
+  // different images; must be deterministic (the worst image is reconstructed twice).
+  std::function<void(int image, float* linearRgb)> reconstruct;
+  std::vector<int> holdoutImages;  // images kept out of training (may be empty)
+  SizeTable sizes;                 // sizes.total == 0: no size table (e.g. synthetic inputs)
+  std::string method;              // e.g. "clustered neural, k = 500"
+  // For sweeps: the curve this result belongs to ("clustered-neural", "per-texel-neural",
+  // "pca"; default: method) and its parameter (k, components; NaN = none).
+  std::string methodFamily;
+  double methodParameter = std::numeric_limits<double>::quiet_NaN();
+  std::string referenceName;       // where the reference came from
+  std::string compressedName;      // the compressed file, if any
+  std::vector<std::pair<std::string, std::string>> details;  // extra facts for the header
+};
+
+struct EvalOptions {
+  std::vector<DirectionPair> pairs = paperFigure7Pairs();
+  int blurSampleImages = 8;  // evenly spaced images for the blur estimate (besides compared ones)
+  BlurOptions blur;
+  bool progress = true;
+};
+
+struct Comparison {
+  std::string name, note;
+  DirectionPair requested;
+  int light = 0, view = 0, image = 0;
+  bool exact = true;  // the requested directions were measured exactly
+  ErrorSummary error;
+  BlurEstimate blur;
+  double magnification = 1;  // of the error panel
+  Image8 figure;             // reference | reconstruction | error strip
+};
+
+struct BlurSample {
+  int light = 0, view = 0, image = 0;
+  BlurEstimate estimate;
+};
+
+struct EvalResult {
+  // ---- Inputs, described
+  std::string method, methodFamily, referenceName, compressedName;
+  double methodParameter = std::numeric_limits<double>::quiet_NaN();
+  std::vector<std::pair<std::string, std::string>> details;
+  int width = 0, height = 0;
+  std::vector<Direction> lights, views;
+  float alpha = 0;
+  bool alphaFromReference = false;
+  SizeTable sizes;
+  std::vector<int> holdoutImages;
+
+  // ---- Metrics
+  ErrorTable table;
+  ErrorSummary all, training, holdout;  // training = all when there is no hold-out set
+  std::vector<ElevationError> byLightElevation, byViewElevation;
+  int worstImage = 0;
+  std::vector<Comparison> comparisons;
+  std::vector<BlurSample> blurSamples;  // unique images, ascending
+  double blurSigmaMedian = 0;
+  BlurOptions blurOptions;
+  double seconds = 0;
+
+  bool hasHoldout() const { return !holdoutImages.empty(); }
+};
+
+// Runs the pass. Throws nbtf::Error on bad inputs, naming the image (light, view) and the
+// value for a non-finite reconstruction.
+EvalResult evaluate(const EvalInputs& inputs, const EvalOptions& options = {});
+
+// "(theta, phi)" in degrees, as the report prints directions.
+std::string formatDirection(const Direction& d);
+
+}  // namespace nbtf

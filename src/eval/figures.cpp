@@ -1,0 +1,273 @@
+#include "eval/figures.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "io/color.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+constexpr Color8 kMarkColor{230, 40, 40};
+
+// Consecutive runs of directions on one elevation ring: [begin, end) index ranges.
+struct Ring {
+  int begin, end;
+  long theta;
+};
+std::vector<Ring> ringsOf(const std::vector<Direction>& dirs) {
+  std::vector<Ring> rings;
+  for (int i = 0; i < static_cast<int>(dirs.size()); ++i) {
+    long t = std::lround(dirs[static_cast<std::size_t>(i)].thetaDeg);
+    if (rings.empty() || rings.back().theta != t) rings.push_back({i, i + 1, t});
+    else rings.back().end = i + 1;
+  }
+  return rings;
+}
+
+std::string degrees(long theta) { return std::to_string(theta) + "\xC2\xB0"; }
+
+// A vertical colour bar from 0 (bottom) to vmax (top) with ticks and a rotated label.
+void drawColorBar(Canvas& c, int x, int y, int w, int h, double vmax, const std::string& label) {
+  for (int r = 0; r < h; ++r) c.fillRect(x, y + r, w, 1, viridis(1.0 - static_cast<double>(r) / std::max(1, h - 1)));
+  c.strokeRect(x, y, w, h, kGrey);
+  auto ticks = niceTicks(0, vmax, 6);
+  double step = ticks.size() > 1 ? ticks[1] - ticks[0] : vmax;
+  int labelRight = x + w;
+  for (double t : ticks) {
+    int ty = y + h - 1 - static_cast<int>(std::lround(t / vmax * (h - 1)));
+    c.line(x + w, ty, x + w + 5, ty, kBlack);
+    std::string s = formatTick(t, step);
+    c.text(s, x + w + 8, ty, 10, kBlack);
+    labelRight = std::max(labelRight, x + w + 8 + c.textWidth(s, 10));
+  }
+  c.text(label, labelRight + 16, y + h / 2, 11, kBlack, Align::Center, true);
+}
+
+}  // namespace
+
+// ---- Heat map
+
+Image8 renderDirectionHeatMap(const std::vector<double>& values, const std::vector<Direction>& rows,
+                              const std::vector<Direction>& cols, const HeatMapLabels& labels,
+                              const std::vector<HeatMapMark>& marks) {
+  const int nr = static_cast<int>(rows.size()), nc = static_cast<int>(cols.size());
+  if (nr == 0 || nc == 0 || values.size() != static_cast<std::size_t>(nr) * nc)
+    throw Error("heat map: " + std::to_string(values.size()) + " values for " + std::to_string(nr) + " x " +
+                std::to_string(nc) + " cells");
+  double vmax = 0;
+  for (double v : values) {
+    if (!std::isfinite(v)) throw Error("heat map: a value is not finite");
+    vmax = std::max(vmax, v);
+  }
+  if (vmax <= 0) vmax = 1;  // all zero: any scale shows it as the bottom colour
+
+  const int cell = std::max(2, std::min(48, 648 / std::max(nr, nc)));
+  const int gridW = nc * cell, gridH = nr * cell;
+  const int left = 110, top = 56, right = 150, bottom = 78;
+  Canvas c(left + gridW + right, top + gridH + bottom);
+  c.text(labels.title, left + gridW / 2, 22, 14, kBlack, Align::Center);
+
+  for (int r = 0; r < nr; ++r)
+    for (int k = 0; k < nc; ++k)
+      c.fillRect(left + k * cell, top + r * cell, cell, cell, viridis(values[static_cast<std::size_t>(r) * nc + k] / vmax));
+
+  // Ring separators and tick labels (skipped where they would overlap the previous one).
+  auto colRings = ringsOf(cols), rowRings = ringsOf(rows);
+  int lastRight = -1000;
+  for (const auto& ring : colRings) {
+    if (ring.begin > 0) c.line(left + ring.begin * cell, top, left + ring.begin * cell, top + gridH, kWhite);
+    int cx = left + (ring.begin + ring.end) * cell / 2;
+    std::string s = degrees(ring.theta);
+    int w = c.textWidth(s, 10);
+    c.line(cx, top + gridH, cx, top + gridH + 4, kBlack);
+    if (cx - w / 2 > lastRight + 4) {
+      c.text(s, cx, top + gridH + 14, 10, kBlack, Align::Center);
+      lastRight = cx + w / 2;
+    }
+  }
+  int lastBottom = -1000;
+  for (const auto& ring : rowRings) {
+    if (ring.begin > 0) c.line(left, top + ring.begin * cell, left + gridW, top + ring.begin * cell, kWhite);
+    int cy = top + (ring.begin + ring.end) * cell / 2;
+    c.line(left - 4, cy, left, cy, kBlack);
+    if (cy - 6 > lastBottom + 2) {
+      c.text(degrees(ring.theta), left - 8, cy, 10, kBlack, Align::Right);
+      lastBottom = cy + 6;
+    }
+  }
+  c.strokeRect(left - 1, top - 1, gridW + 2, gridH + 2, kGrey);
+  c.text(labels.colAxis, left + gridW / 2, top + gridH + 38, 11, kBlack, Align::Center);
+  c.text("(rings by elevation theta; azimuth phi ascending within a ring)", left + gridW / 2, top + gridH + 58, 9,
+         kGrey, Align::Center);
+  c.text(labels.rowAxis, 30, top + gridH / 2, 11, kBlack, Align::Center, true);
+
+  // Marked cells: a ring around the cell and a label beside it.
+  for (const auto& m : marks) {
+    if (m.row < 0 || m.row >= nr || m.col < 0 || m.col >= nc) continue;
+    int x = left + m.col * cell, y = top + m.row * cell, pad = std::max(2, cell / 2);
+    c.strokeRect(x - pad, y - pad, cell + 2 * pad, cell + 2 * pad, kWhite, 3);
+    c.strokeRect(x - pad, y - pad, cell + 2 * pad, cell + 2 * pad, kMarkColor, 1);
+    bool leftSide = x + cell + pad + 30 > left + gridW;
+    int tx = leftSide ? x - pad - 3 : x + cell + pad + 3;
+    int tw = c.textWidth(m.label, 10);
+    int bx = leftSide ? tx - tw - 2 : tx - 2;
+    c.fillRect(bx, y + cell / 2 - 8, tw + 4, 16, kWhite);
+    c.text(m.label, tx, y + cell / 2, 10, kMarkColor, leftSide ? Align::Right : Align::Left);
+  }
+
+  drawColorBar(c, left + gridW + 24, top, 18, gridH, vmax, labels.colorBar);
+  return c.release();
+}
+
+// ---- Line chart
+
+Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
+                       const std::string& yLabel, const std::vector<double>& xTicksGiven) {
+  double xmin = 1e300, xmax = -1e300, ymax = 0;
+  for (const auto& s : series) {
+    if (s.x.size() != s.y.size()) throw Error("line chart: series '" + s.name + "' has unequal x and y counts");
+    for (std::size_t i = 0; i < s.x.size(); ++i) {
+      if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) throw Error("line chart: a value is not finite");
+      xmin = std::min(xmin, s.x[i]), xmax = std::max(xmax, s.x[i]), ymax = std::max(ymax, s.y[i]);
+    }
+  }
+  if (xmin > xmax) xmin = 0, xmax = 1;
+  if (xmax == xmin) xmin -= 1, xmax += 1;
+  double pad = 0.05 * (xmax - xmin);
+  double x0 = xmin - pad, x1 = xmax + pad;
+  auto yTicks = niceTicks(0, ymax > 0 ? ymax : 1, 6);
+  double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
+  double y1 = yTicks.back() < ymax ? yTicks.back() + yStep : yTicks.back();
+  if (yTicks.back() < y1) yTicks.push_back(y1);
+
+  const int left = 86, right = 24, top = 50, bottom = 62, plotW = 560, plotH = 300;
+  Canvas c(left + plotW + right, top + plotH + bottom);
+  auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
+  auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround(y / y1 * plotH)); };
+  c.text(title, left + plotW / 2, 22, 14, kBlack, Align::Center);
+
+  for (double t : yTicks) {
+    c.line(left, py(t), left + plotW, py(t), kLightGrey);
+    c.text(formatTick(t, yStep), left - 8, py(t), 10, kBlack, Align::Right);
+  }
+  auto xTicks = xTicksGiven.empty() ? niceTicks(xmin, xmax, 8) : xTicksGiven;
+  double xStep = xTicks.size() > 1 ? xTicks[1] - xTicks[0] : 1;
+  for (double t : xTicks) {
+    c.line(px(t), top + plotH, px(t), top + plotH + 5, kBlack);
+    c.text(formatTick(t, xStep), px(t), top + plotH + 16, 10, kBlack, Align::Center);
+  }
+  c.line(left, top, left, top + plotH, kBlack);
+  c.line(left, top + plotH, left + plotW, top + plotH, kBlack);
+  c.text(xLabel, left + plotW / 2, top + plotH + 42, 11, kBlack, Align::Center);
+  c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
+
+  for (const auto& s : series) {
+    for (std::size_t i = 1; i < s.x.size(); ++i) c.line(px(s.x[i - 1]), py(s.y[i - 1]), px(s.x[i]), py(s.y[i]), s.color, 2);
+    for (std::size_t i = 0; i < s.x.size(); ++i) c.circle(px(s.x[i]), py(s.y[i]), 4, s.color);
+  }
+  // Legend.
+  int legendW = 0;
+  for (const auto& s : series) legendW = std::max(legendW, c.textWidth(s.name, 10));
+  int lx = left + plotW - legendW - 44, ly = top + 8;
+  c.fillRect(lx - 6, ly - 4, legendW + 46, 20 * static_cast<int>(series.size()) + 6, kWhite);
+  c.strokeRect(lx - 6, ly - 4, legendW + 46, 20 * static_cast<int>(series.size()) + 6, kLightGrey);
+  for (std::size_t i = 0; i < series.size(); ++i) {
+    int yy = ly + 8 + 20 * static_cast<int>(i);
+    c.line(lx, yy, lx + 24, yy, series[i].color, 2);
+    c.circle(lx + 12, yy, 4, series[i].color);
+    c.text(series[i].name, lx + 32, yy, 10, kBlack);
+  }
+  return c.release();
+}
+
+// ---- Comparison strip
+
+namespace {
+std::vector<double> texelErrors(const float* ref, const float* rec, int texels, float alpha) {
+  std::vector<double> e(static_cast<std::size_t>(texels));
+  for (int t = 0; t < texels; ++t) {
+    double s = 0;
+    for (int ch = 0; ch < 3; ++ch) s += std::abs(static_cast<double>(ref[3 * t + ch]) - rec[3 * t + ch]);
+    e[static_cast<std::size_t>(t)] = s / 3 / alpha;
+  }
+  return e;
+}
+
+Image8 srgbImage(const float* rgb, int w, int h) {
+  Image8 img;
+  img.width = w, img.height = h;
+  img.rgb.resize(static_cast<std::size_t>(w) * h * 3);
+  for (std::size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = linearToSrgb8(rgb[i]);
+  return img;
+}
+
+std::string formatFactor(double m) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", m);
+  return buf;
+}
+}  // namespace
+
+double chooseErrorMagnification(const float* reference, const float* reconstruction, int texels, float alpha) {
+  if (texels <= 0) return 1;
+  auto e = texelErrors(reference, reconstruction, texels, alpha);
+  std::size_t k = static_cast<std::size_t>(std::floor(0.99 * (e.size() - 1)));
+  std::nth_element(e.begin(), e.begin() + static_cast<long>(k), e.end());
+  double p99 = e[k];
+  if (!(p99 > 0)) return 1;
+  double best = 1;
+  for (double mag = 1; mag <= 1e7; mag *= 10)
+    for (double f : {1.0, 2.0, 5.0})
+      if (f * mag * p99 <= 1.0) best = std::max(best, f * mag);
+  return best;
+}
+
+Image8 renderComparison(const float* reference, const float* reconstruction, int width, int height, float alpha,
+                        double magnification, const std::string& title) {
+  const int texels = width * height;
+  Image8 ref = displayScale(srgbImage(reference, width, height), 240, 360);
+  Image8 rec = displayScale(srgbImage(reconstruction, width, height), 240, 360);
+  auto e = texelErrors(reference, reconstruction, texels, alpha);
+  Image8 err;
+  err.width = width, err.height = height;
+  err.rgb.resize(static_cast<std::size_t>(texels) * 3);
+  for (int t = 0; t < texels; ++t) {
+    Color8 col = viridis(e[static_cast<std::size_t>(t)] * magnification);
+    err.rgb[3 * t] = col.r, err.rgb[3 * t + 1] = col.g, err.rgb[3 * t + 2] = col.b;
+  }
+  err = displayScale(err, 240, 360);
+
+  const int gap = 18, margin = 16, pw = ref.width, ph = ref.height;
+  const int top = 58, barH = 12;
+  Canvas c(2 * margin + 3 * pw + 2 * gap, top + ph + 76);
+  c.text(title, c.width() / 2, 18, 13, kBlack, Align::Center);
+  const char* names[] = {"reference", "reconstruction", nullptr};
+  std::string errName = "|error| x " + formatFactor(magnification);
+  for (int i = 0; i < 3; ++i) {
+    int x = margin + i * (pw + gap);
+    c.text(names[i] ? names[i] : errName, x + pw / 2, top - 14, 12, kBlack, Align::Center);
+    c.blit(i == 0 ? ref : i == 1 ? rec : err, x, top);
+    c.strokeRect(x - 1, top - 1, pw + 2, ph + 2, kGrey);
+  }
+  // Colour bar under the error panel, in unmagnified units: 0 .. 1 / magnification.
+  int bx = margin + 2 * (pw + gap), by = top + ph + 10;
+  for (int i = 0; i < pw; ++i) c.fillRect(bx + i, by, 1, barH, viridis(static_cast<double>(i) / std::max(1, pw - 1)));
+  c.strokeRect(bx, by, pw, barH, kGrey);
+  double full = 1.0 / magnification;
+  auto ticks = niceTicks(0, full, 4);
+  double step = ticks.size() > 1 ? ticks[1] - ticks[0] : full;
+  for (double t : ticks) {
+    int tx = bx + static_cast<int>(std::lround(t / full * (pw - 1)));
+    c.line(tx, by + barH, tx, by + barH + 4, kBlack);
+    c.text(formatTick(t, step), tx, by + barH + 13, 9, kBlack, Align::Center);
+  }
+  c.text("mean over RGB of |ref - rec| / alpha (linear); bar in unmagnified units", bx + pw, by + barH + 32, 9, kGrey,
+         Align::Right);
+  c.text("shown as 8-bit sRGB of the linear values", margin, top + ph + 16, 9, kGrey);
+  return c.release();
+}
+
+}  // namespace nbtf

@@ -1,0 +1,59 @@
+// The report's figures, drawn with eval/canvas.h: the light x view RMSE heat map with a
+// colour bar, line charts (RMSE by elevation), and reference | reconstruction | magnified
+// error comparison strips. Every figure carries its axis labels and units in the image.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "eval/canvas.h"
+#include "io/directions.h"
+
+namespace nbtf {
+
+// ---- Heat map
+
+// A cell outlined on the heat map (the compared direction pairs), with a short label.
+struct HeatMapMark {
+  int row = 0, col = 0;
+  std::string label;
+};
+
+struct HeatMapLabels {
+  std::string title, rowAxis, colAxis, colorBar;
+};
+
+// values: rows x cols, row-major (rows = lights, cols = views). Rows and columns are
+// grouped into elevation rings (theta rounded to whole degrees), separated by thin lines
+// and labelled with the ring's theta. The colour scale runs from 0 to the largest value.
+// Throws nbtf::Error if the sizes disagree or a value is not finite.
+Image8 renderDirectionHeatMap(const std::vector<double>& values, const std::vector<Direction>& rows,
+                              const std::vector<Direction>& cols, const HeatMapLabels& labels,
+                              const std::vector<HeatMapMark>& marks = {});
+
+// ---- Line chart
+
+struct ChartSeries {
+  std::string name;
+  std::vector<double> x, y;
+  Color8 color;
+};
+
+// y axis from 0; x ticks where given (else nice ticks); legend in the top-right corner.
+Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
+                       const std::string& yLabel, const std::vector<double>& xTicks = {});
+
+// ---- Comparison strip
+
+// Magnification for the error panel: the largest 1, 2 or 5 x 10^k (at least 1) that keeps the
+// 99th percentile of the per-texel error (mean over RGB of |ref - rec| / alpha) at or below
+// full scale.
+double chooseErrorMagnification(const float* reference, const float* reconstruction, int texels, float alpha);
+
+// reference | reconstruction | error x magnification, side by side. Reference and
+// reconstruction are shown as 8-bit sRGB of their linear values (clamped to [0, 1], as the
+// source images are stored); the error panel maps magnification x (mean over RGB of
+// |ref - rec| / alpha) through viridis, with a colour bar in unmagnified units.
+Image8 renderComparison(const float* reference, const float* reconstruction, int width, int height, float alpha,
+                        double magnification, const std::string& title);
+
+}  // namespace nbtf

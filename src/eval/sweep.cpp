@@ -1,0 +1,245 @@
+#include "eval/sweep.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "util/atomic_file.h"
+#include "util/error.h"
+
+namespace nbtf {
+
+using nlohmann::json;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+const json& requireKey(const json& j, const char* key, const std::string& path) {
+  if (!j.is_object() || !j.contains(key)) throw fileError(path, std::string("missing key '") + key + "'");
+  return j[key];
+}
+double number(const json& j, const char* key, const std::string& path, bool nullable = false) {
+  const json& v = requireKey(j, key, path);
+  if (v.is_null() && nullable) return kNaN;
+  if (!v.is_number()) throw fileError(path, std::string("key '") + key + "' is not a number");
+  return v.get<double>();
+}
+std::string text(const json& j, const char* key, const std::string& path) {
+  const json& v = requireKey(j, key, path);
+  if (!v.is_string()) throw fileError(path, std::string("key '") + key + "' is not a string");
+  return v.get<std::string>();
+}
+
+std::string fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+// File-name-safe version of a label.
+std::string slug(const std::string& s) {
+  std::string out;
+  for (char c : s) out += std::isalnum(static_cast<unsigned char>(c)) || c == '-' ? c : '_';
+  return out;
+}
+
+// Inside a single-quoted gnuplot string, a quote is written twice.
+std::string gnuplotQuoted(const std::string& s) {
+  std::string out;
+  for (char c : s) out += c == '\'' ? std::string("''") : std::string(1, c);
+  return out;
+}
+
+// Family order in tables and plots: the baseline first, then the paper's methods.
+int familyRank(const std::string& f) {
+  if (f == "pca") return 0;
+  if (f == "per-texel-neural") return 1;
+  if (f == "clustered-neural") return 2;
+  return 3;
+}
+bool methodBefore(const SweepEntry& a, const SweepEntry& b) {
+  if (familyRank(a.family) != familyRank(b.family)) return familyRank(a.family) < familyRank(b.family);
+  if (a.family != b.family) return a.family < b.family;
+  double pa = std::isnan(a.parameter) ? -1 : a.parameter, pb = std::isnan(b.parameter) ? -1 : b.parameter;
+  if (pa != pb) return pa < pb;
+  return a.method < b.method;
+}
+
+std::string familyTitle(const std::string& f) {
+  if (f == "pca") return "PCA (baseline)";
+  if (f == "per-texel-neural") return "per-texel neural BTF";
+  if (f == "clustered-neural") return "clustered neural BTF";
+  return f;
+}
+
+}  // namespace
+
+SweepEntry sweepEntryFromReport(const json& j, const std::string& path) {
+  SweepEntry e;
+  e.material = text(requireKey(j, "material", path), "name", path);
+  e.method = text(j, "method", path);
+  e.family = j.contains("method_family") && j["method_family"].is_string() ? j["method_family"].get<std::string>()
+                                                                            : e.method;
+  e.parameter = j.contains("method_parameter") ? number(j, "method_parameter", path, true) : kNaN;
+  e.ratio = number(j, "ratio", path, true);
+  if (std::isnan(e.ratio)) throw fileError(path, "has no compression ratio (not a compressed material's report)");
+  e.rmse = number(j, "rmse", path);
+  e.rmseSrgb8 = number(j, "rmse_srgb8", path);
+  e.rmseHoldout = number(j, "rmse_holdout", path, true);
+  e.blurSigma = number(j, "blur_sigma", path);
+  e.report = path;
+  return e;
+}
+
+SweepEntry readSweepEntry(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw fileError(path, "cannot be read");
+  json j;
+  try {
+    j = json::parse(in);
+  } catch (const std::exception& ex) {
+    throw fileError(path, std::string("is not valid JSON: ") + ex.what());
+  }
+  return sweepEntryFromReport(j, path);
+}
+
+std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entriesIn) {
+  std::vector<SweepEntry> entries = entriesIn;
+  std::stable_sort(entries.begin(), entries.end(), methodBefore);
+  std::vector<std::string> methods, materials;
+  for (const auto& e : entries) {
+    if (std::find(methods.begin(), methods.end(), e.method) == methods.end()) methods.push_back(e.method);
+    if (std::find(materials.begin(), materials.end(), e.material) == materials.end()) materials.push_back(e.material);
+  }
+  std::sort(materials.begin(), materials.end());
+  std::map<std::pair<std::string, std::string>, const SweepEntry*> cell;
+  for (const auto& e : entries) {
+    auto key = std::make_pair(e.material, e.method);
+    if (cell.count(key)) throw Error("sweep: two reports for material '" + e.material + "' and method '" + e.method +
+                                     "': " + cell[key]->report + " and " + e.report);
+    cell[key] = &e;
+  }
+  bool anyHoldout = std::any_of(entries.begin(), entries.end(), [](const SweepEntry& e) { return !std::isnan(e.rmseHoldout); });
+
+  std::ostringstream md;
+  auto table = [&](const std::string& title, const std::string& unitNote, auto value) {
+    md << "### " << title << "\n\n" << unitNote << "\n\n| material |";
+    for (const auto& m : methods) md << ' ' << m << " |";
+    md << "\n|---|";
+    for (std::size_t i = 0; i < methods.size(); ++i) md << "---:|";
+    md << '\n';
+    for (const auto& mat : materials) {
+      md << "| " << mat << " |";
+      for (const auto& m : methods) {
+        auto it = cell.find({mat, m});
+        md << ' ' << (it == cell.end() ? std::string("-") : value(*it->second)) << " |";
+      }
+      md << '\n';
+    }
+    md << '\n';
+  };
+  md << "## Sweep: RMSE by material and method (the paper's Table 2 layout)\n\n";
+  table("RMSE, all images", "Linear RGB / alpha, eq. (10) of the paper (4 decimals, as in its Table 2).",
+        [](const SweepEntry& e) { return fmt("%.4f", e.rmse); });
+  if (anyHoldout)
+    table("RMSE, held-out images (interpolation)", "Linear RGB / alpha, on the images kept out of training.",
+          [](const SweepEntry& e) { return std::isnan(e.rmseHoldout) ? std::string("-") : fmt("%.4f", e.rmseHoldout); });
+  table("RMSE in 8-bit sRGB", "sRGB code values 0-255.", [](const SweepEntry& e) { return fmt("%.2f", e.rmseSrgb8); });
+  table("Compression ratio", "Raw float32 size / total compressed size (decoder + latents + id list), 1 : x.",
+        [](const SweepEntry& e) { return "1 : " + fmt("%.0f", e.ratio); });
+  table("Effective blur sigma", "Texels (median over the estimated images; below ~0.3 = no measurable blur).",
+        [](const SweepEntry& e) { return fmt("%.2f", e.blurSigma); });
+  return md.str();
+}
+
+std::string rateDistortionScript(const std::string& material, const std::vector<std::string>& families,
+                                 const std::vector<std::string>& dataFiles, const std::string& pngFile) {
+  static const char* colors[] = {"#555555", "#e07b39", "#2a6f97", "#6a994e", "#9d4edd"};
+  std::ostringstream gp;
+  gp << "# Rate-distortion plot for " << material << " (written by nbtf eval --summarize; run: gnuplot "
+     << "<this file>)\n"
+     << "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
+     << "  set terminal pngcairo size 960,620 noenhanced font 'DejaVu Sans,12'\n"
+     << "} else {\n"
+     << "  set terminal png size 960,620 noenhanced\n"
+     << "}\n"
+     << "set output '" << gnuplotQuoted(pngFile) << "'\n"
+     << "set title 'Rate-distortion: " << gnuplotQuoted(material) << "'\n"
+     << "set logscale x 10\n"
+     << "set xlabel 'compression ratio (raw float32 / total), log scale'\n"
+     << "set ylabel 'RMSE (linear RGB / alpha, eq. 10)'\n"
+     << "set format x '1:%g'\n"
+     << "set grid xtics mxtics ytics\n"
+     << "set key top right box opaque\n"
+     << "set yrange [0:*]\n"
+     << "set offsets graph 0.08, graph 0.08, graph 0.1, 0\n"
+     << "plot \\\n";
+  for (std::size_t i = 0; i < families.size(); ++i) {
+    int rank = familyRank(families[i]);
+    const char* color = colors[rank < 3 ? rank : 3 + i % 2];
+    gp << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2 with linespoints lw 2 pt 7 ps 1.2 lc rgb '" << color << "' title '"
+       << gnuplotQuoted(familyTitle(families[i])) << "', \\\n"
+       << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2:5 with labels rotate by 35 left offset 0.6,0.6 tc rgb '" << color << "' notitle"
+       << (i + 1 < families.size() ? ", \\\n" : "\n");
+  }
+  return gp.str();
+}
+
+SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir) {
+  namespace fs = std::filesystem;
+  if (entries.empty()) throw Error("sweep: no reports to summarize");
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw fileError(dir, "cannot create the sweep folder: " + ec.message());
+  auto path = [&](const std::string& name) { return (fs::path(dir) / name).string(); };
+  SweepFiles out;
+  out.table = path("sweep.md");
+  writeFileAtomic(out.table, "# BTF compression sweep\n\n" + sweepTablesMarkdown(entries));
+
+  std::set<std::string> materials;
+  for (const auto& e : entries) materials.insert(e.material);
+  for (const auto& mat : materials) {
+    std::vector<SweepEntry> mine;
+    for (const auto& e : entries)
+      if (e.material == mat) mine.push_back(e);
+    std::stable_sort(mine.begin(), mine.end(), methodBefore);
+    std::vector<std::string> families, files;
+    for (const auto& e : mine)
+      if (std::find(families.begin(), families.end(), e.family) == families.end()) families.push_back(e.family);
+    for (const auto& fam : families) {
+      // One point per setting, sorted by ratio so the curve runs left to right.
+      std::vector<const SweepEntry*> pts;
+      for (const auto& e : mine)
+        if (e.family == fam) pts.push_back(&e);
+      std::sort(pts.begin(), pts.end(), [](const SweepEntry* a, const SweepEntry* b) { return a->ratio < b->ratio; });
+      std::ostringstream dat;
+      dat << "# " << mat << ", " << fam
+          << ": ratio (raw/total)  rmse (linear/alpha)  rmse_holdout (NaN = none)  parameter  label\n";
+      for (const auto* e : pts) {
+        std::string label = std::isnan(e->parameter) ? "" : (fam == "clustered-neural" ? "k=" : "") + fmt("%g", e->parameter);
+        dat << fmt("%.6g", e->ratio) << ' ' << fmt("%.8g", e->rmse) << ' '
+            << (std::isnan(e->rmseHoldout) ? std::string("NaN") : fmt("%.8g", e->rmseHoldout)) << ' '
+            << (std::isnan(e->parameter) ? std::string("NaN") : fmt("%g", e->parameter)) << " \""
+            << label << "\"\n";
+      }
+      std::string name = "rd_" + slug(mat) + "_" + slug(fam) + ".dat";
+      writeFileAtomic(path(name), dat.str());
+      out.dataFiles.push_back(path(name));
+      files.push_back(name);
+    }
+    std::string png = "rd_" + slug(mat) + ".png", gpName = "rd_" + slug(mat) + ".gp";
+    writeFileAtomic(path(gpName), rateDistortionScript(mat, families, files, png));
+    out.scripts.push_back(path(gpName));
+    out.plots.push_back(path(png));
+  }
+  return out;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,49 @@
+// Sweep summaries: many evaluation reports (report.json) of one or more materials, each
+// compressed with several methods and settings, turned into the paper's Table 2 layout
+// (rows: materials, columns: methods) as Markdown, and a rate-distortion plot per material
+// (RMSE vs compression ratio, log-scale x, one curve per method family) as gnuplot data files
+// and a script. scripts/sweep.sh runs gnuplot on the script.
+#pragma once
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace nbtf {
+
+struct SweepEntry {
+  std::string material;  // report material.name
+  std::string family;    // method_family: one curve each
+  std::string method;    // column label, e.g. "clustered neural, k = 500"
+  double parameter = 0;  // method_parameter (k, components); NaN = none
+  double ratio = 0;      // raw float32 / total
+  double rmse = 0, rmseSrgb8 = 0;  // linear RGB / alpha; sRGB 8-bit
+  double rmseHoldout = 0;          // NaN = no held-out images
+  double blurSigma = 0;            // texels
+  std::string report;              // the report.json it came from
+};
+
+// Reads the keys a sweep needs; throws nbtf::Error naming `path` and the missing or mistyped key.
+SweepEntry sweepEntryFromReport(const nlohmann::json& report, const std::string& path);
+SweepEntry readSweepEntry(const std::string& reportJsonPath);
+
+// Table 2 style: one row per material, one column per method (ordered by family, then
+// parameter), cells RMSE (linear RGB / alpha), then the same for sRGB 8-bit, held-out RMSE
+// (when any report has one), compression ratios and effective blur.
+std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entries);
+
+struct SweepFiles {
+  std::string table;                   // sweep.md
+  std::vector<std::string> dataFiles;  // rd_<material>_<family>.dat
+  std::vector<std::string> scripts;    // rd_<material>.gp -> rd_<material>.png
+  std::vector<std::string> plots;      // the PNGs the scripts will write
+};
+// Writes sweep.md, the data files and one gnuplot script per material into `dir` (atomic
+// writes; the folder is created if missing).
+SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir);
+
+// The gnuplot script for one material: pngcairo when available, else png; x log scale.
+// dataFiles[i] holds family families[i]: columns ratio, rmse, rmse_holdout, parameter.
+std::string rateDistortionScript(const std::string& material, const std::vector<std::string>& families,
+                                 const std::vector<std::string>& dataFiles, const std::string& pngFile);
+
+}  // namespace nbtf

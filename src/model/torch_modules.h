@@ -1,0 +1,47 @@
+// The encoder and decoder as torch modules. PRIVATE to src/model/*.cpp: it includes torch,
+// which must stay out of every public header (20 s per translation unit).
+#pragma once
+#include <torch/torch.h>
+
+#include "model/mlp.h"
+#include "model/trainer.h"
+
+namespace nbtf::detail {
+
+// MaxPool1d(kernel 3, stride 3) over [batch, channels, length]: the same values and the
+// same gradient routing (first maximum of a window wins) as torch::nn::MaxPool1d, but a
+// single pass each way. torch's generic pooling kernel made pooling the most expensive
+// part of the encoder.
+torch::Tensor maxPool3(const torch::Tensor& x);
+struct MaxPool3Impl : torch::nn::Module {
+  torch::Tensor forward(const torch::Tensor& x) { return maxPool3(x); }
+};
+TORCH_MODULE(MaxPool3);
+
+// N_blocks x [Conv1d(k3, s1, p1) -> MaxPool1d(k3, s3) -> BatchNorm1d], then a linear map
+// of the flattened features to the latent. Input [batch, 3, N] (RGB channels x images).
+struct EncoderImpl : torch::nn::Module {
+  EncoderImpl(int imageCount, const ModelConfig& model);
+  torch::Tensor forward(const torch::Tensor& x);
+
+  int blocks = 0;
+  torch::nn::Sequential features{nullptr};
+  torch::nn::Linear toLatent{nullptr};
+};
+TORCH_MODULE(Encoder);
+
+// Linear layers, ReLU between, linear RGB output. Input [batch, latent + 4]:
+// latent, stereographic light (x, y), stereographic view (x, y).
+struct DecoderImpl : torch::nn::Module {
+  explicit DecoderImpl(const ModelConfig& model);
+  torch::Tensor forward(torch::Tensor x);
+
+  std::vector<torch::nn::Linear> layers;
+};
+TORCH_MODULE(Decoder);
+
+// torch nn::Linear weights are out x in, row-major: the DenseLayer layout, copied as is.
+Mlp exportDecoder(const Decoder& decoder);
+void importDecoder(const Mlp& mlp, Decoder& decoder);
+
+}  // namespace nbtf::detail

@@ -1,0 +1,112 @@
+#include "model/torch_reference.h"
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+
+#include "model/decoder_backprop.h"
+#include "model/torch_modules.h"
+
+namespace nbtf {
+
+ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, const Mlp::RowMatrix& inputs) {
+  torch::manual_seed(seed);
+  detail::Decoder decoder(model);
+  ReferenceDecoder r;
+  r.exported = detail::exportDecoder(decoder);
+  torch::NoGradGuard noGrad;
+  torch::Tensor in = torch::from_blob(const_cast<float*>(inputs.data()), {inputs.rows(), inputs.cols()}).clone();
+  torch::Tensor out = decoder->forward(in).contiguous();
+  r.torchOutput.resize(out.size(0), out.size(1));
+  std::copy(out.data_ptr<float>(), out.data_ptr<float>() + out.numel(), r.torchOutput.data());
+  return r;
+}
+
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile) {
+  torch::manual_seed(seed);
+  detail::Decoder decoder(model);
+  const int rows = tiles * rowsPerTile;
+  torch::Tensor z = torch::randn({tiles, model.latentDim});
+  torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
+  torch::Tensor targets = torch::rand({rows, 3});
+
+  // Autograd on the plain concatenated input.
+  torch::Tensor zAuto = z.clone().requires_grad_(true);
+  torch::Tensor input = torch::cat({zAuto.repeat_interleave(rowsPerTile, 0), dirs}, 1);
+  torch::Tensor loss = torch::mse_loss(decoder->forward(input), targets);
+  decoder->zero_grad();
+  loss.backward();
+  std::vector<torch::Tensor> expected;
+  for (auto& p : decoder->parameters()) expected.push_back(p.grad().clone());
+  expected.push_back(zAuto.grad().clone());
+
+  // The hand-written pass.
+  detail::DecoderBackprop backprop(decoder, model.latentDim);
+  torch::Tensor dz;
+  double manualLoss = backprop.trainStep(z, dirs, targets, rowsPerTile, dz);
+  std::vector<torch::Tensor> got;
+  for (auto& p : decoder->parameters()) got.push_back(p.grad().clone());
+  got.push_back(dz);
+
+  double scale = 0, err = std::abs(manualLoss - loss.item<double>()) / std::max(1e-30, loss.item<double>());
+  for (auto& e : expected) scale = std::max(scale, e.abs().max().item<double>());
+  for (std::size_t i = 0; i < got.size(); ++i)
+    err = std::max(err, (got[i] - expected[i]).abs().max().item<double>() / scale);
+  return err;
+}
+
+double maxPoolReferenceError(std::uint64_t seed, int batch, int channels, int length) {
+  torch::manual_seed(seed);
+  // Rounded values make ties common, so the tie rule is checked too.
+  torch::Tensor x = (torch::randn({batch, channels, length}) * 2).round();
+  torch::Tensor g = torch::randn({batch, channels, length / 3});
+  torch::Tensor a = x.clone().requires_grad_(true), b = x.clone().requires_grad_(true);
+  torch::Tensor ya = detail::maxPool3(a);
+  torch::Tensor yb = torch::nn::MaxPool1d(torch::nn::MaxPool1dOptions(3).stride(3))->forward(b);
+  ya.backward(g);
+  yb.backward(g);
+  return std::max((ya - yb).abs().max().item<double>(), (a.grad() - b.grad()).abs().max().item<double>());
+}
+
+DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads) {
+  torch::set_num_threads(threads);
+  torch::manual_seed(0);
+  detail::Decoder decoder(model);
+  detail::DecoderBackprop backprop(decoder, model.latentDim);
+  const int rows = tiles * rowsPerTile;
+  torch::Tensor z = torch::randn({tiles, model.latentDim}), dirs = torch::rand({rows, 4}), y = torch::rand({rows, 3});
+  torch::Tensor dz;
+  backprop.trainStep(z, dirs, y, rowsPerTile, dz);  // warm-up
+  auto cpu = [] {
+    timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+  };
+  double c0 = cpu();
+  auto t0 = std::chrono::steady_clock::now();
+  for (int s = 0; s < steps; ++s) backprop.trainStep(z, dirs, y, rowsPerTile, dz);
+  DecoderStepRate r;
+  r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cpuSeconds = cpu() - c0;
+  r.samplesPerSecond = static_cast<double>(rows) * steps / r.wallSeconds;
+  return r;
+}
+
+double matmulGflops(int n, int threads, double minSeconds) {
+  torch::set_num_threads(threads);
+  torch::NoGradGuard noGrad;
+  torch::manual_seed(0);
+  torch::Tensor a = torch::randn({n, n}), b = torch::randn({n, n}), c = torch::empty({n, n});
+  torch::mm_out(c, a, b);  // warm-up: thread pool, page faults
+  double best = 0, total = 0;
+  while (total < minSeconds) {
+    auto t0 = std::chrono::steady_clock::now();
+    torch::mm_out(c, a, b);
+    double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    total += s;
+    best = std::max(best, 2.0 * n * n * n / s / 1e9);
+  }
+  return best;
+}
+
+}  // namespace nbtf

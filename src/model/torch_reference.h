@@ -1,0 +1,41 @@
+// libtorch-backed reference computations for tests and benchmarks. The header is
+// torch-free; the work happens in torch_reference.cpp.
+#pragma once
+#include <cstdint>
+
+#include "model/mlp.h"
+#include "model/trainer.h"
+
+namespace nbtf {
+
+// A decoder initialized by torch from `seed`: its export as an Mlp, and torch's own forward
+// pass (nn::Linear + ReLU) on `inputs`, to check that the export is exact.
+struct ReferenceDecoder {
+  Mlp exported;
+  Mlp::RowMatrix torchOutput;
+};
+ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, const Mlp::RowMatrix& inputs);
+
+// Runs the hand-written decoder backward pass that training uses and torch autograd on the
+// same random batch (tiles x rowsPerTile rows); returns the largest difference over all
+// parameter gradients and the latent gradient, relative to the largest gradient magnitude.
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile);
+
+// nbtf's stride-3 max pooling against torch::nn::MaxPool1d(3, stride 3) on random input
+// [batch, channels, length] with some tied values: the largest difference of outputs and
+// of input gradients (0 when they agree exactly).
+double maxPoolReferenceError(std::uint64_t seed, int batch, int channels, int length);
+
+// The decoder's hand-written training pass alone (forward, loss, backward; no encoder, no
+// optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads.
+struct DecoderStepRate {
+  double samplesPerSecond = 0;  // wall clock
+  double cpuSeconds = 0, wallSeconds = 0;
+};
+DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads);
+
+// libtorch's float32 matrix-multiply rate (n x n times n x n, `threads` threads), GFLOP/s,
+// the best of repeated runs taking at least minSeconds in all.
+double matmulGflops(int n, int threads, double minSeconds);
+
+}  // namespace nbtf

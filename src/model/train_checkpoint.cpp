@@ -1,0 +1,98 @@
+#include "model/train_checkpoint.h"
+
+#include <filesystem>
+
+#include "util/atomic_file.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+constexpr std::int64_t kCheckpointVersion = 1;
+
+std::uint64_t hashCombine(std::uint64_t h, std::uint64_t v) { return SplitMix64::mix(h, v); }
+std::uint64_t hashString(std::uint64_t h, const std::string& s) {
+  for (unsigned char ch : s) h = hashCombine(h, ch);
+  return hashCombine(h, s.size());
+}
+}  // namespace
+
+std::uint64_t checkpointFingerprint(const TrainConfig& c, const TrainingSet& set) {
+  std::uint64_t h = 0x6e627466ull;  // "nbtf"
+  h = hashCombine(h, c.model.latentDim);
+  for (int ch : c.model.encoderChannels) h = hashCombine(h, ch);
+  h = hashCombine(h, c.model.decoderWidth);
+  h = hashCombine(h, c.model.decoderLayers);
+  h = hashString(h, c.optimizer);
+  h = hashCombine(h, c.batchSize);
+  h = hashCombine(h, c.imagesPerInput);
+  h = hashCombine(h, set.groups());
+  h = hashCombine(h, set.images());
+  h = hashCombine(h, static_cast<std::uint64_t>(set.texels()));
+  for (int g = 0; g < set.groups(); ++g) h = hashCombine(h, set.groupSize(g));
+  for (int i : set.holdoutImages()) h = hashCombine(h, i);
+  return h;
+}
+
+bool checkpointExists(const std::string& path) {
+  std::error_code ec;
+  return !path.empty() && std::filesystem::is_regular_file(path, ec);
+}
+
+void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::nn::Module& encoder,
+                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer) {
+  torch::serialize::OutputArchive archive, enc, dec, opt;
+  archive.write("version", torch::tensor(kCheckpointVersion));
+  archive.write("step", torch::tensor(meta.step));
+  archive.write("elapsed_seconds", torch::tensor(meta.elapsedSeconds, torch::kDouble));
+  archive.write("ema_loss", torch::tensor(meta.emaLoss, torch::kDouble));
+  // The fingerprint is 64 bits; store it as the signed value with the same bits.
+  archive.write("fingerprint", torch::tensor(static_cast<std::int64_t>(meta.fingerprint)));
+  encoder.save(enc);
+  decoder.save(dec);
+  optimizer.save(opt);
+  archive.write("encoder", enc);
+  archive.write("decoder", dec);
+  archive.write("optimizer", opt);
+  writeAtomicVia(path, [&](const std::string& tmp) { archive.save_to(tmp); });
+}
+
+CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer) {
+  CheckpointMeta meta;
+  try {
+    torch::serialize::InputArchive archive, enc, dec, opt;
+    archive.load_from(path);
+    torch::Tensor t;
+    archive.read("version", t);
+    if (t.item<std::int64_t>() != kCheckpointVersion)
+      throw fileError(path, "checkpoint version " + std::to_string(t.item<std::int64_t>()) + ", this nbtf reads " +
+                                std::to_string(kCheckpointVersion));
+    archive.read("fingerprint", t);
+    meta.fingerprint = static_cast<std::uint64_t>(t.item<std::int64_t>());
+    if (meta.fingerprint != expectedFingerprint)
+      throw fileError(path,
+                      "checkpoint is from a different setup (data, clusters, hold-out, model, optimizer or batch "
+                      "geometry differ); remove it or rerun with the same inputs and config");
+    archive.read("step", t);
+    meta.step = t.item<std::int64_t>();
+    archive.read("elapsed_seconds", t);
+    meta.elapsedSeconds = t.item<double>();
+    archive.read("ema_loss", t);
+    meta.emaLoss = t.item<double>();
+    archive.read("encoder", enc);
+    archive.read("decoder", dec);
+    archive.read("optimizer", opt);
+    encoder.load(enc);
+    decoder.load(dec);
+    optimizer.load(opt);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    // torch reports corrupt or foreign files as c10::Error with a long backtrace: keep its first line.
+    std::string what = e.what();
+    throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')));
+  }
+  return meta;
+}
+
+}  // namespace nbtf

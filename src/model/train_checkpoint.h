@@ -1,0 +1,31 @@
+// Training checkpoints: model, optimizer state and position, written atomically (temp
+// file + rename) so an interrupted write never replaces a good checkpoint with a broken
+// one. PRIVATE to src/model/*.cpp (includes torch).
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "model/torch_modules.h"
+#include "model/training_set.h"
+
+namespace nbtf {
+
+struct CheckpointMeta {
+  std::int64_t step = 0;
+  double elapsedSeconds = 0;  // training time so far, for time budgets across resumes
+  double emaLoss = -1;
+  std::uint64_t fingerprint = 0;
+};
+
+// What must match for a checkpoint to be resumable: model shape, optimizer, data shape,
+// hold-out split and step geometry. (Epochs, learning rate and time budget may change.)
+std::uint64_t checkpointFingerprint(const TrainConfig& config, const TrainingSet& set);
+
+bool checkpointExists(const std::string& path);
+void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::nn::Module& encoder,
+                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer);
+// Throws nbtf::Error naming the path if the file is unreadable or from another setup.
+CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer);
+
+}  // namespace nbtf

@@ -1,0 +1,193 @@
+// Training configs: JSON, one object per component. Every key is optional (defaults are
+// TrainConfig's); unknown keys, wrong types and out-of-range values are errors that name
+// the file and the key, so a typo never silently trains with a default.
+#include <climits>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "model/trainer.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+using json = nlohmann::json;
+
+std::string typeName(const json& v) {
+  if (v.is_number_integer()) return "an integer";
+  if (v.is_number()) return "a number";
+  return std::string("a ") + v.type_name();
+}
+
+// Reads the keys of one component object, remembering which were consumed.
+class Section {
+ public:
+  Section(const json& root, const std::string& name, const std::string& file) : name_(name), file_(file) {
+    auto it = root.find(name);
+    if (it == root.end()) return;
+    if (!it->is_object()) fail(name, "must be an object, got " + typeName(*it));
+    obj_ = &*it;
+  }
+
+  void read(const char* key, int& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_number_integer()) fail(path(key), "must be an integer, got " + typeName(*v));
+      auto x = v->get<std::int64_t>();
+      if (x < INT32_MIN || x > INT32_MAX) fail(path(key), "is out of range");
+      out = static_cast<int>(x);
+    }
+  }
+  void read(const char* key, std::uint64_t& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_number_integer() || (!v->is_number_unsigned() && v->get<std::int64_t>() < 0))
+        fail(path(key), "must be a non-negative integer, got " + typeName(*v));
+      out = v->get<std::uint64_t>();
+    }
+  }
+  void read(const char* key, double& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_number()) fail(path(key), "must be a number, got " + typeName(*v));
+      out = v->get<double>();
+    }
+  }
+  void read(const char* key, bool& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_boolean()) fail(path(key), "must be true or false, got " + typeName(*v));
+      out = v->get<bool>();
+    }
+  }
+  void read(const char* key, std::string& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_string()) fail(path(key), "must be a string, got " + typeName(*v));
+      out = v->get<std::string>();
+    }
+  }
+  void read(const char* key, std::vector<int>& out) {
+    if (const json* v = find(key)) {
+      if (!v->is_array()) fail(path(key), "must be an array of integers, got " + typeName(*v));
+      out.clear();
+      for (const json& e : *v) {
+        if (!e.is_number_integer()) fail(path(key), "must be an array of integers, has " + typeName(e));
+        out.push_back(e.get<int>());
+      }
+    }
+  }
+
+  // After all reads: any key not consumed is a typo or an option that does not exist.
+  void rejectUnknown() const {
+    if (!obj_) return;
+    for (auto it = obj_->begin(); it != obj_->end(); ++it)
+      if (!seen_.count(it.key())) fail(path(it.key()), "unknown key");
+  }
+
+ private:
+  const json* find(const char* key) {
+    seen_.insert(key);
+    if (!obj_) return nullptr;
+    auto it = obj_->find(key);
+    return it == obj_->end() ? nullptr : &*it;
+  }
+  std::string path(const std::string& key) const { return name_ + "." + key; }
+  [[noreturn]] void fail(const std::string& key, const std::string& msg) const {
+    throw fileError(file_, "'" + key + "' " + msg);
+  }
+
+  std::string name_, file_;
+  const json* obj_ = nullptr;
+  std::set<std::string> seen_;
+};
+
+[[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& msg) {
+  throw fileError(source, "'" + key + "' " + msg);
+}
+
+}  // namespace
+
+TrainConfig loadTrainConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw fileError(path, "cannot open config file");
+  json root;
+  try {
+    root = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+  } catch (const json::parse_error& e) {
+    throw fileError(path, std::string("not valid JSON: ") + e.what());
+  }
+  if (!root.is_object()) throw fileError(path, "must be a JSON object with \"model\", \"optimizer\", \"training\"");
+  static const std::set<std::string> kSections = {"model", "optimizer", "training"};
+  for (auto it = root.begin(); it != root.end(); ++it)
+    if (!kSections.count(it.key()))
+      throw fileError(path, "'" + it.key() + "' unknown key (expected model, optimizer, training)");
+
+  TrainConfig c;
+  Section model(root, "model", path);
+  model.read("latent_dim", c.model.latentDim);
+  model.read("encoder_channels", c.model.encoderChannels);
+  model.read("decoder_width", c.model.decoderWidth);
+  model.read("decoder_layers", c.model.decoderLayers);
+  model.rejectUnknown();
+
+  Section opt(root, "optimizer", path);
+  opt.read("name", c.optimizer);
+  opt.read("learning_rate", c.learningRate);
+  opt.read("momentum", c.momentum);
+  opt.rejectUnknown();
+
+  Section tr(root, "training", path);
+  tr.read("batch_size", c.batchSize);
+  tr.read("images_per_input", c.imagesPerInput);
+  tr.read("epochs", c.epochs);
+  tr.read("time_budget_seconds", c.timeBudgetSeconds);
+  tr.read("schedule", c.schedule);
+  tr.read("warmup_fraction", c.warmupFraction);
+  tr.read("polish_fraction", c.polishFraction);
+  tr.read("holdout_fraction", c.holdoutFraction);
+  tr.read("seed", c.seed);
+  tr.read("threads", c.threads);
+  tr.read("checkpoint_seconds", c.checkpointSeconds);
+  tr.read("checkpoint_path", c.checkpointPath);
+  tr.read("resume", c.resume);
+  tr.read("progress", c.progress);
+  tr.rejectUnknown();
+
+  validateTrainConfig(c, path);
+  return c;
+}
+
+void validateTrainConfig(const TrainConfig& c, const std::string& source) {
+  auto finite = [](double v) { return std::isfinite(v); };
+  if (c.model.latentDim < 1 || c.model.latentDim > 4096) bad(source, "model.latent_dim", "must be in 1..4096");
+  for (int ch : c.model.encoderChannels)
+    if (ch < 1 || ch > 4096) bad(source, "model.encoder_channels", "entries must be in 1..4096");
+  if (c.model.decoderWidth < 1 || c.model.decoderWidth > 65536) bad(source, "model.decoder_width", "must be in 1..65536");
+  if (c.model.decoderLayers < 2 || c.model.decoderLayers > 64)
+    bad(source, "model.decoder_layers", "must be in 2..64 (input and output layers at least)");
+  if (c.optimizer != "sgd" && c.optimizer != "adam")
+    bad(source, "optimizer.name", "must be \"sgd\" or \"adam\", got \"" + c.optimizer + "\"");
+  if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
+  if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
+  if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
+  if (c.imagesPerInput < 1) bad(source, "training.images_per_input", "must be >= 1");
+  if (c.epochs < 0) bad(source, "training.epochs", "must be >= 0");
+  if (!finite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)
+    bad(source, "training.time_budget_seconds", "must be >= 0 (0 = no limit)");
+  if (c.epochs == 0 && c.timeBudgetSeconds == 0)
+    bad(source, "training.epochs", "is 0 and there is no time budget: nothing would be trained");
+  if (c.schedule != "constant" && c.schedule != "cosine" && c.schedule != "step")
+    bad(source, "training.schedule", "must be \"constant\", \"cosine\" or \"step\", got \"" + c.schedule + "\"");
+  if (!finite(c.warmupFraction) || c.warmupFraction < 0 || c.warmupFraction >= 1)
+    bad(source, "training.warmup_fraction", "must be in [0, 1)");
+  if (!finite(c.polishFraction) || c.polishFraction < 0 || c.polishFraction >= 1)
+    bad(source, "training.polish_fraction", "must be in [0, 1)");
+  if (c.warmupFraction + c.polishFraction >= 1)
+    bad(source, "training.polish_fraction", "plus warmup_fraction must be < 1");
+  if (!finite(c.holdoutFraction) || c.holdoutFraction < 0 || c.holdoutFraction >= 1)
+    bad(source, "training.holdout_fraction", "must be in [0, 1)");
+  if (c.threads < 0) bad(source, "training.threads", "must be >= 0 (0 = all cores)");
+  if (!finite(c.checkpointSeconds) || c.checkpointSeconds < 0)
+    bad(source, "training.checkpoint_seconds", "must be >= 0 (0 = only when stopped)");
+  if (c.resume && c.checkpointPath.empty()) bad(source, "training.resume", "needs training.checkpoint_path");
+}
+
+}  // namespace nbtf

@@ -1,0 +1,302 @@
+// The training loop: sample a step (a few encoder inputs x many images each), run the
+// encoder once per distinct input with autograd, the decoder by hand (decoder_backprop.h),
+// step the optimizer; checkpoint, resume, and finally the exact per-texel RMSE.
+#include "model/trainer.h"
+
+#include <ATen/Parallel.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+
+#include "model/decoder_backprop.h"
+#include "model/torch_modules.h"
+#include "model/train_checkpoint.h"
+#include "model/train_eval.h"
+#include "model/training_set.h"
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace {
+
+using detail::Decoder;
+using detail::DecoderBackprop;
+using detail::Encoder;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Encoder input tensor [rows.size(), 3, N] from the standardized matrix, whose row r holds
+// column 3 * image + channel (interleaved): element [j, c, i] = X(rows[j], 3 i + c).
+torch::Tensor gatherEncoderInputs(const MatrixXfCol& x, const int* rows, std::int64_t count) {
+  const std::int64_t images = x.cols() / 3;
+  torch::Tensor out = torch::empty({count, 3, images});
+  float* dst = out.data_ptr<float>();
+  const float* src = x.data();
+  const std::int64_t stride = x.rows();
+  at::parallel_for(0, images, 256, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      for (int c = 0; c < 3; ++c) {
+        const float* col = src + (3 * i + c) * stride;
+        for (std::int64_t j = 0; j < count; ++j) dst[(j * 3 + c) * images + i] = col[rows[j]];
+      }
+  });
+  return out;
+}
+
+// Latents of every encoder input in eval mode (BatchNorm running statistics), in chunks
+// so the first conv block's activations stay small.
+torch::Tensor encodeAll(Encoder& encoder, const MatrixXfCol& x) {
+  torch::NoGradGuard noGrad;
+  encoder->eval();
+  const std::int64_t rows = x.rows();
+  std::vector<torch::Tensor> parts;
+  std::vector<int> index;
+  const std::int64_t chunk = 128;
+  for (std::int64_t r0 = 0; r0 < rows; r0 += chunk) {
+    std::int64_t n = std::min(chunk, rows - r0);
+    index.resize(n);
+    for (std::int64_t j = 0; j < n; ++j) index[j] = static_cast<int>(r0 + j);
+    parts.push_back(encoder->forward(gatherEncoderInputs(x, index.data(), n)));
+  }
+  return torch::cat(parts, 0).contiguous();
+}
+
+// Learning-rate factor at training progress p in [0, 1].
+double scheduleFactor(const TrainConfig& c, double p) {
+  double f = 1;
+  if (c.warmupFraction > 0 && p < c.warmupFraction) f = std::max(p, 1e-3) / c.warmupFraction;
+  double q = c.warmupFraction < 1 ? (p - c.warmupFraction) / (1 - c.warmupFraction) : 1;
+  q = std::min(1.0, std::max(0.0, q));
+  if (c.schedule == "cosine") f *= 0.5 * (1 + std::cos(M_PI * q));
+  else if (c.schedule == "step") f *= q < 0.5 ? 1.0 : q < 0.75 ? 0.1 : 0.01;
+  return f;
+}
+
+void setLearningRate(torch::optim::Optimizer& opt, double lr) {
+  for (auto& group : opt.param_groups()) group.options().set_lr(lr);
+}
+
+std::unique_ptr<torch::optim::Optimizer> makeOptimizer(const TrainConfig& c, std::vector<torch::Tensor> params) {
+  if (c.optimizer == "sgd")
+    return std::make_unique<torch::optim::SGD>(std::move(params),
+                                               torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
+  return std::make_unique<torch::optim::Adam>(std::move(params), torch::optim::AdamOptions(c.learningRate));
+}
+
+std::vector<std::uint8_t> serializeModule(torch::nn::Module& module) {
+  torch::serialize::OutputArchive archive;
+  module.save(archive);
+  std::vector<std::uint8_t> bytes;
+  archive.save_to([&](const void* data, std::size_t size) {
+    const auto* p = static_cast<const std::uint8_t*>(data);
+    bytes.insert(bytes.end(), p, p + size);
+    return size;
+  });
+  return bytes;
+}
+
+std::string formatStatus(double loss, double rmse, double samplesPerSecond, double gflops, int epoch, int epochs,
+                         bool polish) {
+  char buf[192];
+  std::snprintf(buf, sizeof buf, "ep %d/%d  loss %.3e  rmse~ %.4f  %.0fk smp/s  %.1f GF/s%s", epoch,
+                epochs, loss, rmse, samplesPerSecond / 1e3, gflops, polish ? "  (decoder polish)" : "");
+  return buf;
+}
+
+}  // namespace
+
+TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
+  validateTrainConfig(config, "training config");
+  const auto callStart = Clock::now();
+  const int threads = config.threads > 0 ? config.threads : threadCount();
+  torch::set_num_threads(threads);
+
+  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress);
+  const MatrixXfCol& x = *inputs.encoderInputs;
+  const int latentDim = config.model.latentDim;
+
+  // ---- Model and optimizer, initialized from the seed.
+  torch::manual_seed(config.seed);
+  Encoder encoder(set.images(), config.model);
+  Decoder decoder(config.model);
+  std::vector<torch::Tensor> params = encoder->parameters();
+  for (auto& p : decoder->parameters()) params.push_back(p);
+  auto optimizer = makeOptimizer(config, params);
+  DecoderBackprop backprop(decoder, latentDim);
+  const Mlp decoderMlpShape = decoderShape(config.model);
+  const double flopsPerSample = decoderMlpShape.flopsPerSample();
+
+  // ---- Step geometry: `tiles` encoder inputs x `perTile` images = one decoder batch.
+  const int trainImages = static_cast<int>(set.trainImages().size());
+  const int perTile = std::min(config.imagesPerInput, trainImages);
+  const int tiles = std::max(1, config.batchSize / perTile);
+  const std::int64_t batch = static_cast<std::int64_t>(tiles) * perTile;
+  const double samplesPerEpoch = static_cast<double>(set.groups()) * trainImages;
+  const std::int64_t stepsPerEpoch = std::max<std::int64_t>(1, std::llround(std::ceil(samplesPerEpoch / batch)));
+  const std::int64_t totalSteps = config.epochs > 0 ? stepsPerEpoch * config.epochs : 0;  // 0: time budget only
+
+  // ---- Resume.
+  CheckpointMeta meta;
+  meta.fingerprint = checkpointFingerprint(config, set);
+  std::int64_t step = 0;
+  double priorSeconds = 0, emaLoss = -1;
+  TrainResult result;
+  if (config.resume && checkpointExists(config.checkpointPath)) {
+    CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer);
+    step = saved.step;
+    priorSeconds = saved.elapsedSeconds;
+    emaLoss = saved.emaLoss;
+    result.resumedFromStep = step;
+  }
+
+  // ---- Per-step buffers.
+  StepPlan plan;
+  torch::Tensor dirs = torch::empty({batch, 4}), targets = torch::empty({batch, 3}), dz;
+  torch::Tensor tileSlot = torch::empty({tiles}, torch::kLong), tileGroup = torch::empty({tiles}, torch::kLong);
+  torch::Tensor polishLatents;  // [groups, latent] once the encoder is frozen
+  double withinTrain = 0;
+  for (int i : set.trainImages()) withinTrain += set.withinSse(i);
+  withinTrain /= static_cast<double>(set.texels()) * trainImages * 3;
+
+  auto progressOf = [&](std::int64_t s, double elapsed) {
+    double p = 0;
+    if (totalSteps > 0) p = static_cast<double>(s) / totalSteps;
+    if (config.timeBudgetSeconds > 0) p = std::max(p, elapsed / config.timeBudgetSeconds);
+    return std::min(1.0, p);
+  };
+
+  Progress bar("train", 1000, config.progress);
+  std::size_t shownPermille = 0;
+  const auto loopStart = Clock::now();
+  auto lastCheckpoint = loopStart, lastStatus = loopStart;
+  const std::int64_t firstStep = step;
+  auto elapsedTotal = [&] { return priorSeconds + since(loopStart); };
+  auto writeCheckpointNow = [&] {
+    if (config.checkpointPath.empty()) return;
+    meta.step = step;
+    meta.elapsedSeconds = elapsedTotal();
+    meta.emaLoss = emaLoss;
+    saveCheckpoint(config.checkpointPath, meta, *encoder, *decoder, *optimizer);
+    lastCheckpoint = Clock::now();
+  };
+
+  encoder->train();
+  while (true) {
+    const double elapsed = elapsedTotal();
+    if (totalSteps > 0 && step >= totalSteps) break;
+    if (config.timeBudgetSeconds > 0 && elapsed >= config.timeBudgetSeconds) break;
+    if ((config.stopFlag && config.stopFlag->load()) || (config.stopAtStep > 0 && step >= config.stopAtStep)) {
+      result.interrupted = true;
+      writeCheckpointNow();
+      break;
+    }
+    const double p = progressOf(step, elapsed);
+    const bool polish = config.polishFraction > 0 && p >= 1 - config.polishFraction;
+    setLearningRate(*optimizer, config.learningRate * scheduleFactor(config, p));
+
+    // Samples: which groups and images, then their directions and targets.
+    auto tPhase = Clock::now();
+    auto lap = [&](double& slot) {
+      auto now = Clock::now();
+      slot += std::chrono::duration<double>(now - tPhase).count();
+      tPhase = now;
+    };
+    planStep(set, config.seed, step, tiles, perTile, plan);
+    {
+      float* d = dirs.data_ptr<float>();
+      float* y = targets.data_ptr<float>();
+      const std::vector<float>& allDirs = set.directions();
+      at::parallel_for(0, tiles, 1, [&](std::int64_t begin, std::int64_t end) {
+        for (std::int64_t t = begin; t < end; ++t) {
+          const int* img = &plan.images[t * perTile];
+          set.targets(plan.tileGroup[t], img, perTile, y + t * perTile * 3);
+          for (int s = 0; s < perTile; ++s)
+            std::memcpy(d + (t * perTile + s) * 4, &allDirs[static_cast<std::size_t>(img[s]) * 4], 4 * sizeof(float));
+        }
+      });
+    }
+    for (int t = 0; t < tiles; ++t) {
+      tileSlot.data_ptr<std::int64_t>()[t] = plan.tileSlot[t];
+      tileGroup.data_ptr<std::int64_t>()[t] = plan.tileGroup[t];
+    }
+
+    double loss;
+    TrainResult::Profile& prof = result.profile;
+    lap(prof.sampling);
+    if (!polish) {
+      torch::Tensor in = gatherEncoderInputs(x, plan.distinctGroups.data(),
+                                             static_cast<std::int64_t>(plan.distinctGroups.size()));
+      for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
+      torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
+      lap(prof.encoder);
+      loss = backprop.trainStep(z.detach(), dirs, targets, perTile, dz);
+      lap(prof.decoder);
+      z.backward(dz);
+      lap(prof.encoder);
+    } else {
+      if (!polishLatents.defined()) {
+        // Freeze the encoder: from here on the decoder fits the latents that will be stored.
+        polishLatents = encodeAll(encoder, x);
+        for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
+      }
+      lap(prof.encoder);
+      loss = backprop.trainStep(polishLatents.index_select(0, tileGroup), dirs, targets, perTile, dz);
+      lap(prof.decoder);
+    }
+    if (!std::isfinite(loss))
+      throw Error("training diverged at step " + std::to_string(step) +
+                  " (loss is not finite); lower optimizer.learning_rate");
+    optimizer->step();
+    lap(prof.optimizer);
+    ++step;
+    emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;
+
+    // Progress, status line, periodic checkpoint.
+    const double now = elapsedTotal();
+    std::size_t permille = static_cast<std::size_t>(progressOf(step, now) * 1000);
+    if (permille > shownPermille) bar.advance(permille - shownPermille), shownPermille = permille;
+    if (since(lastStatus) > 0.5) {
+      double sps = (step - firstStep) * static_cast<double>(batch) / since(loopStart);
+      bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
+                                 static_cast<int>(step / stepsPerEpoch), config.epochs, polish));
+      lastStatus = Clock::now();
+    }
+    if (config.checkpointSeconds > 0 && since(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();
+  }
+  result.trainSeconds = since(loopStart);
+  bar.finish();
+
+  // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
+  result.steps = step;
+  result.epochsRun = static_cast<int>(step / stepsPerEpoch);
+  result.finalLoss = std::max(0.0, emaLoss);
+  result.encoderBlocks = encoder->blocks;
+  result.samplesPerSecond =
+      result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
+  result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample / 1e9;
+  result.holdoutImages = set.holdoutImages();
+  torch::Tensor latents = encodeAll(encoder, x);
+  result.latentRows = set.groups();
+  result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());
+  result.decoder = detail::exportDecoder(decoder);
+  result.encoderState = serializeModule(*encoder);
+  if (!config.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
+
+  // ---- Exact RMSE over texels x images x channels (eq. 10), from per-cluster sums.
+  if (result.interrupted) {
+    result.rmseTrain = result.rmseHoldout = -1;
+  } else {
+    detail::RmsError rmse = detail::evaluateRmse(set, backprop, latents, config.progress);
+    result.rmseTrain = rmse.train;
+    result.rmseHoldout = rmse.holdout;
+  }
+  result.seconds = since(callStart);
+  return result;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,178 @@
+#include "model/training_set.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace {
+// Independent random streams derived from the one seed.
+constexpr std::uint64_t kHoldoutStream = 0x686f6c646f7574ull;  // "holdout"
+constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
+}  // namespace
+
+TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress)
+    : stack_(in.stack), alpha_(in.alpha), perTexel_(in.ids.empty()) {
+  // ---- Validate: every mismatch here would otherwise be a wrong answer, not a crash.
+  if (!in.stack) throw Error("training: no BTF stack given");
+  if (!in.encoderInputs) throw Error("training: no encoder inputs given");
+  const BtfStack& stack = *in.stack;
+  const MatrixXfCol& x = *in.encoderInputs;
+  images_ = stack.numImages();
+  texels_ = stack.numTexels();
+  groups_ = static_cast<int>(x.rows());
+  if (images_ < 1 || texels_ < 1) throw Error("training: the BTF stack is empty");
+  if (x.cols() != 3 * static_cast<Eigen::Index>(images_))
+    throw Error("training: encoder inputs have " + std::to_string(x.cols()) + " columns, expected 3 x " +
+                std::to_string(images_) + " images");
+  if (groups_ < 1) throw Error("training: no encoder inputs (0 rows)");
+  if (!(in.alpha > 0) || !std::isfinite(in.alpha))
+    throw Error("training: alpha must be a positive finite number, got " + std::to_string(in.alpha));
+  if (!x.allFinite()) throw Error("training: encoder inputs contain NaN or infinity");
+  if (perTexel_) {
+    if (groups_ != texels_)
+      throw Error("training: per-texel mode needs one encoder input per texel (" + std::to_string(texels_) +
+                  "), got " + std::to_string(groups_));
+    sizes_.assign(groups_, 1);
+  } else {
+    if (static_cast<std::int64_t>(in.ids.size()) != texels_)
+      throw Error("training: id list has " + std::to_string(in.ids.size()) + " entries for " +
+                  std::to_string(texels_) + " texels");
+    sizes_.assign(groups_, 0);
+    for (std::size_t t = 0; t < in.ids.size(); ++t) {
+      std::int32_t id = in.ids[t];
+      if (id < 0 || id >= groups_)
+        throw Error("training: texel " + std::to_string(t) + " has cluster id " + std::to_string(id) +
+                    ", outside 0.." + std::to_string(groups_ - 1));
+      ++sizes_[id];
+    }
+  }
+  cumulative_.resize(groups_ + 1);
+  cumulative_[0] = 0;
+  for (int g = 0; g < groups_; ++g) cumulative_[g + 1] = cumulative_[g] + sizes_[g];
+
+  // ---- Hold-out images: a deterministic random subset, at least one image stays for training.
+  holdout_.assign(images_, 0);
+  int held = holdoutFraction > 0 ? static_cast<int>(std::lround(holdoutFraction * images_)) : 0;
+  if (holdoutFraction > 0) held = std::max(held, 1);
+  held = std::min(held, images_ - 1);
+  std::vector<int> order(images_);
+  for (int i = 0; i < images_; ++i) order[i] = i;
+  SplitMix64 rng(SplitMix64::mix(seed, kHoldoutStream));
+  for (int i = 0; i < held; ++i) std::swap(order[i], order[i + rng.below(images_ - i)]);
+  for (int i = 0; i < held; ++i) holdout_[order[i]] = 1;
+  for (int i = 0; i < images_; ++i) (holdout_[i] ? holdoutImages_ : trainImages_).push_back(i);
+
+  // ---- Decoder direction inputs (eq. 7-9).
+  directions_.resize(static_cast<std::size_t>(images_) * 4);
+  for (int i = 0; i < images_; ++i) {
+    auto l = stereographic(stack.lights()[i / stack.numViews()]);
+    auto v = stereographic(stack.views()[i % stack.numViews()]);
+    float* d = &directions_[static_cast<std::size_t>(i) * 4];
+    d[0] = l[0], d[1] = l[1], d[2] = v[0], d[3] = v[1];
+  }
+
+  if (!perTexel_) computeClusterMeans(in.ids, progress);
+}
+
+// Per-cluster mean of every image, and the within-cluster sum of squares per image.
+// Parallel over images (the stack is image-major): each image is independent, so the
+// result does not depend on the thread count.
+void TrainingSet::computeClusterMeans(const std::vector<std::int32_t>& ids, bool progress) {
+  means_.assign(static_cast<std::size_t>(groups_) * images_ * 3, 0.0f);
+  withinSse_.assign(images_, 0.0);
+  Progress bar("cluster means", images_, progress);
+  const float invAlpha = 1.0f / alpha_;
+  parallelFor(images_, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> rgb(static_cast<std::size_t>(texels_) * 3);
+    std::vector<double> sums(static_cast<std::size_t>(groups_) * 3);
+    std::vector<float> mean(static_cast<std::size_t>(groups_) * 3);
+    for (std::size_t i = begin; i < end; ++i) {
+      stack_->imageLinear(static_cast<int>(i), rgb.data());
+      std::fill(sums.begin(), sums.end(), 0.0);
+      for (std::int64_t t = 0; t < texels_; ++t)
+        for (int c = 0; c < 3; ++c) sums[3 * ids[t] + c] += rgb[3 * t + c] * invAlpha;
+      for (int g = 0; g < groups_; ++g)
+        for (int c = 0; c < 3; ++c) {
+          float m = sizes_[g] ? static_cast<float>(sums[3 * g + c] / sizes_[g]) : 0.0f;
+          mean[3 * g + c] = m;
+          means_[(static_cast<std::size_t>(g) * images_ + i) * 3 + c] = m;
+        }
+      double sse = 0;
+      for (std::int64_t t = 0; t < texels_; ++t)
+        for (int c = 0; c < 3; ++c) {
+          double r = static_cast<double>(rgb[3 * t + c] * invAlpha) - mean[3 * ids[t] + c];
+          sse += r * r;
+        }
+      withinSse_[i] = sse;
+      bar.advance();
+    }
+  });
+  bar.finish();
+}
+
+void TrainingSet::targets(int group, const int* images, int count, float* out) const {
+  if (!perTexel_) {
+    const float* m = &means_[static_cast<std::size_t>(group) * images_ * 3];
+    for (int s = 0; s < count; ++s) {
+      const float* p = m + 3 * static_cast<std::size_t>(images[s]);
+      out[3 * s] = p[0], out[3 * s + 1] = p[1], out[3 * s + 2] = p[2];
+    }
+    return;
+  }
+  const float invAlpha = 1.0f / alpha_;
+  for (int s = 0; s < count; ++s)
+    for (int c = 0; c < 3; ++c) out[3 * s + c] = stack_->sample(images[s], group, c) * invAlpha;
+}
+
+int TrainingSet::sampleGroup(SplitMix64& rng) const {
+  if (perTexel_) return static_cast<int>(rng.below(groups_));
+  std::int64_t u = static_cast<std::int64_t>(rng.below(static_cast<std::uint64_t>(texels_)));
+  // The group whose [cumulative_[g], cumulative_[g + 1]) holds u; empty clusters are never hit.
+  auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), u);
+  return static_cast<int>(it - cumulative_.begin()) - 1;
+}
+
+void planStep(const TrainingSet& set, std::uint64_t seed, std::int64_t step, int tiles, int imagesPerTile,
+              StepPlan& plan) {
+  const std::vector<int>& train = set.trainImages();
+  const int n = static_cast<int>(train.size());
+  imagesPerTile = std::min(imagesPerTile, n);
+  plan.tiles = tiles;
+  plan.imagesPerTile = imagesPerTile;
+  plan.tileGroup.resize(tiles);
+  plan.images.resize(static_cast<std::size_t>(tiles) * imagesPerTile);
+  SplitMix64 rng(SplitMix64::mix(SplitMix64::mix(seed, kStepStream), static_cast<std::uint64_t>(step)));
+  // Distinct images per tile: a partial Fisher-Yates shuffle on a scratch copy, undone after.
+  std::vector<int> scratch(train);
+  std::vector<int> swaps(imagesPerTile);
+  for (int t = 0; t < tiles; ++t) {
+    plan.tileGroup[t] = set.sampleGroup(rng);
+    int* out = &plan.images[static_cast<std::size_t>(t) * imagesPerTile];
+    if (imagesPerTile == n) {
+      std::copy(train.begin(), train.end(), out);
+      continue;
+    }
+    for (int s = 0; s < imagesPerTile; ++s) {
+      int j = s + static_cast<int>(rng.below(n - s));
+      swaps[s] = j;
+      std::swap(scratch[s], scratch[j]);
+      out[s] = scratch[s];
+    }
+    for (int s = imagesPerTile - 1; s >= 0; --s) std::swap(scratch[s], scratch[swaps[s]]);
+  }
+  plan.distinctGroups = plan.tileGroup;
+  std::sort(plan.distinctGroups.begin(), plan.distinctGroups.end());
+  plan.distinctGroups.erase(std::unique(plan.distinctGroups.begin(), plan.distinctGroups.end()),
+                            plan.distinctGroups.end());
+  plan.tileSlot.resize(tiles);
+  for (int t = 0; t < tiles; ++t)
+    plan.tileSlot[t] = std::lower_bound(plan.distinctGroups.begin(), plan.distinctGroups.end(), plan.tileGroup[t]) -
+                       plan.distinctGroups.begin();
+}
+
+}  // namespace nbtf

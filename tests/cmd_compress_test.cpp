@@ -1,0 +1,207 @@
+// Runs the built `nbtf compress` and `nbtf info` binaries: exit codes, messages for bad
+// input, and a small end-to-end run whose file `nbtf info` then describes.
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "codec/nbtf_file.h"
+#include "codec_fixtures.h"
+#include "util/atomic_file.h"
+
+namespace nbtf {
+namespace {
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exitCode = -1;
+  std::string output;  // stdout and stderr together
+};
+
+RunResult run(const std::string& args) {
+  std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " 2>&1";
+  RunResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  std::size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  int status = pclose(p);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+// A scratch folder per test, removed afterwards.
+class CmdCompress : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("nbtf_cmd_compress_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::permissions(dir_, fs::perms::owner_all, fs::perm_options::add, ec);
+    fs::remove_all(dir_, ec);
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  std::string writeStack() { return testing::writeTestStack(path("stack")); }
+
+  // A config file for a quick run (the test recipe of the model tests).
+  std::string writeQuickConfig(int epochs, double checkpointSeconds = 300) {
+    TrainConfig c = testing::quickConfig();
+    std::string text = R"({"optimizer": {"name": "adam", "learning_rate": )" + std::to_string(c.learningRate) +
+                       R"(}, "training": {"batch_size": )" + std::to_string(c.batchSize) +
+                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) + R"(, "epochs": )" +
+                       std::to_string(epochs) + R"(, "checkpoint_seconds": )" + std::to_string(checkpointSeconds) +
+                       "}}";
+    writeFileAtomic(path("quick.json"), text);
+    return path("quick.json");
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(CmdCompress, MissingInputIsNamed) {
+  RunResult r = run("compress " + path("no_such_stack") + " -o " + path("out.nbtf") + " -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "nbtf compress: error: " + path("no_such_stack") + ": no such file or folder"))
+      << r.output;
+  EXPECT_FALSE(fs::exists(path("out.nbtf")));
+}
+
+TEST_F(CmdCompress, UnwritableOutputFailsBeforeAnyWork) {
+  std::string stack = writeStack();
+  RunResult r = run("compress " + stack + " -o " + path("missing_dir/out.nbtf") + " -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "out.nbtf: output folder")) << r.output;
+  EXPECT_FALSE(contains(r.output, "summary")) << r.output;
+  if (::geteuid() != 0) {  // root writes anywhere: only a real user can see the permission error
+    fs::create_directories(path("readonly"));
+    fs::permissions(path("readonly"), fs::perms::owner_read | fs::perms::owner_exec);
+    r = run("compress " + stack + " -o " + path("readonly/out.nbtf") + " -q");
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_TRUE(contains(r.output, "is not writable")) << r.output;
+  }
+}
+
+TEST_F(CmdCompress, BadOptionsAreRejected) {
+  RunResult r = run("compress " + path("x") + " -q");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "missing -o <out.nbtf>")) << r.output;
+  r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --clusters -3");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--clusters must be >= 0")) << r.output;
+  r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --holdout 1.5");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--holdout must be a fraction in [0, 1), got 1.5")) << r.output;
+  writeFileAtomic(path("typo.json"), R"({"training": {"epochz": 3}})");
+  r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --config " + path("typo.json"));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "typo.json: 'training.epochz' unknown key")) << r.output;
+}
+
+TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
+  std::string stack = writeStack();
+  std::string out = path("m.nbtf"), stats = path("stats.json");
+  RunResult r = run("compress " + stack + " -o " + out + " --clusters 6 --holdout 0.1 --seed 3 --threads 1 --config " +
+                    writeQuickConfig(60) + " --stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "summary: " + out + " (clustered-neural, k = 6)")) << r.output;
+  EXPECT_TRUE(contains(r.output, "held-out images")) << r.output;
+  EXPECT_TRUE(contains(r.output, "time (wall clock, s): load")) << r.output;
+  EXPECT_FALSE(fs::exists(out + ".ckpt"));  // a finished run leaves no checkpoint behind
+
+  CompressedBtf b = readNbtf(out);
+  EXPECT_EQ(b.numClusters(), 6);
+  EXPECT_EQ(b.layout, Layout::Utia);
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), fs::file_size(out));
+  EXPECT_GT(j["rmse_holdout"].get<double>(), 0);
+
+  RunResult info = run("info " + out);
+  EXPECT_EQ(info.exitCode, 0) << info.output;
+  EXPECT_TRUE(contains(info.output, "clustered-neural, k = 6 clusters")) << info.output;
+  EXPECT_TRUE(contains(info.output, "8 x 8 = 64")) << info.output;
+  EXPECT_TRUE(contains(info.output, "81 (9 lights x 9 views)")) << info.output;
+  EXPECT_TRUE(contains(info.output, "raw float32")) << info.output;
+  EXPECT_TRUE(contains(info.output, "seed 3")) << info.output;
+
+  // The same command again gives the same bytes (--resume without a checkpoint starts afresh).
+  std::string again = path("again.nbtf");
+  r = run("compress " + stack + " -o " + again + " --clusters 6 --holdout 0.1 --seed 3 --threads 1 --config " +
+          path("quick.json") + " -q --resume");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "--resume: no checkpoint at " + again + ".ckpt, starting from the beginning"))
+      << r.output;
+  EXPECT_EQ(readFileBytes(again), readFileBytes(out));
+}
+
+TEST_F(CmdCompress, SigintCheckpointsAndWritesNothing) {
+  std::string stack = writeStack();
+  // A run far too long to finish, checkpointing every 0.2 s so its checkpoint shows that
+  // training has started.
+  std::string config = writeQuickConfig(1000000, 0.2);
+  std::string out = path("int.nbtf"), log = path("int.log"), bin = std::string(NBTF_BIN_DIR) + "/nbtf";
+  pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    ::execl(bin.c_str(), "nbtf", "compress", stack.c_str(), "-o", out.c_str(), "--clusters", "5", "--threads", "1",
+            "--config", config.c_str(), "-q", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  auto waitFor = [](auto condition, double seconds) {
+    for (int i = 0; i < seconds * 20 && !condition(); ++i) ::usleep(50000);
+    return condition();
+  };
+  bool training = waitFor([&] { return fs::exists(out + ".ckpt"); }, 60);
+  ::kill(pid, SIGINT);
+  int status = 0;
+  bool exited = false;  // waitpid reaps once: remember the answer
+  waitFor([&] { return exited = exited || ::waitpid(pid, &status, WNOHANG) == pid; }, 60);
+  if (!exited) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+  }
+  ASSERT_TRUE(training) << "no checkpoint appeared";
+  ASSERT_TRUE(exited) << "nbtf compress did not stop after SIGINT";
+  std::string text((std::istreambuf_iterator<char>(*std::make_unique<std::ifstream>(log))), {});
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 130) << text;
+  EXPECT_FALSE(fs::exists(out)) << text;
+  EXPECT_TRUE(fs::exists(out + ".ckpt"));
+  EXPECT_TRUE(contains(text, "interrupted; nothing written to " + out)) << text;
+  EXPECT_TRUE(contains(text, "--resume")) << text;
+}
+
+TEST_F(CmdCompress, InfoRejectsDamagedFiles) {
+  std::vector<std::uint8_t> bytes(100, 0);
+  writeFileAtomic(path("zero.nbtf"), bytes.data(), bytes.size());
+  RunResult r = run("info " + path("zero.nbtf"));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "zero.nbtf: not an .nbtf file")) << r.output;
+  std::vector<std::uint8_t> head(kNbtfMagic, kNbtfMagic + 8);
+  writeFileAtomic(path("cut.nbtf"), head.data(), head.size());
+  r = run("info " + path("cut.nbtf"));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "cut.nbtf: truncated")) << r.output;
+}
+
+}  // namespace
+}  // namespace nbtf

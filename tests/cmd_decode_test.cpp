@@ -1,0 +1,161 @@
+// The `nbtf decode` and `nbtf query` commands end to end: the binary is run on a .nbtf
+// file written here; its output stack loads with `nbtf info`, its printed values equal
+// the library's, and bad input gives a clear message and a non-zero exit status.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "codec/decoder.h"
+#include "codec/decoder_query.h"
+#include "decoder_fixtures.h"
+#include "io/image_io.h"
+#include "test_util.h"
+#include "util/atomic_file.h"
+
+namespace nbtf {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandRun {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Runs `nbtf ARGS` through the shell (ARGS quoted by the caller), capturing both streams.
+CommandRun runNbtf(const std::string& args, const test::TempDir& dir, const std::string& stdinText = "") {
+  std::string in = dir / "stdin.txt", out = dir / "stdout.txt", err = dir / "stderr.txt";
+  writeFileAtomic(in, stdinText);
+  std::string cmd = std::string("'") + NBTF_BIN_DIR + "/nbtf' " + args + " <'" + in + "' >'" + out + "' 2>'" + err + "'";
+  int raw = std::system(cmd.c_str());
+  CommandRun r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = readText(out);
+  r.err = readText(err);
+  return r;
+}
+
+class NbtfCommand : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    material = testing::makeDisplayableMaterial(4);
+    material.layout = Layout::Ubo2003;
+    material.sourceSampleType = SampleType::Srgb8;
+    file = dir / "m.nbtf";
+    writeNbtf(file, material);
+  }
+  test::TempDir dir;
+  CompressedBtf material;
+  std::string file;
+};
+
+TEST_F(NbtfCommand, DecodeWritesAStackThatInfoLoads) {
+  CommandRun r = runNbtf("decode '" + file + "' -o '" + (dir / "out") + "' --threads 2", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("decoded 6 images (3 lights x 2 views), 7 x 5 texels each"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("4 evaluations per image"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(dir / "out/tv030_pv030/00005 tl015 pl060 tv030 pv030.png"));
+  CommandRun info = runNbtf("info '" + (dir / "out") + "' -q", dir);
+  ASSERT_EQ(info.status, 0) << info.err;
+  EXPECT_NE(info.out.find("layout         ubo2003"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("images         6"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("texels         35"), std::string::npos) << info.out;
+}
+
+TEST_F(NbtfCommand, DecodeOneUnmeasuredPairAtAnotherSize) {
+  CommandRun r = runNbtf("decode '" + file + "' -o '" + (dir / "one") +
+                      "' --light 37.5,200 --view 10,45 --size 20x9 --format exr --layout utia -q",
+                  dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;  // -q
+  std::string path = dir / "one/tv010_pv045/tl037.500_pl200_tv010_pv045.exr";
+  ASSERT_TRUE(fs::exists(path));
+  ImageF img = readExr(path);  // XYZ-tagged: read back as linear sRGB
+  EXPECT_EQ(img.width, 20);
+  EXPECT_EQ(img.height, 9);
+  NbtfDecoder dec(material);
+  Rgb want = dec.evaluate(3, 2, {37.5, 200}, {10, 45});
+  const float* got = &img.rgb[3 * (2 * 20 + 3 + 7)];  // x = 10 wraps to texel 3
+  EXPECT_NEAR(got[1], std::max(0.0f, want.g), 2e-3 + 4e-3 * std::fabs(want.g));
+}
+
+TEST_F(NbtfCommand, DecodeRejectsBadInput) {
+  CommandRun r = runNbtf("decode '" + (dir / "missing.nbtf") + "' -o '" + (dir / "x") + "'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("nbtf decode: error: " + (dir / "missing.nbtf") + ": cannot open file"), std::string::npos)
+      << r.err;
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "x") + "' --light 95,0", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("--light direction theta = 95 degrees is outside the upper hemisphere"), std::string::npos)
+      << r.err;
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "x") + "' --lights 0,7", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("--lights: item '7' is out of range: the material has 3 light directions (0..2)"),
+            std::string::npos)
+      << r.err;
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "x") + "' --light 10,10 --lights 1", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("give one of them"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "x"));
+}
+
+TEST_F(NbtfCommand, QueryPrintsTheLibrarysValue) {
+  CommandRun r = runNbtf("query '" + file + "' --texel 5,3 --light 30,60 --view 45,20", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  NbtfDecoder dec(material);
+  EXPECT_EQ(r.out, formatRgb(dec.evaluate(5, 3, {30, 60}, {45, 20})) + "\n");
+  r = runNbtf("query '" + file + "' --uv 1.5,-0.1 --light 30,60 --view 45,20 --normalized", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out, formatRgb(dec.evaluateUv(1.5f, -0.1f, {30, 60}, {45, 20}, OutputScale::Normalized)) + "\n");
+}
+
+TEST_F(NbtfCommand, QueryRejectsBadInput) {
+  CommandRun r = runNbtf("query '" + file + "' --texel 7,0 --light 30,60 --view 45,20", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("texel (7, 0) is outside the 7 x 5 material"), std::string::npos) << r.err;
+  r = runNbtf("query '" + file + "' --texel 1,x --light 30,60 --view 45,20", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("--texel: expected X,Y (integers), got '1,x'"), std::string::npos) << r.err;
+  r = runNbtf("query '" + file + "' --texel 1,1 --light 30,60", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("needs --light and --view"), std::string::npos) << r.err;
+}
+
+TEST_F(NbtfCommand, QueryBatchAnswersTheRestAndFailsAtTheEnd) {
+  std::string csv = dir / "q.csv";
+  writeFileAtomic(csv, std::string("x,y,theta_l,phi_l,theta_v,phi_v\n1,1,10,20,30,40\n1,1,10\n2,3,45,100,60,200\n"));
+  CommandRun r = runNbtf("query '" + file + "' --batch '" + csv + "'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(csv + ":3: expected 6 comma-separated fields"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 malformed line skipped, 2 queries answered"), std::string::npos) << r.err;
+  std::istringstream rows(r.out);
+  std::string header, a, b, extra;
+  std::getline(rows, header), std::getline(rows, a), std::getline(rows, b);
+  EXPECT_EQ(header, "x,y,theta_l,phi_l,theta_v,phi_v,r,g,b");
+  EXPECT_EQ(a.rfind("1,1,10,20,30,40,", 0), 0u) << a;
+  EXPECT_EQ(b.rfind("2,3,45,100,60,200,", 0), 0u) << b;
+  EXPECT_FALSE(std::getline(rows, extra));
+  // The same from standard input, all well formed: exit 0.
+  r = runNbtf("query '" + file + "' --batch - --batch-lines 1", dir, "1,1,10,20,30,40\n2,3,45,100,60,200\n");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find(a), std::string::npos);
+  EXPECT_NE(r.out.find(b), std::string::npos);
+  r = runNbtf("query '" + file + "' --batch '" + (dir / "none.csv") + "'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("none.csv: cannot open the query file"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace nbtf

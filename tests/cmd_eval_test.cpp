@@ -1,0 +1,120 @@
+// `nbtf eval` end to end: a .nbtf file and its reference stack on disk -> report files whose
+// RMSE is the direct computation; a reference of another material is rejected with a clear
+// error and a non-zero exit, writing no report.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "codec_fixtures.h"
+#include "eval/compressed_source.h"
+#include "io/btf_loader.h"
+#include "test_util.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace {
+
+struct CommandRun {
+  int code = -1;
+  std::string output;
+};
+
+// Runs `nbtf <args>` and captures stdout + stderr.
+CommandRun runNbtf(const std::string& args, const std::string& logPath) {
+  std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " > '" + logPath + "' 2>&1";
+  CommandRun r;
+  int status = std::system(cmd.c_str());
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream in(logPath);
+  std::stringstream s;
+  s << in.rdbuf();
+  r.output = s.str();
+  return r;
+}
+
+class CmdEval : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Progress::setQuiet(true);
+    if (!std::filesystem::exists(std::string(NBTF_BIN_DIR) + "/nbtf")) GTEST_SKIP() << "nbtf binary not built";
+    btf = testing::makeBtf(3, 4, 3);
+    file = tmp / "m.nbtf";
+    writeNbtf(file, btf);
+    // The source images are larger than the file's crop (3,5,4,3), as for a real material.
+    test::writeTestStack(tmp / "ref", btf.lights, btf.views, btf.sourceWidth, btf.sourceHeight, Layout::Utia,
+                         ImageFormat::Exr);
+  }
+  test::TempDir tmp;
+  CompressedBtf btf;
+  std::string file;
+};
+
+TEST_F(CmdEval, WritesAReportWhoseRmseIsTheDirectComputation) {
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "out") + "' -q --threads 2",
+                  tmp / "log");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("linear RGB / alpha"), std::string::npos) << r.output;
+  for (const char* f : {"report.md", "report.html", "report.json", "rmse_heatmap.png"})
+    EXPECT_TRUE(std::filesystem::exists(tmp / ("out/" + std::string(f)))) << f;
+  std::ifstream in(tmp / "out/report.json");
+  nlohmann::json j = nlohmann::json::parse(in);
+
+  // Direct: load with the file's crop, decode, pool squared errors over everything.
+  LoadOptions load;
+  load.crop = btf.crop;
+  load.progress = false;
+  BtfStack ref = loadBtfStack(tmp / "ref", load);
+  CompressedReconstruction rec(btf);
+  std::vector<float> a(static_cast<std::size_t>(ref.numTexels()) * 3), b(a.size());
+  double sum = 0, held = 0;
+  for (int i = 0; i < ref.numImages(); ++i) {
+    ref.imageLinear(i, a.data());
+    rec.image(i, b.data());
+    double s = 0;
+    for (std::size_t k = 0; k < a.size(); ++k) s += std::pow((double(a[k]) - b[k]) / btf.alpha, 2);
+    sum += s;
+    if (i == 1 || i == 4) held += s;  // the fixture's hold-out images
+  }
+  EXPECT_NEAR(j["rmse"].get<double>(), std::sqrt(sum / (a.size() * ref.numImages())), 1e-9);
+  EXPECT_NEAR(j["rmse_holdout"].get<double>(), std::sqrt(held / (a.size() * 2)), 1e-9);
+  EXPECT_EQ(j["material"]["alpha"].get<double>(), btf.alpha);
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), std::filesystem::file_size(file));
+  EXPECT_EQ(j["compressed"].get<std::string>(), file);
+}
+
+TEST_F(CmdEval, RejectsAReferenceWithOtherDirections) {
+  auto views = btf.views;
+  views[1] = {30, 60};
+  test::writeTestStack(tmp / "other", btf.lights, views, btf.sourceWidth, btf.sourceHeight, Layout::Utia,
+                       ImageFormat::Exr);
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "other") + "' -o '" + (tmp / "out") + "' -q",
+                  tmp / "log");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("does not match"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("view direction 1 is (30\xC2\xB0, 60\xC2\xB0) in the reference"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "out/report.json"));
+}
+
+TEST_F(CmdEval, RejectsAReferenceOfAnotherSize) {
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' --crop 0,0,5,3 -o '" + (tmp / "out") +
+                      "' -q",
+                  tmp / "log");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("texel size is 5 x 3 in the reference but 4 x 3 in the file"), std::string::npos)
+      << r.output;
+}
+
+TEST_F(CmdEval, MissingOptionsAreNamed) {
+  CommandRun r = runNbtf("eval '" + file + "' -o '" + (tmp / "out") + "'", tmp / "log");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("missing --reference"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nbtf

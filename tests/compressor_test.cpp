@@ -1,0 +1,232 @@
+#include "codec/compressor.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+#include "codec/nbtf_file.h"
+#include "codec_fixtures.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+namespace fs = std::filesystem;
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+CompressOptions quickOptions(int clusters) {
+  CompressOptions o;
+  o.train = testing::quickConfig();
+  o.clusters = clusters;
+  o.progress = false;
+  return o;
+}
+
+// The RMSE of the written file itself, decoded texel by texel with its own decoder: what a
+// user of the file gets, independent of the trainer's bookkeeping.
+double fileRmse(const CompressedBtf& b, const BtfStack& stack, const std::vector<int>& images) {
+  double sse = 0;
+  Mlp::RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + 4);
+  for (int t = 0; t < b.numTexels(); ++t) {
+    const float* z = b.latentOfTexel(t);
+    for (std::size_t j = 0; j < images.size(); ++j) {
+      for (int d = 0; d < b.latentDim; ++d) in(j, d) = z[d];
+      auto l = stereographic(b.lights[images[j] / b.views.size()]);
+      auto v = stereographic(b.views[images[j] % b.views.size()]);
+      in(j, b.latentDim) = l[0], in(j, b.latentDim + 1) = l[1], in(j, b.latentDim + 2) = v[0],
+                     in(j, b.latentDim + 3) = v[1];
+    }
+    Mlp::RowMatrix out = b.decoder.forward(in);
+    for (std::size_t j = 0; j < images.size(); ++j)
+      for (int c = 0; c < 3; ++c) sse += std::pow(out(j, c) - stack.sample(images[j], t, c) / b.alpha, 2);
+  }
+  return std::sqrt(sse / (3.0 * b.numTexels() * images.size()));
+}
+
+std::vector<int> allImages(const BtfStack& s) {
+  std::vector<int> v(s.numImages());
+  for (int i = 0; i < s.numImages(); ++i) v[i] = i;
+  return v;
+}
+
+// The best a clustered file with these ids can do: every texel predicted by its cluster's
+// exact mean (one latent per cluster cannot represent the spread inside a cluster).
+double clusterMeanRmse(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int k) {
+  const int M = stack.numTexels();
+  std::vector<float> rgb(static_cast<std::size_t>(M) * 3);
+  double sse = 0;
+  for (int i = 0; i < stack.numImages(); ++i) {
+    stack.imageLinear(i, rgb.data());
+    std::vector<double> sum(3 * k, 0.0), count(k, 0.0);
+    for (int t = 0; t < M; ++t) {
+      count[ids[t]] += 1;
+      for (int c = 0; c < 3; ++c) sum[3 * ids[t] + c] += rgb[3 * t + c] / alpha;
+    }
+    for (int t = 0; t < M; ++t)
+      for (int c = 0; c < 3; ++c) sse += std::pow(rgb[3 * t + c] / alpha - sum[3 * ids[t] + c] / count[ids[t]], 2);
+  }
+  return std::sqrt(sse / (3.0 * M * stack.numImages()));
+}
+
+TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressStats stats;
+  CompressOptions o = quickOptions(6);
+  o.train.epochs = 600;  // an epoch is only 6 clusters x 81 images here
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  EXPECT_EQ(b.method, CodecMethod::ClusteredNeural);
+  EXPECT_EQ(b.latentRows, 6);
+  ASSERT_EQ(b.ids.size(), 64u);
+  EXPECT_EQ(b.numImages(), 81);
+  EXPECT_FLOAT_EQ(b.alpha, m.alpha);
+  // The trainer's figure is the file's figure, and clearly below predicting each image's mean.
+  double decoded = fileRmse(b, m.stack, allImages(m.stack));
+  EXPECT_NEAR(stats.rmseTrain, decoded, 1e-4);
+  double floor = clusterMeanRmse(m.stack, b.alpha, b.ids, 6), baseline = testing::imageMeanRmse(m);
+  EXPECT_LT(floor, 0.6 * baseline);  // k-means found the material's structure
+  EXPECT_LT(decoded, floor + 0.15 * (baseline - floor)) << "floor " << floor << ", image-mean " << baseline;
+  // Sizes are the file's: 24,383 decoder parameters, 6 x 8 latents, 64 one-byte ids.
+  EXPECT_EQ(stats.sizes.decoder, 24383u * 4);
+  EXPECT_EQ(stats.sizes.latents, 6u * 8 * 4);
+  EXPECT_EQ(stats.sizes.ids, 64u);
+  EXPECT_EQ(stats.sizes.rawFloat32, 64u * 81 * 12);
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  nlohmann::json meta = nlohmann::json::parse(back.metadataJson);
+  EXPECT_EQ(meta["training"]["rmse_train"].get<double>(), stats.rmseTrain);
+  EXPECT_EQ(meta["clustering"]["k"].get<int>(), 6);
+  EXPECT_EQ(meta["config"]["optimizer"]["name"], "adam");
+}
+
+TEST(Compressor, PerTexelModeStoresOneLatentPerTexelAndNoIds) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressStats stats;
+  CompressOptions o = quickOptions(0);
+  o.train.epochs = 60;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  EXPECT_EQ(b.method, CodecMethod::PerTexelNeural);
+  EXPECT_EQ(b.latentRows, 64);
+  EXPECT_TRUE(b.ids.empty());
+  EXPECT_EQ(stats.sizes.ids, 0u);
+  EXPECT_EQ(stats.pcaExplainedVarianceRatio, -1);
+  double decoded = fileRmse(b, m.stack, allImages(m.stack));
+  EXPECT_NEAR(stats.rmseTrain, decoded, 1e-4);
+  EXPECT_LT(decoded, 0.3 * testing::imageMeanRmse(m));  // one latent per texel: no cluster floor
+}
+
+TEST(Compressor, SameSeedSameBytesOtherSeedOtherBytes) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressStats s1, s2, s3;
+  CompressOptions o = quickOptions(5);
+  o.train.epochs = 20;
+  std::vector<std::uint8_t> a = serializeNbtf(compressStack(m.stack, o, s1));
+  std::vector<std::uint8_t> b = serializeNbtf(compressStack(m.stack, o, s2));
+  EXPECT_EQ(a, b);
+  o.train.seed = 2;
+  EXPECT_NE(serializeNbtf(compressStack(m.stack, o, s3)), a);
+}
+
+TEST(Compressor, HoldoutImagesAreRecordedAndMeasured) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = quickOptions(6);
+  o.train.holdoutFraction = 0.2;
+  CompressStats stats;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  ASSERT_FALSE(b.holdoutImages.empty());
+  EXPECT_EQ(stats.holdoutImages, static_cast<int>(b.holdoutImages.size()));
+  EXPECT_TRUE(std::is_sorted(b.holdoutImages.begin(), b.holdoutImages.end()));
+  EXPECT_NEAR(stats.rmseHoldout, fileRmse(b, m.stack, b.holdoutImages), 1e-4);
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_EQ(parseNbtf(bytes.data(), bytes.size(), "mem").holdoutImages, b.holdoutImages);
+}
+
+TEST(Compressor, MoreClustersThanTexelsIsAClearError) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressStats stats;
+  try {
+    compressStack(m.stack, quickOptions(65), stats);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "--clusters 65 is larger than the 64 texels")) << e.what();
+  }
+}
+
+TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = quickOptions(4);
+  o.train.epochs = 5;
+  CompressStats stats;
+  compressStack(m.stack, o, stats);
+  nlohmann::json j = nlohmann::json::parse(compressStatsJson(stats));
+  for (const char* key : {"rmse_train", "rmse_holdout", "ratio", "bytes", "seconds"}) EXPECT_TRUE(j.contains(key)) << key;
+  for (const char* key : {"decoder", "latents", "ids", "total", "raw_float32"}) EXPECT_TRUE(j["bytes"].contains(key)) << key;
+  for (const char* key : {"load", "preprocess", "cluster", "train", "write"}) EXPECT_TRUE(j["seconds"].contains(key)) << key;
+  EXPECT_TRUE(j["rmse_holdout"].is_null());  // no hold-out set
+  EXPECT_EQ(j["bytes"]["total"].get<std::uint64_t>(), stats.sizes.total);
+  EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), stats.sizes.ratio);
+  std::string summary = formatCompressSummary(stats);
+  EXPECT_TRUE(contains(summary, "on linear RGB / alpha")) << summary;
+  EXPECT_TRUE(contains(summary, "ratio")) << summary;
+}
+
+TEST(Compressor, UnwritableOutputFailsBeforeLoading) {
+  // The input does not exist either: the error about the output proves it came first.
+  try {
+    compressBtf("/nonexistent/stack", "/nonexistent_dir/out.nbtf", quickOptions(4));
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "/nonexistent_dir/out.nbtf: output folder")) << e.what();
+  }
+}
+
+TEST(Compressor, InterruptedRunLeavesNoOutputAndResumesToTheSameFile) {
+  fs::path dir = fs::temp_directory_path() / ("nbtf_compressor_resume_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  std::string stack = testing::writeTestStack((dir / "stack").string());
+  CompressOptions o = quickOptions(5);
+  o.train.epochs = 40;
+  std::string full = (dir / "full.nbtf").string(), part = (dir / "part.nbtf").string();
+  o.saveEncoderPath = (dir / "with_encoder.nbtf").string();
+  CompressStats whole = compressBtf(stack, full, o);
+  ASSERT_FALSE(whole.interrupted);
+  EXPECT_EQ(whole.sizes.fileBytes, fs::file_size(full));
+  EXPECT_GT(whole.seconds.load, 0);
+  // --save-encoder: the same material plus the encoder; the main output has none.
+  CompressedBtf main = readNbtf(full), withEncoder = readNbtf(o.saveEncoderPath);
+  EXPECT_TRUE(main.encoderState.empty());
+  EXPECT_FALSE(withEncoder.encoderState.empty());
+  withEncoder.encoderState.clear();
+  EXPECT_EQ(serializeNbtf(withEncoder), readFileBytes(full));
+  o.saveEncoderPath.clear();
+
+  o.train.stopAtStep = 7;  // what SIGINT does, at a reproducible step
+  CompressStats stopped = compressBtf(stack, part, o);
+  EXPECT_TRUE(stopped.interrupted);
+  EXPECT_FALSE(fs::exists(part));
+  EXPECT_EQ(stopped.checkpointPath, part + ".ckpt");
+  EXPECT_TRUE(fs::exists(part + ".ckpt"));
+
+  o.train.stopAtStep = 0;
+  o.train.resume = true;
+  CompressStats resumed = compressBtf(stack, part, o);
+  ASSERT_FALSE(resumed.interrupted);
+  EXPECT_EQ(readFileBytes(part), readFileBytes(full));
+  EXPECT_FALSE(fs::exists(part + ".ckpt"));  // a finished run removes its checkpoint
+  fs::remove_all(dir);
+}
+
+TEST(Compressor, BuiltInDefaultsEqualConfigsDefaultJson) {
+  // `nbtf compress` without --config uses TrainConfig{}: it must be configs/default.json.
+  TrainConfig file = loadTrainConfig(std::string(NBTF_SOURCE_DIR) + "/configs/default.json");
+  TrainConfig builtIn;
+  EXPECT_EQ(trainConfigJson(file), trainConfigJson(builtIn));
+  EXPECT_EQ(file.checkpointSeconds, builtIn.checkpointSeconds);
+}
+
+}  // namespace
+}  // namespace nbtf

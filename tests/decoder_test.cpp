@@ -1,0 +1,353 @@
+// The decoding API: agreement with an independent reference evaluation on every
+// instruction set, the k-evaluation image path, batches, wrapping, value spaces, and
+// every kind of bad input.
+#include "codec/decoder.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "decoder_fixtures.h"
+#include "test_util.h"
+#include "util/parallel.h"
+
+namespace nbtf {
+namespace {
+
+using testing::decoderTolerance;
+using testing::makeDecoderMaterial;
+using testing::referenceOutput;
+
+std::vector<DecoderIsa> supportedIsas() {
+  std::vector<DecoderIsa> out;
+  for (DecoderIsa isa : {DecoderIsa::Portable, DecoderIsa::Avx2, DecoderIsa::Avx512})
+    if (decoderIsaSupported(isa)) out.push_back(isa);
+  return out;
+}
+
+// Measured directions of the fixture plus unmeasured ones (grazing and at the pole too).
+std::vector<Direction> probeDirections() {
+  return {{0, 0}, {15, 60}, {37.5, 200}, {10, 45}, {89.9, 300}, {90, 0}, {63.2, 359.5}};
+}
+
+void expectMatchesReference(const NbtfDecoder& dec, const CompressedBtf& b) {
+  for (const Direction& l : probeDirections())
+    for (const Direction& v : {Direction{0, 0}, Direction{30, 30}, Direction{72, 123}})
+      for (int y = 0; y < b.height; ++y)
+        for (int x = 0; x < b.width; ++x) {
+          std::array<double, 3> mag;
+          auto ref = referenceOutput(b, y * b.width + x, l, v, &mag);
+          Rgb n = dec.evaluate(x, y, l, v, OutputScale::Normalized);
+          const float got[3] = {n.r, n.g, n.b};
+          for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(got[c], ref[c], decoderTolerance(mag[c]))
+                << decoderIsaName(dec.isa()) << " texel " << x << "," << y << " channel " << c << " light "
+                << l.thetaDeg << "," << l.phiDeg;
+        }
+}
+
+TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
+  // Shapes: the paper's kind (ReLU hidden layers, widths not multiples of 16), a wide
+  // layer that needs several column panels, a sigmoid layer, and a single-layer decoder.
+  std::vector<std::vector<int>> shapes = {{37, 21}, {130, 5, 17}, {}, {106, 106, 106}};
+  for (int k : {5, 0})
+    for (const auto& widths : shapes) {
+      CompressedBtf b = makeDecoderMaterial(k, widths);
+      if (widths.size() == 3 && widths[1] == 5) b.decoder.layers[1].activation = Activation::Sigmoid;
+      for (DecoderIsa isa : supportedIsas()) {
+        DecoderOptions o;
+        o.isa = isa;
+        NbtfDecoder dec(b, o);
+        EXPECT_EQ(dec.isa(), isa);
+        expectMatchesReference(dec, b);
+      }
+    }
+}
+
+// The model stage's own forward pass (model/mlp.h, what training evaluates) on the same
+// inputs: decoder input = latent | stereographic light | stereographic view.
+TEST(Decoder, AgreesWithTheModelsForwardPass) {
+  for (int k : {6, 0}) {
+    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4);
+    NbtfDecoder dec(b);
+    std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
+    Mlp::RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + 4);
+    for (std::size_t p = 0; p < pairs.size(); ++p)
+      for (int t = 0; t < b.numTexels(); ++t) {
+        auto row = in.row(static_cast<Eigen::Index>(p * b.numTexels() + t));
+        for (int q = 0; q < b.latentDim; ++q) row(q) = b.latentOfTexel(t)[q];
+        auto d = decoderDirectionInput(pairs[p].first, pairs[p].second);
+        for (int q = 0; q < 4; ++q) row(b.latentDim + q) = d[q];
+      }
+    Mlp::RowMatrix out = b.decoder.forward(in);
+    for (std::size_t p = 0; p < pairs.size(); ++p) {
+      std::vector<float> img(3 * b.numTexels());
+      dec.decodeImage(pairs[p].first, pairs[p].second, img.data(), OutputScale::Normalized);
+      for (int t = 0; t < b.numTexels(); ++t) {
+        std::array<double, 3> mag;
+        referenceOutput(b, t, pairs[p].first, pairs[p].second, &mag);
+        for (int c = 0; c < 3; ++c)
+          EXPECT_NEAR(img[3 * t + c], out(static_cast<Eigen::Index>(p * b.numTexels() + t), c), 2 * decoderTolerance(mag[c]))
+              << "texel " << t << " pair " << p << " channel " << c;
+      }
+    }
+  }
+}
+
+TEST(Decoder, AutoPicksTheBestSupportedInstructionSet) {
+  NbtfDecoder dec(makeDecoderMaterial(3));
+  EXPECT_EQ(dec.isa(), supportedIsas().back());
+  EXPECT_EQ(parseDecoderIsa("avx2"), DecoderIsa::Avx2);
+  test::expectErrorContaining([] { parseDecoderIsa("sse9"); }, {"unknown instruction set 'sse9'"});
+}
+
+TEST(Decoder, LinearIsNormalizedTimesAlpha) {
+  CompressedBtf b = makeDecoderMaterial(4);
+  NbtfDecoder dec(b);
+  for (int x = 0; x < b.width; ++x) {
+    Rgb n = dec.evaluate(x, 1, {30, 60}, {45, 20}, OutputScale::Normalized);
+    Rgb l = dec.evaluate(x, 1, {30, 60}, {45, 20}, OutputScale::Linear);
+    EXPECT_EQ(l.r, n.r * b.alpha);
+    EXPECT_EQ(l.g, n.g * b.alpha);
+    EXPECT_EQ(l.b, n.b * b.alpha);
+  }
+}
+
+// The image path evaluates each latent row once and scatters; it must equal evaluating
+// every texel on its own (bit for bit) and the naive reference (within float rounding).
+TEST(Decoder, ImageFromKEvaluationsEqualsPerTexelEvaluation) {
+  for (int k : {4, 0}) {
+    CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 9, 6);
+    NbtfDecoder dec(b);
+    EXPECT_EQ(dec.latentRows(), k > 0 ? k : 54);
+    for (const Direction& l : {Direction{15, 60}, Direction{37.5, 200}})
+      for (const Direction& v : {Direction{0, 0}, Direction{10, 45}}) {
+        std::vector<float> img(3 * 54);
+        dec.decodeImage(l, v, img.data(), OutputScale::Linear);
+        for (int t = 0; t < 54; ++t) {
+          Rgb one = dec.evaluate(t % 9, t / 9, l, v);
+          EXPECT_EQ(img[3 * t + 0], one.r);
+          EXPECT_EQ(img[3 * t + 1], one.g);
+          EXPECT_EQ(img[3 * t + 2], one.b);
+          std::array<double, 3> mag;
+          auto ref = referenceOutput(b, t, l, v, &mag);
+          for (int c = 0; c < 3; ++c) EXPECT_NEAR(img[3 * t + c], ref[c] * b.alpha, decoderTolerance(mag[c] * b.alpha));
+        }
+      }
+  }
+}
+
+TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
+  CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
+  NbtfDecoder dec(b);
+  std::vector<float> rows(3 * 6), img(3 * 64);
+  dec.decodeRows({45, 100}, {30, 30}, rows.data(), OutputScale::Normalized);
+  dec.decodeImage({45, 100}, {30, 30}, img.data(), OutputScale::Normalized);
+  for (int t = 0; t < 64; ++t)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(img[3 * t + c], rows[3 * b.ids[t] + c]);
+}
+
+TEST(Decoder, BatchEqualsSingleQueries) {
+  // Large enough to run on several threads and many tiles; directions repeat in runs
+  // (the batch shares their first-layer work) and also change on every query.
+  setThreadCount(2);
+  for (int k : {5, 0}) {
+    CompressedBtf b = makeDecoderMaterial(k);
+    NbtfDecoder dec(b);
+    std::mt19937 rng(3);
+    std::uniform_int_distribution<int> xs(0, b.width - 1), ys(0, b.height - 1);
+    std::uniform_real_distribution<double> theta(0, 90), phi(0, 360);
+    std::vector<TexelQuery> queries(6000);
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      TexelQuery& q = queries[i];
+      q.x = xs(rng), q.y = ys(rng);
+      if (i % 100 < 50 && i > 0) {
+        q.light = queries[i - 1].light, q.view = queries[i - 1].view;
+      } else {
+        q.light = {theta(rng), phi(rng)}, q.view = {theta(rng), phi(rng)};
+      }
+    }
+    std::vector<float> rgb(3 * queries.size());
+    dec.evaluate(queries.data(), queries.size(), rgb.data());
+    for (std::size_t i = 0; i < queries.size(); i += 7) {
+      Rgb one = dec.evaluate(queries[i].x, queries[i].y, queries[i].light, queries[i].view);
+      ASSERT_EQ(rgb[3 * i + 0], one.r) << "query " << i;
+      ASSERT_EQ(rgb[3 * i + 1], one.g) << "query " << i;
+      ASSERT_EQ(rgb[3 * i + 2], one.b) << "query " << i;
+    }
+  }
+  setThreadCount(0);
+}
+
+TEST(Decoder, UncachedFirstLayerGivesIdenticalResults) {
+  CompressedBtf b = makeDecoderMaterial(0, {37, 21});
+  DecoderOptions uncached;
+  uncached.maxCachedFirstLayerBytes = 0;
+  NbtfDecoder a(b), c(b, uncached);
+  std::vector<float> ia(3 * b.numTexels()), ic(3 * b.numTexels());
+  a.decodeImage({20, 40}, {50, 80}, ia.data());
+  c.decodeImage({20, 40}, {50, 80}, ic.data());
+  EXPECT_EQ(ia, ic);
+}
+
+TEST(Decoder, TextureCoordinatesWrap) {
+  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5);
+  NbtfDecoder dec(b);
+  Direction l{30, 60}, v{45, 20};
+  for (int y = 0; y < 5; ++y)
+    for (int x = 0; x < 7; ++x) {
+      float u = (x + 0.5f) / 7, w = (y + 0.5f) / 5;
+      Rgb at = dec.evaluate(x, y, l, v);
+      for (float du : {0.0f, 1.0f, -1.0f, 3.0f})
+        for (float dv : {0.0f, 2.0f, -5.0f}) {
+          Rgb uv = dec.evaluateUv(u + du, w + dv, l, v);
+          EXPECT_EQ(uv.r, at.r) << x << "," << y << " shifted by " << du << "," << dv;
+          EXPECT_EQ(uv.b, at.b);
+        }
+    }
+  EXPECT_EQ(dec.texelOfUv(1.0f, 0.0f), 0);           // u = 1 is the left edge again
+  EXPECT_EQ(dec.texelOfUv(-0.01f, 0.0f), 6);         // just left of 0 is the last column
+  EXPECT_EQ(dec.texelOfUv(0.0f, -0.01f), 4 * 7);     // just above 0 is the last row
+}
+
+TEST(Decoder, LargerImagesTileTheTexture) {
+  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5);
+  NbtfDecoder dec(b);
+  std::vector<float> base(3 * 35), big(3 * 16 * 11);
+  dec.decodeImage({30, 60}, {45, 20}, base.data());
+  dec.decodeImage({30, 60}, {45, 20}, big.data(), OutputScale::Linear, 16, 11);
+  for (int y = 0; y < 11; ++y)
+    for (int x = 0; x < 16; ++x)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_EQ(big[3 * (y * 16 + x) + c], base[3 * ((y % 5) * 7 + x % 7) + c]) << x << "," << y;
+}
+
+TEST(Decoder, UnitVectorQueriesMatchAngles) {
+  CompressedBtf b = makeDecoderMaterial(5);
+  NbtfDecoder dec(b);
+  std::vector<UvQuery> qs;
+  std::vector<Rgb> expect;
+  for (const Direction& l : probeDirections())
+    for (const Direction& v : {Direction{0, 0}, Direction{72, 123}}) {
+      auto lv = l.unitVector(), vv = v.unitVector();
+      UvQuery q;
+      q.u = 0.3f, q.v = 0.7f;
+      // Not unit length on purpose: vectors are normalized.
+      q.light = {float(2 * lv[0]), float(2 * lv[1]), float(2 * std::max(lv[2], 0.0))};
+      q.view = {float(vv[0]), float(vv[1]), float(std::max(vv[2], 0.0))};
+      qs.push_back(q);
+      expect.push_back(dec.evaluateUv(q.u, q.v, l, v));
+    }
+  std::vector<float> rgb(3 * qs.size());
+  dec.evaluate(qs.data(), qs.size(), rgb.data());
+  for (std::size_t i = 0; i < qs.size(); ++i) {
+    EXPECT_NEAR(rgb[3 * i], expect[i].r, 1e-4 * std::max(1.0f, std::fabs(expect[i].r))) << i;
+    EXPECT_NEAR(rgb[3 * i + 2], expect[i].b, 1e-4 * std::max(1.0f, std::fabs(expect[i].b))) << i;
+    Rgb single = dec.evaluate(qs[i]);
+    EXPECT_EQ(single.r, rgb[3 * i]);
+  }
+}
+
+// A material smooth in direction: values at unmeasured angles are finite and lie between
+// those at the neighbouring measured directions.
+TEST(Decoder, UnmeasuredAnglesLieBetweenMeasuredNeighbours) {
+  CompressedBtf b = testing::makeSmoothMaterial();
+  NbtfDecoder dec(b);
+  struct Case {
+    Direction mid, a, b;
+  };
+  // Light between two lights of a meridian / of a ring; same for the view.
+  const std::vector<Case> lightCases = {{{37.5, 0}, {30, 0}, {45, 0}}, {{30, 15}, {30, 0}, {30, 30}},
+                                        {{67.5, 0}, {60, 0}, {75, 0}}, {{7.5, 0}, {0, 0}, {15, 0}}};
+  const std::vector<Case> viewCases = {{{45, 50}, {45, 40}, {45, 60}}, {{52.5, 0}, {45, 0}, {60, 0}}};
+  auto within = [](float mid, float a, float b) {
+    return std::isfinite(mid) && mid >= std::min(a, b) - 1e-6f && mid <= std::max(a, b) + 1e-6f;
+  };
+  for (int t = 0; t < b.numTexels(); ++t) {
+    int x = t % b.width, y = t / b.width;
+    for (const Case& c : lightCases) {
+      Direction view{30, 30};
+      Rgb m = dec.evaluate(x, y, c.mid, view), ra = dec.evaluate(x, y, c.a, view), rb = dec.evaluate(x, y, c.b, view);
+      EXPECT_TRUE(within(m.r, ra.r, rb.r) && within(m.g, ra.g, rb.g) && within(m.b, ra.b, rb.b))
+          << "light " << c.mid.thetaDeg << "," << c.mid.phiDeg << ": " << m.r << " vs " << ra.r << " .. " << rb.r;
+      EXPECT_NE(ra.r, rb.r);  // the neighbours differ, so "between" means something
+    }
+    for (const Case& c : viewCases) {
+      Direction light{15, 0};
+      Rgb m = dec.evaluate(x, y, light, c.mid), ra = dec.evaluate(x, y, light, c.a), rb = dec.evaluate(x, y, light, c.b);
+      EXPECT_TRUE(within(m.r, ra.r, rb.r) && within(m.g, ra.g, rb.g) && within(m.b, ra.b, rb.b))
+          << "view " << c.mid.thetaDeg << "," << c.mid.phiDeg;
+    }
+    // Both unmeasured at once: inside the range of the four measured corner pairs.
+    Direction lm{37.5, 0}, vm{45, 50};
+    Rgb m = dec.evaluate(x, y, lm, vm);
+    float lo = 1e30f, hi = -1e30f;
+    for (const Direction& l : {Direction{30, 0}, Direction{45, 0}})
+      for (const Direction& v : {Direction{45, 40}, Direction{45, 60}}) {
+        float r = dec.evaluate(x, y, l, v).r;
+        lo = std::min(lo, r), hi = std::max(hi, r);
+      }
+    EXPECT_TRUE(within(m.r, lo, hi)) << m.r << " not in " << lo << " .. " << hi;
+  }
+}
+
+// ---- Bad input -------------------------------------------------------------------------
+
+TEST(Decoder, TexelOutsideTheMaterialIsAnError) {
+  NbtfDecoder dec(makeDecoderMaterial(5, {37, 21}, 7, 5));
+  for (auto [x, y] : {std::pair{7, 0}, std::pair{0, 5}, std::pair{-1, 2}})
+    test::expectErrorContaining([&, x = x, y = y] { dec.evaluate(x, y, {0, 0}, {0, 0}); },
+                                   {"texel (" + std::to_string(x) + ", " + std::to_string(y) + ")",
+                                    "outside the 7 x 5 material"});
+}
+
+TEST(Decoder, DirectionsBelowTheHorizonAreErrors) {
+  NbtfDecoder dec(makeDecoderMaterial(5));
+  test::expectErrorContaining([&] { dec.evaluate(0, 0, {95, 0}, {0, 0}); },
+                                 {"light direction theta = 95", "outside the upper hemisphere"});
+  test::expectErrorContaining([&] { dec.evaluate(0, 0, {0, 0}, {-3, 0}); }, {"view direction theta = -3"});
+  test::expectErrorContaining([&] { dec.evaluate(0, 0, {NAN, 0}, {0, 0}); }, {"light direction is not finite"});
+  std::vector<float> img(3 * 35);
+  test::expectErrorContaining([&] { dec.decodeImage({30, 0}, {91, 0}, img.data()); }, {"view direction theta = 91"});
+  UvQuery q;
+  q.view = {0.3f, 0.2f, -0.1f};
+  test::expectErrorContaining([&] { dec.evaluate(q); }, {"view direction", "below the horizon"});
+  q.view = {0, 0, 0};
+  test::expectErrorContaining([&] { dec.evaluate(q); }, {"view direction vector has zero length"});
+  q.view = {0, 0, 1};
+  q.u = INFINITY;
+  test::expectErrorContaining([&] { dec.evaluate(q); }, {"texture coordinate (u, v) is not finite"});
+}
+
+TEST(Decoder, BatchErrorsNameTheQueryAndComputeNothing) {
+  NbtfDecoder dec(makeDecoderMaterial(5, {37, 21}, 7, 5));
+  std::vector<TexelQuery> qs(10, TexelQuery{1, 1, {10, 10}, {20, 20}});
+  qs[6].x = 9;
+  std::vector<float> rgb(30, -7.0f);
+  test::expectErrorContaining([&] { dec.evaluate(qs.data(), qs.size(), rgb.data()); },
+                                 {"query 6: texel (9, 1) is outside"});
+  EXPECT_EQ(rgb[0], -7.0f);
+}
+
+TEST(Decoder, OpenReportsMissingAndDamagedFiles) {
+  test::TempDir dir;
+  test::expectErrorContaining([&] { NbtfDecoder::open(dir / "missing.nbtf"); }, {"missing.nbtf", "cannot open"});
+  std::string path = dir / "m.nbtf";
+  writeNbtf(path, makeDecoderMaterial(5));
+  NbtfDecoder dec = NbtfDecoder::open(path);
+  EXPECT_EQ(dec.name(), path);
+  EXPECT_EQ(dec.width(), 7);
+  // Truncate: the reader's error names the file.
+  std::filesystem::resize_file(path, 100);
+  test::expectErrorContaining([&] { NbtfDecoder::open(path); }, {path, "truncated"});
+}
+
+TEST(Decoder, FlopsCountEveryLayer) {
+  NbtfDecoder dec(makeDecoderMaterial(5, {106, 106, 106}));
+  // The paper's decoder shape: 12 -> 106 -> 106 -> 106 -> 3.
+  EXPECT_EQ(dec.flopsPerEvaluation(), 2.0 * (12 * 106 + 106 * 106 * 2 + 106 * 3));
+}
+
+}  // namespace
+}  // namespace nbtf

@@ -1,0 +1,87 @@
+// The report figures: heat map cells carry the colour of their value, the error
+// magnification is a round factor, the comparison strip holds the three panels.
+#include "eval/figures.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "io/color.h"
+#include "test_util.h"
+
+namespace nbtf {
+namespace {
+
+Color8 pixel(const Image8& img, int x, int y) {
+  const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
+  return {p[0], p[1], p[2]};
+}
+bool same(Color8 a, Color8 b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+
+// Finds the first pixel of colour c scanning rows from the top, left of maxX.
+bool find(const Image8& img, Color8 c, int& fx, int& fy, int maxX = 1 << 30) {
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < std::min(img.width, maxX); ++x)
+      if (same(pixel(img, x, y), c)) return fx = x, fy = y, true;
+  return false;
+}
+
+TEST(Figures, HeatMapCellsHaveTheColourOfTheirValue) {
+  // 2 x 3: the largest value maps to the top of the colour map, 0 to the bottom.
+  std::vector<Direction> rows = {{0, 0}, {30, 0}}, cols = {{0, 0}, {45, 0}, {45, 180}};
+  std::vector<double> v = {0.0, 0.5, 1.0, 0.25, 0.75, 0.5};
+  Image8 img = renderDirectionHeatMap(v, rows, cols, {"t", "light", "view", "RMSE"});
+  // Search the grid only: the colour bar on the right holds every colour.
+  const int gridRight = img.width - 150;
+  int x0, y0, x1, y1;
+  ASSERT_TRUE(find(img, viridis(1.0), x1, y1, gridRight));  // the max cell: row 0, column 2
+  ASSERT_TRUE(find(img, viridis(0.25), x0, y0, gridRight));  // row 1, column 0
+  EXPECT_GT(y0, y1) << "row 1 lies below row 0";
+  EXPECT_GT(x1, x0);
+  // The cell of value 0.75 sits right of 0.25's cell, in the same row.
+  int x2, y2;
+  ASSERT_TRUE(find(img, viridis(0.75), x2, y2, gridRight));
+  EXPECT_GT(x2, x0);
+  EXPECT_EQ(y2, y0);
+  test::expectErrorContaining([&] { renderDirectionHeatMap({1, 2}, rows, cols, {}); }, {"2 values", "2 x 3"});
+  v[3] = NAN;
+  test::expectErrorContaining([&] { renderDirectionHeatMap(v, rows, cols, {}); }, {"not finite"});
+}
+
+TEST(Figures, MagnificationIsARoundFactorThatKeepsTheErrorOnScale) {
+  const int texels = 100;
+  std::vector<float> ref(texels * 3, 0.5f), rec(ref);
+  for (int t = 0; t < texels; ++t)
+    for (int c = 0; c < 3; ++c) rec[3 * t + c] += 0.003f * (t % 10);  // errors 0 .. 0.027 (alpha 1)
+  // 99th percentile 0.027 -> 1 / 0.027 = 37 -> largest 1/2/5 x 10^k below: 20.
+  EXPECT_EQ(chooseErrorMagnification(ref.data(), rec.data(), texels, 1.0f), 20.0);
+  // alpha scales the error down: alpha 2 -> 0.0135 -> 74 -> 50.
+  EXPECT_EQ(chooseErrorMagnification(ref.data(), rec.data(), texels, 2.0f), 50.0);
+  EXPECT_EQ(chooseErrorMagnification(ref.data(), ref.data(), texels, 1.0f), 1.0);
+}
+
+TEST(Figures, ComparisonShowsReferenceReconstructionAndError) {
+  const int w = 8, h = 8;
+  std::vector<float> ref(w * h * 3, 0.2f), rec(ref);
+  rec[0] = rec[1] = rec[2] = 0.3f;  // one texel off by 0.1
+  Image8 img = renderComparison(ref.data(), rec.data(), w, h, 1.0f, 10, "title");
+  // The reference grey (sRGB of 0.2) is on screen, and so is the saturated error colour
+  // (0.1 x 10 = full scale) of the broken texel.
+  std::uint8_t g = linearToSrgb8(0.2f);
+  int x, y, ex, ey;
+  ASSERT_TRUE(find(img, {g, g, g}, x, y));
+  ASSERT_TRUE(find(img, viridis(1.0), ex, ey));
+  EXPECT_GT(ex, img.width / 2) << "error panel is on the right";
+  EXPECT_GE(img.width, 3 * 240);
+}
+
+TEST(Figures, LineChartRejectsMismatchedSeries) {
+  ChartSeries s{"a", {0, 15}, {0.1}, kBlack};
+  test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y"); }, {"series 'a'"});
+  s.y.push_back(0.2);
+  Image8 img = renderLineChart({s}, "t", "x", "y", {0, 15});
+  EXPECT_GT(img.width, 500);
+}
+
+}  // namespace
+}  // namespace nbtf

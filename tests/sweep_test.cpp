@@ -1,0 +1,114 @@
+// Sweep summaries: report.json -> entries, the Table 2 layout, rate-distortion data and a
+// gnuplot script that gnuplot accepts.
+#include "eval/sweep.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "test_util.h"
+#include "util/atomic_file.h"
+
+namespace nbtf {
+namespace {
+
+using nlohmann::json;
+
+SweepEntry entry(const std::string& material, const std::string& family, double parameter, double ratio, double rmse) {
+  SweepEntry e;
+  e.material = material, e.family = family, e.parameter = parameter, e.ratio = ratio, e.rmse = rmse;
+  e.method = family == "clustered-neural" ? "clustered neural, k = " + std::to_string(int(parameter)) : family;
+  e.rmseSrgb8 = rmse * 255, e.rmseHoldout = std::nan(""), e.blurSigma = 0.7;
+  e.report = material + "/" + e.method + "/report.json";
+  return e;
+}
+
+std::vector<SweepEntry> sample() {
+  return {entry("WOOL", "clustered-neural", 1000, 4633, 0.0274), entry("WOOL", "per-texel-neural", NAN, 1885, 0.0264),
+          entry("WOOL", "clustered-neural", 500, 5127, 0.0275), entry("fabric02", "clustered-neural", 500, 5127, 0.0212),
+          entry("fabric02", "per-texel-neural", NAN, 1885, 0.0203)};
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST(Sweep, ReadsTheKeysOfAReport) {
+  json j = {{"material", {{"name", "WOOL"}}}, {"method", "clustered neural, k = 500"},
+            {"method_family", "clustered-neural"}, {"method_parameter", 500}, {"ratio", 5127.5}, {"rmse", 0.0275},
+            {"rmse_srgb8", 5.5}, {"rmse_holdout", nullptr}, {"blur_sigma", 0.8}};
+  SweepEntry e = sweepEntryFromReport(j, "r.json");
+  EXPECT_EQ(e.material, "WOOL");
+  EXPECT_EQ(e.parameter, 500);
+  EXPECT_EQ(e.ratio, 5127.5);
+  EXPECT_TRUE(std::isnan(e.rmseHoldout));
+  json noRatio = j;
+  noRatio["ratio"] = nullptr;
+  test::expectErrorContaining([&] { sweepEntryFromReport(noRatio, "r.json"); }, {"r.json", "compression ratio"});
+  json noRmse = j;
+  noRmse.erase("rmse");
+  test::expectErrorContaining([&] { sweepEntryFromReport(noRmse, "r.json"); }, {"r.json", "missing key 'rmse'"});
+  noRmse["rmse"] = "0.1";
+  test::expectErrorContaining([&] { sweepEntryFromReport(noRmse, "r.json"); }, {"'rmse' is not a number"});
+}
+
+TEST(Sweep, TableHasMaterialsAsRowsAndMethodsAsColumns) {
+  std::string md = sweepTablesMarkdown(sample());
+  // Columns: the per-texel baseline first, then k ascending.
+  EXPECT_NE(md.find("| material | per-texel-neural | clustered neural, k = 500 | clustered neural, k = 1000 |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| WOOL | 0.0264 | 0.0275 | 0.0274 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| fabric02 | 0.0203 | 0.0212 | - |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| WOOL | 1 : 1885 | 1 : 5127 | 1 : 4633 |"), std::string::npos) << md;
+  EXPECT_EQ(md.find("held-out"), std::string::npos) << "no hold-out table without hold-out results";
+  auto dup = sample();
+  dup.push_back(dup[0]);
+  test::expectErrorContaining([&] { sweepTablesMarkdown(dup); }, {"two reports", "WOOL", "k = 1000"});
+}
+
+TEST(Sweep, WritesDataSortedByRatioAndAScriptGnuplotRuns) {
+  test::TempDir tmp;
+  SweepFiles f = writeSweepSummary(sample(), tmp / "sweep");
+  EXPECT_EQ(f.scripts.size(), 2u);
+  EXPECT_EQ(f.dataFiles.size(), 4u);
+  std::string wool = slurp(tmp / "sweep/rd_WOOL_clustered-neural.dat");
+  EXPECT_LT(wool.find("4633 0.0274"), wool.find("5127 0.0275")) << wool;
+  EXPECT_NE(wool.find("\"k=500\""), std::string::npos);
+  std::string gp = slurp(tmp / "sweep/rd_WOOL.gp");
+  EXPECT_NE(gp.find("set logscale x"), std::string::npos);
+  EXPECT_NE(gp.find("'rd_WOOL_per-texel-neural.dat'"), std::string::npos);
+  EXPECT_NE(gp.find("set output 'rd_WOOL.png'"), std::string::npos);
+  EXPECT_NE(slurp(f.table).find("## Sweep"), std::string::npos);
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot not installed";
+  std::string cmd = "cd '" + (tmp / "sweep") + "' && gnuplot rd_WOOL.gp 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  auto png = readFileBytes(tmp / "sweep/rd_WOOL.png");
+  ASSERT_GT(png.size(), 1000u);
+  EXPECT_EQ(png[1], 'P');
+}
+
+TEST(Sweep, OddMaterialNamesAreQuotedForGnuplot) {
+  test::TempDir tmp;
+  std::vector<SweepEntry> e = {entry("o'brien_wool", "clustered-neural", 500, 5127, 0.03),
+                               entry("o'brien_wool", "clustered-neural", 1000, 4633, 0.029)};
+  SweepFiles f = writeSweepSummary(e, tmp / "sweep");
+  std::string gp = slurp(f.scripts[0]);
+  EXPECT_NE(gp.find("'Rate-distortion: o''brien_wool'"), std::string::npos) << gp;
+  EXPECT_NE(gp.find("noenhanced"), std::string::npos) << "underscores must not become subscripts";
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot not installed";
+  std::string cmd = "cd '" + (tmp / "sweep") + "' && gnuplot '" + std::filesystem::path(f.scripts[0]).filename().string() +
+                    "' 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_TRUE(std::filesystem::exists(f.plots[0]));
+}
+
+}  // namespace
+}  // namespace nbtf

@@ -1,0 +1,312 @@
+#include "model/trainer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "model/torch_reference.h"
+#include "model_test_material.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+using testing::makeTestMaterial;
+using testing::quickConfig;
+using testing::TestMaterial;
+
+const TestMaterial& material() {
+  static TestMaterial m = makeTestMaterial();
+  return m;
+}
+
+std::vector<int> allImages(const TestMaterial& m) {
+  std::vector<int> v(m.stack.numImages());
+  for (int i = 0; i < m.stack.numImages(); ++i) v[i] = i;
+  return v;
+}
+
+std::vector<int> asInts(const std::vector<std::int32_t>& v) { return std::vector<int>(v.begin(), v.end()); }
+
+std::string tempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("nbtf_trainer_test_" + name)).string();
+}
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  std::string path = tempPath(name);
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+bool sameModel(const TrainResult& a, const TrainResult& b) {
+  if (a.latents != b.latents || a.decoder.layers.size() != b.decoder.layers.size()) return false;
+  for (std::size_t l = 0; l < a.decoder.layers.size(); ++l)
+    if (a.decoder.layers[l].weight != b.decoder.layers[l].weight || a.decoder.layers[l].bias != b.decoder.layers[l].bias)
+      return false;
+  return true;
+}
+
+}  // namespace
+
+TEST(Trainer, EncoderBlocksAdaptToImageCount) {
+  EXPECT_EQ(encoderBlockCount(6561, 3), 3);  // 6561 -> 2187 -> 729 -> 243
+  EXPECT_EQ(encoderBlockCount(6561, 5), 5);  // -> 81 -> 27
+  EXPECT_EQ(encoderBlockCount(22801, 4), 4);
+  EXPECT_EQ(encoderBlockCount(81, 3), 3);    // 81 -> 27 -> 9 -> 3
+  EXPECT_EQ(encoderBlockCount(9, 3), 1);     // 9 -> 3, one more would leave 1
+  EXPECT_EQ(encoderBlockCount(4, 3), 0);     // too short to pool: linear map only
+}
+
+TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
+  ModelConfig model;
+  EXPECT_LT(decoderBackpropError(model, 3, 4, 7), 1e-5);
+  ModelConfig small;
+  small.latentDim = 5, small.decoderWidth = 17, small.decoderLayers = 2;
+  EXPECT_LT(decoderBackpropError(small, 4, 1, 9), 1e-5);
+  small.decoderLayers = 6;
+  EXPECT_LT(decoderBackpropError(small, 5, 3, 2), 1e-5);
+}
+
+TEST(Trainer, MaxPoolMatchesTorch) {
+  EXPECT_EQ(maxPoolReferenceError(1, 3, 4, 30), 0.0);
+  EXPECT_EQ(maxPoolReferenceError(2, 2, 5, 31), 0.0);  // a tail that pooling drops
+  EXPECT_EQ(maxPoolReferenceError(3, 1, 1, 3), 0.0);   // a single window
+}
+
+TEST(Trainer, PerTexelModeLearnsTheMaterial) {
+  const TestMaterial& m = material();
+  TrainResult r = trainModel(m.perTexel(), quickConfig());
+  double baseline = testing::imageMeanRmse(m);
+  EXPECT_EQ(r.latentRows, m.stack.numTexels());
+  EXPECT_EQ(r.latents.size(), static_cast<std::size_t>(m.stack.numTexels()) * 8);
+  EXPECT_EQ(r.decoder.parameterCount(), 24383u);
+  EXPECT_EQ(r.encoderBlocks, 3);
+  EXPECT_FALSE(r.interrupted);
+  EXPECT_EQ(r.rmseHoldout, -1);
+  EXPECT_GT(r.samplesPerSecond, 0);
+  EXPECT_LT(r.rmseTrain, 0.3 * baseline) << "baseline " << baseline;
+  // The reported RMSE is what the exported decoder and latents really give.
+  EXPECT_NEAR(testing::decodedRmse(m, r, {}, allImages(m)), r.rmseTrain, 1e-4 + 1e-3 * r.rmseTrain);
+}
+
+TEST(Trainer, ClusteredModeLearnsAndReportsExactPerTexelRmse) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 600;  // an epoch is only 4 clusters x 81 images here
+  TrainResult r = trainModel(m.clustered(), c);
+  EXPECT_EQ(r.latentRows, m.clusters);
+  // One latent per cluster cannot represent the spread inside a cluster: the floor is the
+  // RMSE of the exact cluster means; training must get close to it and far below the baseline.
+  double floor = testing::clusterFloorRmse(m), baseline = testing::imageMeanRmse(m);
+  EXPECT_LT(floor, 0.6 * baseline);
+  EXPECT_GE(r.rmseTrain, floor * 0.999);
+  EXPECT_LT(r.rmseTrain, floor + 0.1 * (baseline - floor)) << "floor " << floor << " baseline " << baseline;
+  // Computed by the trainer from per-cluster sums; recomputed here texel by texel.
+  EXPECT_NEAR(testing::decodedRmse(m, r, asInts(m.ids), allImages(m)), r.rmseTrain, 1e-4 + 1e-3 * r.rmseTrain);
+}
+
+TEST(Trainer, SameSeedGivesIdenticalModelOtherSeedDoesNot) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 20;
+  TrainResult a = trainModel(m.clustered(), c);
+  TrainResult b = trainModel(m.clustered(), c);
+  EXPECT_TRUE(sameModel(a, b));
+  EXPECT_EQ(a.rmseTrain, b.rmseTrain);
+  EXPECT_EQ(a.encoderState, b.encoderState);
+  c.seed = 2;
+  TrainResult other = trainModel(m.clustered(), c);
+  EXPECT_FALSE(sameModel(a, other));
+}
+
+TEST(Trainer, HoldoutImagesAreKeptOutAndReported) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.holdoutFraction = 0.2;
+  TrainResult r = trainModel(m.perTexel(), c);
+  ASSERT_EQ(r.holdoutImages.size(), 16u);  // round(0.2 x 81)
+  EXPECT_TRUE(std::is_sorted(r.holdoutImages.begin(), r.holdoutImages.end()));
+  EXPECT_GT(r.rmseHoldout, 0);
+  std::vector<int> train;
+  for (int i : allImages(m))
+    if (!std::binary_search(r.holdoutImages.begin(), r.holdoutImages.end(), i)) train.push_back(i);
+  EXPECT_NEAR(testing::decodedRmse(m, r, {}, train), r.rmseTrain, 1e-4 + 1e-3 * r.rmseTrain);
+  EXPECT_NEAR(testing::decodedRmse(m, r, {}, r.holdoutImages), r.rmseHoldout, 1e-4 + 1e-3 * r.rmseHoldout);
+  // A smooth material interpolates to unseen directions far better than the image-mean guess.
+  EXPECT_LT(r.rmseHoldout, 0.6 * testing::imageMeanRmse(m));
+  // The split depends on the seed only.
+  TrainConfig c2 = c;
+  c2.epochs = 1;
+  EXPECT_EQ(trainModel(m.perTexel(), c2).holdoutImages, r.holdoutImages);
+}
+
+TEST(Trainer, ResumeAfterInterruptionEqualsUninterruptedRun) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 80;  // 80 steps, the last 8 with the encoder frozen
+  TrainResult full = trainModel(m.clustered(), c);
+  ASSERT_GT(full.steps, 40);
+
+  std::string ckpt = tempPath("resume.ckpt");
+  std::filesystem::remove(ckpt);
+  c.checkpointPath = ckpt;
+  c.stopAtStep = 37;
+  TrainResult part = trainModel(m.clustered(), c);
+  EXPECT_TRUE(part.interrupted);
+  EXPECT_EQ(part.steps, 37);
+  EXPECT_EQ(part.rmseTrain, -1);
+  ASSERT_TRUE(std::filesystem::exists(ckpt));
+
+  c.resume = true;
+  c.stopAtStep = 76;  // inside the polish phase (encoder frozen from step 72)
+  TrainResult part2 = trainModel(m.clustered(), c);
+  EXPECT_EQ(part2.resumedFromStep, 37);
+  EXPECT_TRUE(part2.interrupted);
+
+  c.stopAtStep = 0;
+  TrainResult resumed = trainModel(m.clustered(), c);
+  EXPECT_EQ(resumed.resumedFromStep, 76);
+  EXPECT_EQ(resumed.steps, full.steps);
+  EXPECT_FALSE(resumed.interrupted);
+  EXPECT_TRUE(sameModel(resumed, full));
+  EXPECT_EQ(resumed.rmseTrain, full.rmseTrain);
+  std::filesystem::remove(ckpt);
+}
+
+TEST(Trainer, StopFlagWritesACheckpoint) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  std::atomic<bool> stop{true};
+  c.stopFlag = &stop;
+  c.checkpointPath = tempPath("stop.ckpt");
+  std::filesystem::remove(c.checkpointPath);
+  TrainResult r = trainModel(m.perTexel(), c);
+  EXPECT_TRUE(r.interrupted);
+  EXPECT_EQ(r.steps, 0);
+  EXPECT_TRUE(std::filesystem::exists(c.checkpointPath));
+  // A checkpoint from another setup is refused with the path in the message.
+  c.stopFlag = nullptr;
+  c.resume = true;
+  std::string msg = errorOf([&] { trainModel(m.clustered(), c); });
+  EXPECT_NE(msg.find(c.checkpointPath), std::string::npos) << msg;
+  EXPECT_NE(msg.find("different setup"), std::string::npos) << msg;
+  std::filesystem::remove(c.checkpointPath);
+}
+
+TEST(Trainer, CorruptCheckpointIsAClearError) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.checkpointPath = writeTemp("corrupt.ckpt", "this is not a checkpoint");
+  c.resume = true;
+  std::string msg = errorOf([&] { trainModel(m.perTexel(), c); });
+  EXPECT_NE(msg.find(c.checkpointPath), std::string::npos) << msg;
+  EXPECT_NE(msg.find("cannot read checkpoint"), std::string::npos) << msg;
+  std::filesystem::remove(c.checkpointPath);
+}
+
+TEST(Trainer, BadInputsAreErrors) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  TrainInputs in = m.clustered();
+  in.ids[5] = 4;  // only 4 clusters
+  EXPECT_NE(errorOf([&] { trainModel(in, c); }).find("texel 5 has cluster id 4"), std::string::npos);
+  in = m.clustered();
+  in.ids.pop_back();
+  EXPECT_NE(errorOf([&] { trainModel(in, c); }).find("id list has 63 entries"), std::string::npos);
+  in = m.perTexel();
+  in.encoderInputs = &m.clusterInputs;  // 4 rows for 64 texels
+  EXPECT_NE(errorOf([&] { trainModel(in, c); }).find("one encoder input per texel"), std::string::npos);
+  in = m.perTexel();
+  in.alpha = 0;
+  EXPECT_NE(errorOf([&] { trainModel(in, c); }).find("alpha"), std::string::npos);
+  MatrixXfCol narrow = m.perTexelInputs.leftCols(30);
+  in = m.perTexel();
+  in.encoderInputs = &narrow;
+  EXPECT_NE(errorOf([&] { trainModel(in, c); }).find("expected 3 x 81"), std::string::npos);
+}
+
+TEST(TrainConfig, ShippedConfigsLoad) {
+  TrainConfig def = loadTrainConfig(std::string(NBTF_SOURCE_DIR) + "/configs/default.json");
+  EXPECT_EQ(def.model.latentDim, 8);
+  EXPECT_EQ(def.model.decoderWidth, 106);
+  EXPECT_EQ(def.model.decoderLayers, 4);
+  TrainConfig paper = loadTrainConfig(std::string(NBTF_SOURCE_DIR) + "/configs/paper.json");
+  EXPECT_EQ(paper.optimizer, "sgd");
+  EXPECT_DOUBLE_EQ(paper.learningRate, 0.08);
+  EXPECT_EQ(paper.batchSize, 5);
+  EXPECT_EQ(paper.imagesPerInput, 1);
+  EXPECT_EQ(paper.schedule, "constant");
+}
+
+TEST(TrainConfig, ReadsEveryComponent) {
+  std::string path = writeTemp("full.json", R"({
+    "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3},
+    "optimizer": {"name": "sgd", "learning_rate": 0.05, "momentum": 0.9},
+    "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
+                 "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
+                 "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
+                 "resume": true, "progress": false}
+  })");
+  TrainConfig c = loadTrainConfig(path);
+  EXPECT_EQ(c.model.latentDim, 6);
+  EXPECT_EQ(c.model.encoderChannels, (std::vector<int>{4, 8}));
+  EXPECT_EQ(c.model.decoderWidth, 32);
+  EXPECT_EQ(c.model.decoderLayers, 3);
+  EXPECT_EQ(c.optimizer, "sgd");
+  EXPECT_DOUBLE_EQ(c.momentum, 0.9);
+  EXPECT_EQ(c.batchSize, 512);
+  EXPECT_EQ(c.imagesPerInput, 16);
+  EXPECT_EQ(c.epochs, 7);
+  EXPECT_DOUBLE_EQ(c.timeBudgetSeconds, 60);
+  EXPECT_EQ(c.schedule, "step");
+  EXPECT_DOUBLE_EQ(c.polishFraction, 0.2);
+  EXPECT_DOUBLE_EQ(c.holdoutFraction, 0.1);
+  EXPECT_EQ(c.seed, 9u);
+  EXPECT_EQ(c.threads, 1);
+  EXPECT_EQ(c.checkpointPath, "x.ckpt");
+  EXPECT_TRUE(c.resume);
+  EXPECT_FALSE(c.progress);
+  std::filesystem::remove(path);
+}
+
+TEST(TrainConfig, ErrorsNameTheFileAndKey) {
+  struct Case {
+    const char* json;
+    const char* expect;
+  } cases[] = {
+      {R"({"training": {"batch_sise": 64}})", "'training.batch_sise' unknown key"},
+      {R"({"optimizer": {"learning_rate": "fast"}})", "'optimizer.learning_rate' must be a number, got a string"},
+      {R"({"training": {"epochs": 2.5}})", "'training.epochs' must be an integer, got a number"},
+      {R"({"model": {"encoder_channels": [8, "x"]}})", "'model.encoder_channels' must be an array of integers"},
+      {R"({"training": {"progress": 1}})", "'training.progress' must be true or false"},
+      {R"({"optimiser": {}})", "'optimiser' unknown key"},
+      {R"({"model": 3})", "'model' must be an object"},
+      {R"({"optimizer": {"name": "rmsprop"}})", "'optimizer.name' must be \"sgd\" or \"adam\""},
+      {R"({"training": {"holdout_fraction": 1.5}})", "'training.holdout_fraction' must be in [0, 1)"},
+      {R"({"training": {"seed": -1}})", "'training.seed' must be a non-negative integer"},
+      {R"({"training": {"batch_size": 0}})", "'training.batch_size' must be >= 1"},
+      {R"({"model": {"latent_dim": 8,}})", "not valid JSON"},
+  };
+  for (const auto& k : cases) {
+    std::string path = writeTemp("bad.json", k.json);
+    std::string msg = errorOf([&] { loadTrainConfig(path); });
+    EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << msg;
+    EXPECT_NE(msg.find(k.expect), std::string::npos) << "for " << k.json << "\ngot: " << msg;
+    std::filesystem::remove(path);
+  }
+  EXPECT_NE(errorOf([] { loadTrainConfig("/nonexistent/nbtf.json"); }).find("cannot open"), std::string::npos);
+}
+
+}  // namespace nbtf
