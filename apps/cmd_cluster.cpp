@@ -33,6 +33,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   options.clusters = args["clusters"].as<int>();
   options.pca.components = args["components"].as<int>();
   options.pca.powerIterations = args["power-iterations"].as<int>();
+  options.pca.oversampling = args["oversampling"].as<int>();
   options.kmeans.maxIterations = args["max-iterations"].as<int>();
   options.seed = args["seed"].as<std::uint64_t>();
   const std::string representative = args["representative"].as<std::string>();
@@ -44,6 +45,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   if (options.pca.components < 1)
     throw Error("--components must be at least 1, got " + std::to_string(options.pca.components));
   if (options.pca.powerIterations < 0) throw Error("--power-iterations must be >= 0");
+  if (options.pca.oversampling < 0) throw Error("--oversampling must be >= 0");
   if (options.kmeans.maxIterations < 0) throw Error("--max-iterations must be >= 0");
 
   std::error_code ec;
@@ -130,8 +132,10 @@ int clusterMain(int argc, char** argv) {
     options.add_options()("input", "BTF stack folder", cxxopts::value<std::string>())(
         "k,clusters", "Number of clusters", cxxopts::value<int>())(
         "components", "PCA components", cxxopts::value<int>()->default_value("32"))(
-        "power-iterations", "PCA power iterations", cxxopts::value<int>()->default_value(
-                                                         std::to_string(PcaOptions().powerIterations)))(
+        "power-iterations", "PCA power iterations (more: closer to the exact PCA, one more read of the data each)",
+        cxxopts::value<int>()->default_value(std::to_string(PcaOptions().powerIterations)))(
+        "oversampling", "PCA sketch columns beyond --components",
+        cxxopts::value<int>()->default_value(std::to_string(PcaOptions().oversampling)))(
         "max-iterations", "k-means iteration limit",
         cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
         "representative", "Cluster representative: median or mean",

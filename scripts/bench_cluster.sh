@@ -15,6 +15,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=${1:-$root/build/bench_cluster}
 ks=(500 1000 2000)
+repeat=${BENCH_REPEAT:-3}  # runs per stage and tool, the fastest kept (the machine is shared)
 
 "$root/scripts/setup.sh" --with python3-sklearn
 "$root/scripts/build.sh" "$root/build"
@@ -42,9 +43,9 @@ fi
 echo "data: $(cat "$work/data.txt")"
 
 echo "== nbtf"
-"$bin/nbtf-bench-cluster" run --matrix "$work/data.f32" --clusters "$(IFS=,; echo "${ks[*]}")" --out "$work"
+"$bin/nbtf-bench-cluster" run --matrix "$work/data.f32" --clusters "$(IFS=,; echo "${ks[*]}")" --repeat "$repeat" --out "$work"
 echo "== scikit-learn"
-"$python" "$root/scripts/bench_cluster_sklearn.py" "$work/data.f32" "$work" "${ks[@]}"
+"$python" "$root/scripts/bench_cluster_sklearn.py" "$work/data.f32" "$work" "$repeat" "${ks[@]}"
 
 echo "== results"
 "$python" - "$work" <<'EOF'
@@ -52,7 +53,10 @@ import json, os, sys
 work = sys.argv[1]
 nb = json.load(open(os.path.join(work, "nbtf.json")))
 sk = json.load(open(os.path.join(work, "sklearn.json")))
-print(f"data: {nb['texels']} texels x {nb['dimensions']} dimensions, {nb['threads']} threads, scikit-learn {sk['sklearn_version']}")
+print(f"data: {nb['texels']} texels x {nb['dimensions']} dimensions, {nb['threads']} threads, scikit-learn {sk['sklearn_version']}, "
+      f"fastest of {nb['repeat']} runs per stage; load average at the end {os.getloadavg()[0]:.1f}")
+print(f"nbtf PCA: {nb['pca']['power_iterations']} power iterations, oversampling {nb['pca']['oversampling']}; "
+      "scikit-learn PCA: n_iter='auto' (7 here), oversampling 10")
 print(f"PCA, 32 components: nbtf {nb['pca']['seconds']:.2f} s (explained {nb['pca']['explained_variance_ratio']:.5f}), "
       f"scikit-learn {sk['pca']['seconds']:.2f} s (explained {sk['pca']['explained_variance_ratio']:.5f})")
 print(f"{'k':>5} | {'nbtf k-means':>12} {'sklearn k-means':>15} | {'nbtf total':>10} {'sklearn total':>13} {'speed-up':>8} | "

@@ -55,7 +55,7 @@ TEST(Pca, RecoversTheSubspaceOfExactlyLowRankData) {
 
 TEST(Pca, MatchesTheExactEigendecomposition) {
   // Decaying spectrum: column scales 10, 7, 5, 3.5, ... plus isotropic noise.
-  const int rows = 500, dims = 60, components = 5;
+  const int rows = 800, dims = 300, components = 5;  // the sketch (53 columns) sees part of it
   MatrixXfCol z = gaussian(rows, dims, 4);
   Eigen::MatrixXf rotation = Eigen::HouseholderQR<Eigen::MatrixXf>(gaussian(dims, dims, 5)).householderQ();
   for (int d = 0; d < dims; ++d) z.col(d) *= 10.0f * std::pow(0.7f, d) + 0.1f;

@@ -33,10 +33,10 @@ class BlasThreads {
 };
 
 void sgemm(bool transposeA, bool transposeB, int m, int n, int k, const float* a, int lda, const float* b, int ldb,
-           float* c, int ldc) {
-  const float one = 1.0f, zero = 0.0f;
+           float* c, int ldc, bool accumulate = false) {
+  const float one = 1.0f, beta = accumulate ? 1.0f : 0.0f;
   const char ta = transposeA ? 'T' : 'N', tb = transposeB ? 'T' : 'N';
-  sgemm_(&ta, &tb, &m, &n, &k, &one, a, &lda, b, &ldb, &zero, c, &ldc);
+  sgemm_(&ta, &tb, &m, &n, &k, &one, a, &lda, b, &ldb, &beta, c, &ldc);
 }
 
 }  // namespace
@@ -70,10 +70,10 @@ void blasMultiply(const MatrixXfCol& a, bool transposeA, const MatrixXfCol& b, M
 }
 
 void gemmOnThisThread(bool transposeA, bool transposeB, int m, int n, int k, const float* a, int lda,
-                      const float* b, int ldb, float* c, int ldc) {
+                      const float* b, int ldb, float* c, int ldc, bool accumulate) {
   if (m == 0 || n == 0) return;
   BlasThreads threads(1);
-  sgemm(transposeA, transposeB, m, n, k, a, lda, b, ldb, c, ldc);
+  sgemm(transposeA, transposeB, m, n, k, a, lda, b, ldb, c, ldc, accumulate);
 }
 
 }  // namespace nbtf

@@ -14,7 +14,8 @@ void blasMultiply(const MatrixXfCol& a, bool transposeA, const MatrixXfCol& b, M
 // c = op(a) * op(b), column-major with BLAS conventions (m x n result, inner size k), on the
 // calling thread only: for products inside parallelFor workers, where every worker runs
 // its own, and whose result then does not depend on the thread count.
+// accumulate: c += op(a) * op(b) instead.
 void gemmOnThisThread(bool transposeA, bool transposeB, int m, int n, int k, const float* a, int lda,
-                      const float* b, int ldb, float* c, int ldc);
+                      const float* b, int ldb, float* c, int ldc, bool accumulate = false);
 
 }  // namespace nbtf
