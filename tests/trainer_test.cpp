@@ -79,10 +79,11 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
   EXPECT_LT(decoderBackpropError(small, 5, 3, 2), 1e-5);
 }
 
-TEST(Trainer, MaxPoolMatchesTorch) {
-  EXPECT_EQ(maxPoolReferenceError(1, 3, 4, 30), 0.0);
-  EXPECT_EQ(maxPoolReferenceError(2, 2, 5, 31), 0.0);  // a tail that pooling drops
-  EXPECT_EQ(maxPoolReferenceError(3, 1, 1, 3), 0.0);   // a single window
+TEST(Trainer, FusedConvPoolMatchesTorch) {
+  EXPECT_EQ(convPoolReferenceError(1, 3, 3, 4, 30), 0.0);
+  EXPECT_EQ(convPoolReferenceError(2, 2, 5, 3, 31), 0.0);    // a tail that pooling drops
+  EXPECT_EQ(convPoolReferenceError(3, 1, 1, 1, 3), 0.0);     // a single window
+  EXPECT_EQ(convPoolReferenceError(4, 5, 8, 16, 245), 0.0);  // past the 16-wide vector loops
 }
 
 TEST(Trainer, PerTexelModeLearnsTheMaterial) {

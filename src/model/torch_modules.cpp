@@ -1,10 +1,9 @@
 #include "model/torch_modules.h"
 
-#include <ATen/Parallel.h>
-
 #include <cmath>
 #include <cstring>
 
+#include "model/conv_pool.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -35,90 +34,25 @@ Mlp decoderShape(const ModelConfig& model) {
 }
 
 namespace detail {
-namespace {
-
-// Autograd node of maxPool3: keeps the winning position (0..2) of every window.
-struct MaxPool3Function : torch::autograd::Function<MaxPool3Function> {
-  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& input) {
-    torch::Tensor x = input.contiguous();
-    TORCH_CHECK(x.dim() == 3 && x.scalar_type() == torch::kFloat, "maxPool3: expects float [batch, channels, length]");
-    const std::int64_t rows = x.size(0) * x.size(1), length = x.size(2), pooled = length / 3;
-    torch::Tensor out = torch::empty({x.size(0), x.size(1), pooled});
-    torch::Tensor which = torch::empty({x.size(0), x.size(1), pooled}, torch::kByte);
-    const float* src = x.data_ptr<float>();
-    float* dst = out.data_ptr<float>();
-    std::uint8_t* arg = which.data_ptr<std::uint8_t>();
-    at::parallel_for(0, rows, 16, [&](std::int64_t begin, std::int64_t end) {
-      for (std::int64_t r = begin; r < end; ++r) {
-        const float* p = src + r * length;
-        for (std::int64_t o = 0; o < pooled; ++o) {
-          // Same rule as torch's kernel: a later value wins only if strictly greater (or NaN).
-          float best = p[3 * o];
-          std::uint8_t at = 0;
-          for (std::uint8_t j = 1; j < 3; ++j) {
-            float v = p[3 * o + j];
-            if (v > best || std::isnan(v)) best = v, at = j;
-          }
-          dst[r * pooled + o] = best;
-          arg[r * pooled + o] = at;
-        }
-      }
-    });
-    ctx->save_for_backward({which});
-    ctx->saved_data["length"] = length;
-    return out;
-  }
-
-  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
-                                                 torch::autograd::variable_list grads) {
-    torch::Tensor which = ctx->get_saved_variables()[0];
-    const std::int64_t length = ctx->saved_data["length"].toInt();
-    torch::Tensor g = grads[0].contiguous();
-    const std::int64_t rows = which.size(0) * which.size(1), pooled = which.size(2);
-    torch::Tensor gx = torch::empty({which.size(0), which.size(1), length});
-    const float* src = g.data_ptr<float>();
-    const std::uint8_t* arg = which.data_ptr<std::uint8_t>();
-    float* dst = gx.data_ptr<float>();
-    at::parallel_for(0, rows, 16, [&](std::int64_t begin, std::int64_t end) {
-      for (std::int64_t r = begin; r < end; ++r) {
-        float* q = dst + r * length;
-        for (std::int64_t o = 0; o < pooled; ++o) {
-          float v = src[r * pooled + o];
-          std::uint8_t at = arg[r * pooled + o];
-          q[3 * o] = at == 0 ? v : 0.0f;
-          q[3 * o + 1] = at == 1 ? v : 0.0f;
-          q[3 * o + 2] = at == 2 ? v : 0.0f;
-        }
-        for (std::int64_t i = 3 * pooled; i < length; ++i) q[i] = 0.0f;  // the dropped tail
-      }
-    });
-    return {gx};
-  }
-};
-
-}  // namespace
-
-torch::Tensor maxPool3(const torch::Tensor& x) { return MaxPool3Function::apply(x); }
 
 EncoderImpl::EncoderImpl(int imageCount, const ModelConfig& model) {
   namespace nn = torch::nn;
   blocks = encoderBlockCount(imageCount, static_cast<int>(model.encoderChannels.size()));
-  features = nn::Sequential();
   int channels = 3, length = imageCount;
   for (int b = 0; b < blocks; ++b) {
     int out = model.encoderChannels[b];
-    features->push_back(nn::Conv1d(nn::Conv1dOptions(channels, out, 3).stride(1).padding(1)));
-    features->push_back(MaxPool3());
-    features->push_back(nn::BatchNorm1d(out));
+    convs.push_back(register_module("conv" + std::to_string(b),
+                                    nn::Conv1d(nn::Conv1dOptions(channels, out, 3).stride(1).padding(1))));
+    norms.push_back(register_module("norm" + std::to_string(b), nn::BatchNorm1d(out)));
     channels = out;
     length /= 3;
   }
-  register_module("features", features);
   toLatent = register_module("to_latent", nn::Linear(channels * length, model.latentDim));
 }
 
 torch::Tensor EncoderImpl::forward(const torch::Tensor& x) {
-  torch::Tensor h = blocks > 0 ? features->forward(x) : x;
+  torch::Tensor h = x;
+  for (int b = 0; b < blocks; ++b) h = norms[b]->forward(convPool3(h, convs[b]->weight, convs[b]->bias));
   return toLatent->forward(h.flatten(1));
 }
 

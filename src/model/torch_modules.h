@@ -8,24 +8,17 @@
 
 namespace nbtf::detail {
 
-// MaxPool1d(kernel 3, stride 3) over [batch, channels, length]: the same values and the
-// same gradient routing (first maximum of a window wins) as torch::nn::MaxPool1d, but a
-// single pass each way. torch's generic pooling kernel made pooling the most expensive
-// part of the encoder.
-torch::Tensor maxPool3(const torch::Tensor& x);
-struct MaxPool3Impl : torch::nn::Module {
-  torch::Tensor forward(const torch::Tensor& x) { return maxPool3(x); }
-};
-TORCH_MODULE(MaxPool3);
-
 // N_blocks x [Conv1d(k3, s1, p1) -> MaxPool1d(k3, s3) -> BatchNorm1d], then a linear map
 // of the flattened features to the latent. Input [batch, 3, N] (RGB channels x images).
+// The Conv1d modules hold the parameters (torch's initialization); conv + pool run fused
+// (conv_pool.h).
 struct EncoderImpl : torch::nn::Module {
   EncoderImpl(int imageCount, const ModelConfig& model);
   torch::Tensor forward(const torch::Tensor& x);
 
   int blocks = 0;
-  torch::nn::Sequential features{nullptr};
+  std::vector<torch::nn::Conv1d> convs;
+  std::vector<torch::nn::BatchNorm1d> norms;
   torch::nn::Linear toLatent{nullptr};
 };
 TORCH_MODULE(Encoder);

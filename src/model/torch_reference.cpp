@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <ctime>
+#include <tuple>
 
+#include "model/conv_pool.h"
 #include "model/decoder_backprop.h"
 #include "model/torch_modules.h"
 
@@ -55,17 +57,29 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
   return err;
 }
 
-double maxPoolReferenceError(std::uint64_t seed, int batch, int channels, int length) {
+double convPoolReferenceError(std::uint64_t seed, int batch, int inChannels, int outChannels, int length) {
   torch::manual_seed(seed);
-  // Rounded values make ties common, so the tie rule is checked too.
-  torch::Tensor x = (torch::randn({batch, channels, length}) * 2).round();
-  torch::Tensor g = torch::randn({batch, channels, length / 3});
+  namespace nn = torch::nn;
+  nn::Conv1d conv(nn::Conv1dOptions(inChannels, outChannels, 3).stride(1).padding(1));
+  {
+    torch::NoGradGuard noGrad;
+    conv->weight.copy_(torch::randint(-2, 3, conv->weight.sizes()));
+    conv->bias.copy_(torch::randint(-2, 3, conv->bias.sizes()));
+  }
+  torch::Tensor x = torch::randint(-3, 4, {batch, inChannels, length}, torch::kFloat);
+  torch::Tensor g = torch::randint(-3, 4, {batch, outChannels, length / 3}, torch::kFloat);
   torch::Tensor a = x.clone().requires_grad_(true), b = x.clone().requires_grad_(true);
-  torch::Tensor ya = detail::maxPool3(a);
-  torch::Tensor yb = torch::nn::MaxPool1d(torch::nn::MaxPool1dOptions(3).stride(3))->forward(b);
-  ya.backward(g);
-  yb.backward(g);
-  return std::max((ya - yb).abs().max().item<double>(), (a.grad() - b.grad()).abs().max().item<double>());
+  torch::Tensor ya = detail::convPool3(a, conv->weight, conv->bias);
+  auto [gxa, gwa, gba] = [&] {
+    auto grads = torch::autograd::grad({ya}, {a, conv->weight, conv->bias}, {g});
+    return std::make_tuple(grads[0], grads[1], grads[2]);
+  }();
+  torch::Tensor yb = nn::MaxPool1d(nn::MaxPool1dOptions(3).stride(3))->forward(conv->forward(b));
+  auto grads = torch::autograd::grad({yb}, {b, conv->weight, conv->bias}, {g});
+  double err = (ya - yb).abs().max().item<double>();
+  err = std::max(err, (gxa - grads[0]).abs().max().item<double>());
+  err = std::max(err, (gwa - grads[1]).abs().max().item<double>());
+  return std::max(err, (gba - grads[2]).abs().max().item<double>());
 }
 
 DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads) {

@@ -21,10 +21,11 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
 // parameter gradients and the latent gradient, relative to the largest gradient magnitude.
 double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile);
 
-// nbtf's stride-3 max pooling against torch::nn::MaxPool1d(3, stride 3) on random input
-// [batch, channels, length] with some tied values: the largest difference of outputs and
-// of input gradients (0 when they agree exactly).
-double maxPoolReferenceError(std::uint64_t seed, int batch, int channels, int length);
+// The encoder's fused conv + pool (conv_pool.h) against torch::nn::Conv1d(k3, s1, p1) then
+// MaxPool1d(3, stride 3), on small-integer inputs, weights and output gradients (so both
+// compute exactly and ties are common): the largest difference of outputs and of the input,
+// weight and bias gradients (0 when they agree exactly).
+double convPoolReferenceError(std::uint64_t seed, int batch, int inChannels, int outChannels, int length);
 
 // The decoder's hand-written training pass alone (forward, loss, backward; no encoder, no
 // optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads.

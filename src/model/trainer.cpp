@@ -48,6 +48,31 @@ torch::Tensor gatherEncoderInputs(const MatrixXfCol& x, const int* rows, std::in
   return out;
 }
 
+// The encoder inputs of a training step. X is column-major, so a step's few rows are
+// scattered over all 3N columns (a cache miss per value); when X is small enough (always in
+// the clustered mode: k representatives) a row-major [rows, 3, N] copy is made once and a
+// step's inputs are whole-row copies.
+class EncoderInputSource {
+ public:
+  explicit EncoderInputSource(const MatrixXfCol& x) : x_(x) {
+    constexpr std::int64_t kMaxCopyFloats = std::int64_t{64} << 20;  // 256 MB
+    if (x.size() > kMaxCopyFloats) return;
+    std::vector<int> all(static_cast<std::size_t>(x.rows()));
+    for (std::size_t r = 0; r < all.size(); ++r) all[r] = static_cast<int>(r);
+    planar_ = gatherEncoderInputs(x, all.data(), x.rows());
+  }
+  torch::Tensor rows(const int* rows, std::int64_t count) const {
+    if (!planar_.defined()) return gatherEncoderInputs(x_, rows, count);
+    torch::Tensor index = torch::empty({count}, torch::kLong);
+    for (std::int64_t j = 0; j < count; ++j) index.data_ptr<std::int64_t>()[j] = rows[j];
+    return planar_.index_select(0, index);
+  }
+
+ private:
+  const MatrixXfCol& x_;
+  torch::Tensor planar_;
+};
+
 // Latents of every encoder input in eval mode (BatchNorm running statistics), in chunks
 // so the first conv block's activations stay small.
 torch::Tensor encodeAll(Encoder& encoder, const MatrixXfCol& x) {
@@ -119,6 +144,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
 
   TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress);
   const MatrixXfCol& x = *inputs.encoderInputs;
+  const EncoderInputSource inputSource(x);
   const int latentDim = config.model.latentDim;
 
   // ---- Model and optimizer, initialized from the seed.
@@ -239,7 +265,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     TrainResult::Profile& prof = result.profile;
     lap(prof.sampling);
     if (!polish) {
-      torch::Tensor in = gatherEncoderInputs(x, plan.distinctGroups.data(),
+      torch::Tensor in = inputSource.rows(plan.distinctGroups.data(),
                                              static_cast<std::int64_t>(plan.distinctGroups.size()));
       for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
       torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
