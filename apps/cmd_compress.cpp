@@ -1,5 +1,6 @@
 // nbtf compress <input> -o <out.nbtf>: the whole pipeline (load, preprocess, PCA,
-// k-means++, train, write) with a summary table at the end.
+// k-means++, train, write) with a summary table at the end; --method pca: the classic PCA
+// baseline instead (load, PCA, write).
 #include <signal.h>
 #include <unistd.h>
 
@@ -75,6 +76,33 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
   return c;
 }
 
+// --method: "clustered" (default; k from --clusters), "per-texel" (= --clusters 0) or "pca".
+// Options that only mean something to another method are errors, not silently ignored.
+void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
+  const std::string method = args["method"].as<std::string>();
+  if (method == "pca") {
+    for (const char* neural : {"clusters", "config", "epochs", "time-budget", "resume", "save-encoder"})
+      if (args.count(neural))
+        throw Error(std::string("--") + neural + " applies to the neural methods only, not to --method pca");
+    if (!args.count("components"))
+      throw Error("--method pca needs --components C (the number of principal components kept, >= 1)");
+    o.pcaBaseline = true;
+    if (o.pcaComponents < 1)
+      throw Error("--components must be >= 1 with --method pca (the number of principal components kept), got " +
+                  std::to_string(o.pcaComponents));
+  } else if (method == "per-texel") {
+    if (args.count("clusters") && o.clusters != 0)
+      throw Error("--method per-texel has one latent per texel; it takes no --clusters (got " +
+                  std::to_string(o.clusters) + ")");
+    o.clusters = 0;
+  } else if (method == "clustered") {
+    if (args.count("method") && o.clusters == 0)
+      throw Error("--method clustered needs --clusters k >= 1 (for one latent per texel use --method per-texel)");
+  } else {
+    throw Error("unknown --method '" + method + "' (expected clustered, per-texel or pca)");
+  }
+}
+
 }  // namespace
 
 int compressMain(int argc, char** argv) {
@@ -83,6 +111,10 @@ int compressMain(int argc, char** argv) {
     options.positional_help("<input> -o <out.nbtf>");
     options.add_options()("input", "BTF stack folder (UBO2003 or UTIA layout)", cxxopts::value<std::string>())(
         "o,output", "Output .nbtf file", cxxopts::value<std::string>())(
+        "method",
+        "clustered (the paper's clustered neural BTF), per-texel (neural, one latent per texel; = --clusters 0) or "
+        "pca (the classic PCA baseline: --components C principal components, no training)",
+        cxxopts::value<std::string>()->default_value("clustered"))(
         "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
         cxxopts::value<int>()->default_value("500"))(
         "config", "Training config JSON (default: built-in, identical to configs/default.json)",
@@ -95,7 +127,8 @@ int compressMain(int argc, char** argv) {
         "stats-json", "Also write the summary as JSON to this file", cxxopts::value<std::string>())(
         "save-encoder", "Also write this .nbtf file with the encoder inside (for fine-tuning)",
         cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
-        "components", "PCA components before k-means (default 32, capped by the data)",
+        "components",
+        "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
         cxxopts::value<int>()->default_value("0"))("q,quiet", "No progress bars");
     addCommonOptions(options);
     options.parse_positional({"input"});
@@ -115,6 +148,7 @@ int compressMain(int argc, char** argv) {
     if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
     o.pcaComponents = args["components"].as<int>();
     if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
+    applyMethod(args, o);
     if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
     if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();

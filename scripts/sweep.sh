@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Rate-distortion sweep of one material: compresses it with the PCA baseline at several
-# component counts (when this build has `nbtf compress --method pca`), the per-texel neural
-# BTF and the clustered neural BTF at several k, evaluates each against the reference with
+# component counts (`nbtf compress --method pca`), the per-texel neural BTF and the
+# clustered neural BTF at several k, evaluates each against the reference with
 # `nbtf eval`, and writes the paper-style table (sweep.md) and a rate-distortion plot
 # (rd_<material>.png, gnuplot) into the output folder.
 #
@@ -11,9 +11,11 @@
 #   --pca "LIST"      PCA component counts (default: "4 8 16 32")
 #   --no-per-texel    skip the per-texel neural BTF
 #   --crop X,Y,W,H    crop (default: whole images; the paper used 100 x 100)
-#   --holdout F       fraction of images kept out of training (interpolation error)
-#   --epochs N | --time-budget S | --config FILE | --seed N | --threads N
-#                     passed to every `nbtf compress`
+#   --holdout F       fraction of images kept out of training / the PCA fit (interpolation error)
+#   --seed N | --threads N | --layout L     passed to every `nbtf compress`
+#   --epochs N | --time-budget S | --config FILE
+#                     passed to the neural runs only (PCA has no training)
+#   -- OPTIONS        extra `nbtf compress` options for the neural runs
 # Several materials: run once per material, then combine the reports:
 #   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json && (cd all && gnuplot rd_*.gp)
 set -euo pipefail
@@ -29,15 +31,17 @@ out="sweep_$material"
 ks="500 1000 2000"
 pcas="4 8 16 32"
 per_texel=1
-common=()
+common=()   # every run
+neural=()   # neural runs only
 while [[ $# -gt 0 ]]; do
   case "$1" in
     -o) out=$2; shift;;
     --k) ks=$2; shift;;
     --pca) pcas=$2; shift;;
     --no-per-texel) per_texel=0;;
-    --crop|--holdout|--epochs|--time-budget|--config|--seed|--threads|--layout) common+=("$1" "$2"); shift;;
-    --) shift; common+=("$@"); break;;
+    --crop|--holdout|--seed|--threads|--layout) common+=("$1" "$2"); shift;;
+    --epochs|--time-budget|--config) neural+=("$1" "$2"); shift;;
+    --) shift; neural+=("$@"); break;;
     *) die "unknown option '$1' (see the header of $0)";;
   esac
   shift
@@ -56,18 +60,21 @@ has_pca=0
 grep -q -- "--method" <<<"$compress_help" && grep -qi "pca" <<<"$compress_help" && has_pca=1
 
 mkdir -p "$out"
-runs=()    # label|compress options
+runs=()    # label|kind|compress options
 if [[ $has_pca -eq 1 ]]; then
-  for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
+  for c in $pcas; do runs+=("pca_$c|pca|--method pca --components $c"); done
 fi
-[[ $per_texel -eq 1 ]] && runs+=("per_texel|--clusters 0")
-for k in $ks; do runs+=("k$k|--clusters $k"); done
+[[ $per_texel -eq 1 ]] && runs+=("per_texel|neural|--method per-texel")
+for k in $ks; do runs+=("k$k|neural|--clusters $k"); done
 
 # ---- Compress and evaluate each setting (a finished report is kept: re-running resumes).
 reports=()
 for run in "${runs[@]}"; do
   label=${run%%|*}
-  read -r -a opts <<<"${run#*|}"
+  rest=${run#*|}
+  kind=${rest%%|*}
+  read -r -a opts <<<"${rest#*|}"
+  [[ $kind == neural ]] && opts+=(${neural[@]+"${neural[@]}"})
   file="$out/$label.nbtf"
   report="$out/$label/report.json"
   if [[ ! -f "$report" ]]; then

@@ -151,6 +151,59 @@ TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
   EXPECT_EQ(readFileBytes(again), readFileBytes(out));
 }
 
+TEST_F(CmdCompress, PcaMethodOptionsAreChecked) {
+  std::string stack = writeStack();  // 8 x 8 texels, 81 images
+  std::string out = path("p.nbtf");
+  struct Case {
+    std::string options, message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--method pca", "--method pca needs --components C"},
+           {"--method pca --components 0", "--components must be >= 1 with --method pca"},
+           {"--method pca --components 65", "--components 65 is more than the PCA baseline allows here: at most 64"},
+           {"--method pca --components 4 --epochs 3", "--epochs applies to the neural methods only"},
+           {"--method pca --components 4 --clusters 8", "--clusters applies to the neural methods only"},
+           {"--method pca --components 4 --save-encoder " + path("e.nbtf"), "--save-encoder applies to the neural"},
+           {"--method per-texel --clusters 5", "--method per-texel has one latent per texel"},
+           {"--method clustered --clusters 0", "--method clustered needs --clusters k >= 1"},
+           {"--method svd", "unknown --method 'svd' (expected clustered, per-texel or pca)"}}) {
+    RunResult r = run("compress " + stack + " -o " + out + " -q " + c.options);
+    EXPECT_EQ(r.exitCode, 1) << c.options << ": " << r.output;
+    EXPECT_TRUE(contains(r.output, c.message)) << c.options << ": " << r.output;
+    EXPECT_FALSE(fs::exists(out)) << c.options;
+  }
+}
+
+TEST_F(CmdCompress, PcaCompressThenInfoEndToEnd) {
+  std::string stack = writeStack();
+  std::string out = path("p.nbtf"), stats = path("p.json");
+  RunResult r = run("compress " + stack + " -o " + out + " --method pca --components 4 --holdout 0.1 --seed 2 " +
+                    "--stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "summary: " + out + " (pca, C = 4 components)")) << r.output;
+  EXPECT_TRUE(contains(r.output, "held-out images")) << r.output;
+  EXPECT_FALSE(fs::exists(out + ".ckpt"));
+  CompressedBtf b = readNbtf(out);
+  EXPECT_EQ(b.method, CodecMethod::Pca);
+  EXPECT_EQ(b.pcaComponents(), 4);
+  EXPECT_EQ(b.holdoutImages.size(), 8u);
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), fs::file_size(out));
+  EXPECT_EQ(j["bytes"]["pca_coefficients"].get<std::uint64_t>(), 64u * 4 * 4);
+  EXPECT_GT(j["rmse_holdout"].get<double>(), 0);
+
+  RunResult info = run("info " + out);
+  EXPECT_EQ(info.exitCode, 0) << info.output;
+  for (const char* part : {"format 1.1", "pca (classic baseline), C = 4 components", "coefficients   64 texels x 4",
+                           "mean", "basis", "raw float32", "ratio", "kept out of the PCA fit"})
+    EXPECT_TRUE(contains(info.output, part)) << part << "\n" << info.output;
+
+  // The default method is unchanged: --clusters 0 is still the per-texel neural method.
+  RunResult perTexel = run("compress " + stack + " -o " + path("t.nbtf") + " --clusters 0 --epochs 1 -q");
+  ASSERT_EQ(perTexel.exitCode, 0) << perTexel.output;
+  EXPECT_EQ(readNbtf(path("t.nbtf")).method, CodecMethod::PerTexelNeural);
+}
+
 TEST_F(CmdCompress, SigintCheckpointsAndWritesNothing) {
   std::string stack = writeStack();
   // A run far too long to finish, checkpointing every 0.2 s so its checkpoint shows that

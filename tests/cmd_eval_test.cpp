@@ -87,6 +87,43 @@ TEST_F(CmdEval, WritesAReportWhoseRmseIsTheDirectComputation) {
   EXPECT_EQ(j["compressed"].get<std::string>(), file);
 }
 
+TEST_F(CmdEval, PcaFileGivesAReportWithItsSizeParts) {
+  CompressedBtf pca = testing::makePcaBtf(3, 4, 3);  // the fixture's geometry, crop and directions
+  std::string pcaFile = tmp / "p.nbtf";
+  writeNbtf(pcaFile, pca);
+  CommandRun r = runNbtf("eval '" + pcaFile + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "pout") + "' -q",
+                         tmp / "log");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream in(tmp / "pout/report.json");
+  nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["method"], "PCA, C = 3");
+  EXPECT_EQ(j["method_family"], "pca");
+  EXPECT_EQ(j["method_parameter"], 3);
+  for (const char* key : {"pca_mean", "pca_basis", "pca_coefficients", "total", "raw_float32", "file"})
+    EXPECT_TRUE(j["bytes"].contains(key)) << key;
+  EXPECT_EQ(j["bytes"]["pca_basis"].get<std::uint64_t>(), 6u * 3 * 3 * 4);
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), std::filesystem::file_size(pcaFile));
+  // The RMSE is that of mean + coefficients x basis against the reference.
+  LoadOptions load;
+  load.crop = pca.crop;
+  load.progress = false;
+  BtfStack ref = loadBtfStack(tmp / "ref", load);
+  double sse = 0;
+  for (int i = 0; i < ref.numImages(); ++i)
+    for (int t = 0; t < ref.numTexels(); ++t)
+      for (int c = 0; c < 3; ++c) sse += std::pow(testing::pcaValue(pca, t, i, c) - ref.sample(i, t, c) / pca.alpha, 2);
+  EXPECT_NEAR(j["rmse"].get<double>(), std::sqrt(sse / (3.0 * ref.numTexels() * ref.numImages())), 1e-6);
+  std::ifstream md(tmp / "pout/report.md");
+  std::stringstream text;
+  text << md.rdbuf();
+  EXPECT_NE(text.str().find("PCA basis"), std::string::npos);
+  EXPECT_NE(text.str().find("PCA coefficients"), std::string::npos);
+  // A sweep reads it as a point of the PCA curve.
+  CommandRun s = runNbtf("eval --summarize -o '" + (tmp / "sweep") + "' '" + (tmp / "pout/report.json") + "'", tmp / "log2");
+  ASSERT_EQ(s.code, 0) << s.output;
+  EXPECT_TRUE(std::filesystem::exists(tmp / "sweep/rd_ref_pca.dat")) << s.output;
+}
+
 TEST_F(CmdEval, RejectsAReferenceWithOtherDirections) {
   auto views = btf.views;
   views[1] = {30, 60};

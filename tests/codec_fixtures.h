@@ -62,6 +62,34 @@ inline CompressedBtf makeBtf(int k, int width = 4, int height = 3, int latentDim
   return b;
 }
 
+// A small valid PCA-baseline material with the geometry of makeBtf: C components, random
+// mean, basis and coefficients, two hold-out images.
+inline CompressedBtf makePcaBtf(int components = 3, int width = 4, int height = 3, unsigned seed = 11) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  CompressedBtf b = makeBtf(0, width, height, 8, seed);
+  b.method = CodecMethod::Pca;
+  b.decoder = Mlp{};
+  b.latentDim = components;
+  b.latentRows = width * height;
+  b.latents.resize(static_cast<std::size_t>(b.latentRows) * components);
+  for (float& c : b.latents) c = normal(rng);
+  b.pcaMean.resize(3 * static_cast<std::size_t>(b.numImages()));
+  for (float& m : b.pcaMean) m = 0.5f + 0.1f * normal(rng);
+  b.pcaBasis.resize(b.pcaMean.size() * components);
+  for (float& x : b.pcaBasis) x = 0.2f * normal(rng);
+  b.metadataJson = R"({"seed": 1, "pca": {"components": 3}})";
+  return b;
+}
+
+// The value the PCA baseline defines at a measured image (in double, normalized).
+inline double pcaValue(const CompressedBtf& b, int texel, int image, int channel) {
+  const std::size_t c = static_cast<std::size_t>(b.latentDim), row = 3 * static_cast<std::size_t>(image) + channel;
+  double v = b.pcaMean[row];
+  for (std::size_t k = 0; k < c; ++k) v += double(b.latents[texel * c + k]) * b.pcaBasis[row * c + k];
+  return v;
+}
+
 // Writes the model tests' 8 x 8-texel, 9 x 9-direction synthetic material to `root` as a
 // UTIA stack of float EXRs (exact values), for tests that go through the loader.
 inline std::string writeTestStack(const std::string& root) {

@@ -119,6 +119,34 @@ TEST(CompressedSourceCheck, EvaluationAgreesWithTheCompressorsOwnRmse) {
   EXPECT_NEAR(r.holdout.rmse, stats.rmseHoldout, 1e-4);
 }
 
+TEST(CompressedSourceCheck, PcaFileEvaluatesLikeTheCompressorMeasuredIt) {
+  Progress::setQuiet(true);
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o;
+  o.pcaBaseline = true;
+  o.pcaComponents = 2;
+  o.train.holdoutFraction = 0.2;
+  o.progress = false;
+  CompressStats stats;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  CompressedReconstruction rec(b);
+  EXPECT_EQ(rec.evaluationsPerImage(), 64);
+  EvalOptions eo;
+  eo.progress = false;
+  eo.blurSampleImages = 2;
+  EvalInputs in = compressedEvalInputs(b, m.stack, rec, "p.nbtf", "material", 0);
+  EXPECT_EQ(in.method, "PCA, C = 2");
+  EXPECT_EQ(in.methodFamily, "pca");
+  EXPECT_EQ(in.methodParameter, 2);
+  EXPECT_TRUE(in.sizes.pca);
+  EXPECT_EQ(in.sizes.total, stats.sizes.total);
+  EXPECT_EQ(in.sizes.pcaBasis, 81u * 3 * 2 * 4);
+  EvalResult r = evaluate(in, eo);
+  ASSERT_TRUE(r.hasHoldout());
+  EXPECT_NEAR(r.training.rmse, stats.rmseTrain, 1e-6);
+  EXPECT_NEAR(r.holdout.rmse, stats.rmseHoldout, 1e-6);
+}
+
 TEST(CompressedSourceCheck, RejectsADecoderOfTheWrongShape) {
   CompressedBtf b = testing::makeBtf(3, 4, 3);
   b.decoder.layers.back().out = 4;

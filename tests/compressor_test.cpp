@@ -174,6 +174,49 @@ TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
   EXPECT_TRUE(contains(summary, "ratio")) << summary;
 }
 
+TEST(Compressor, PcaBaselineFillsTheSameStatsAndJson) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o;
+  o.pcaBaseline = true;
+  o.pcaComponents = 3;
+  o.train.holdoutFraction = 0.1;
+  o.progress = false;
+  CompressStats stats;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  EXPECT_EQ(b.method, CodecMethod::Pca);
+  EXPECT_EQ(stats.method, CodecMethod::Pca);
+  EXPECT_EQ(stats.pcaComponents, 3);
+  EXPECT_GT(stats.rmseTrain, 0);
+  EXPECT_GT(stats.rmseHoldout, 0);
+  EXPECT_EQ(stats.holdoutImages, 8);
+  nlohmann::json j = nlohmann::json::parse(compressStatsJson(stats));
+  EXPECT_EQ(j["method"], "pca");
+  EXPECT_EQ(j["pca_components"], 3);
+  for (const char* key : {"rmse_train", "rmse_holdout", "ratio", "bytes", "seconds"}) EXPECT_TRUE(j.contains(key)) << key;
+  for (const char* key : {"pca_mean", "pca_basis", "pca_coefficients", "total", "raw_float32", "file"})
+    EXPECT_TRUE(j["bytes"].contains(key)) << key;
+  EXPECT_FALSE(j["bytes"].contains("decoder"));
+  EXPECT_EQ(j["bytes"]["pca_basis"].get<std::uint64_t>(), 81u * 3 * 3 * 4);
+  EXPECT_EQ(j["bytes"]["pca_coefficients"].get<std::uint64_t>(), 64u * 3 * 4);
+  EXPECT_EQ(j["bytes"]["total"].get<std::uint64_t>(), stats.sizes.total);
+  EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), stats.sizes.ratio);
+  EXPECT_GT(j["seconds"]["pca"].get<double>(), 0);
+  EXPECT_DOUBLE_EQ(j["rmse_train"].get<double>(), stats.rmseTrain);
+  // mean + coefficients x basis, computed here independently, gives the RMSE the compressor
+  // reports (pooled over fitted and held-out images).
+  double sse = 0;
+  for (int i = 0; i < 81; ++i)
+    for (int t = 0; t < 64; ++t)
+      for (int c = 0; c < 3; ++c) sse += std::pow(testing::pcaValue(b, t, i, c) - m.stack.sample(i, t, c) / b.alpha, 2);
+  double all = std::sqrt((stats.rmseTrain * stats.rmseTrain * 73 + stats.rmseHoldout * stats.rmseHoldout * 8) / 81);
+  EXPECT_NEAR(std::sqrt(sse / (81 * 64 * 3)), all, 1e-5);
+  std::string summary = formatCompressSummary(stats);
+  for (const char* part : {"(pca, C = 3 components)", "fitted images", "held-out images", "coefficients",
+                           "3 components explain", "pca (fit, coefficients, RMSE)"})
+    EXPECT_TRUE(contains(summary, part)) << part << "\n" << summary;
+  EXPECT_FALSE(contains(summary, "epochs")) << summary;
+}
+
 TEST(Compressor, UnwritableOutputFailsBeforeLoading) {
   // The input does not exist either: the error about the output proves it came first.
   try {

@@ -8,8 +8,11 @@
 #include <cmath>
 #include <random>
 
+#include "codec/pca_model.h"
+#include "codec_fixtures.h"
 #include "decoder_fixtures.h"
 #include "test_util.h"
+#include "util/error.h"
 #include "util/parallel.h"
 
 namespace nbtf {
@@ -347,6 +350,94 @@ TEST(Decoder, FlopsCountEveryLayer) {
   NbtfDecoder dec(makeDecoderMaterial(5, {106, 106, 106}));
   // The paper's decoder shape: 12 -> 106 -> 106 -> 106 -> 3.
   EXPECT_EQ(dec.flopsPerEvaluation(), 2.0 * (12 * 106 + 106 * 106 * 2 + 106 * 3));
+}
+
+// ---- PCA baseline files, through the same API
+
+// A PCA material on the 81-direction hemisphere (9 lights x 9 views), C = 5.
+CompressedBtf pcaMaterial() {
+  CompressedBtf b = testing::makePcaBtf(5, 4, 3);
+  const auto& h = hemisphere81();
+  b.lights.clear();
+  b.views.clear();
+  for (int i : {0, 1, 2, 7, 8, 19, 20, 37, 38}) b.lights.push_back(h[i]), b.views.push_back(h[i]);
+  std::mt19937 rng(5);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  b.pcaMean.resize(3 * static_cast<std::size_t>(b.numImages()));
+  for (float& m : b.pcaMean) m = 0.5f + 0.1f * normal(rng);
+  b.pcaBasis.resize(b.pcaMean.size() * 5);
+  for (float& x : b.pcaBasis) x = 0.2f * normal(rng);
+  b.holdoutImages = {3, 40};
+  return b;
+}
+
+TEST(Decoder, PcaReproducesMeanPlusCoefficientsTimesBasisAtMeasuredPairs) {
+  const CompressedBtf b = pcaMaterial();
+  NbtfDecoder dec(b);
+  EXPECT_TRUE(dec.pca());
+  EXPECT_FALSE(dec.clustered());
+  EXPECT_EQ(dec.latentRows(), 12);
+  EXPECT_DOUBLE_EQ(dec.flopsPerEvaluation(), 6.0 * 5);
+  const int nv = static_cast<int>(b.views.size());
+  std::vector<float> image(3 * 12), normalized(3 * 12);
+  for (int img = 0; img < b.numImages(); ++img) {
+    const Direction& l = b.lights[img / nv];
+    const Direction& v = b.views[img % nv];
+    dec.decodeImage(l, v, image.data());
+    dec.decodeImage(l, v, normalized.data(), OutputScale::Normalized);
+    for (int t = 0; t < 12; ++t)
+      for (int c = 0; c < 3; ++c) {
+        const double expected = testing::pcaValue(b, t, img, c);
+        ASSERT_NEAR(normalized[3 * t + c], expected, 1e-5) << "image " << img << " texel " << t;
+        ASSERT_EQ(image[3 * t + c], normalized[3 * t + c] * b.alpha);
+      }
+    // Single queries, batches and texture coordinates give the same bits as the image.
+    Rgb one = dec.evaluate(3, 2, l, v, OutputScale::Normalized);
+    EXPECT_EQ(one.r, normalized[3 * 11 + 0]);
+    EXPECT_EQ(one.b, normalized[3 * 11 + 2]);
+    Rgb uv = dec.evaluateUv(0.3f, 0.1f, l, v, OutputScale::Normalized);  // texel (1, 0)
+    EXPECT_EQ(uv.g, normalized[3 * 1 + 1]);
+  }
+  std::vector<TexelQuery> queries;
+  for (int i = 0; i < 5000; ++i) queries.push_back({i % 4, (i / 4) % 3, b.lights[i % 9], b.views[(i / 7) % 9]});
+  std::vector<float> batch(3 * queries.size());
+  dec.evaluate(queries.data(), queries.size(), batch.data());
+  for (std::size_t i = 0; i < queries.size(); i += 97) {
+    Rgb one = dec.evaluate(queries[i].x, queries[i].y, queries[i].light, queries[i].view);
+    ASSERT_EQ(batch[3 * i], one.r) << i;
+    ASSERT_EQ(batch[3 * i + 2], one.b) << i;
+  }
+}
+
+TEST(Decoder, PcaUnmeasuredPairIsTheWeightedBlendOfItsNeighbours) {
+  const CompressedBtf b = pcaMaterial();
+  NbtfDecoder dec(b);
+  const int nv = static_cast<int>(b.views.size());
+  DirectionInterpolator interp(b.lights, b.views);
+  const Direction light{15, 30}, view{37.5, 25};  // neither measured
+  auto weights = interp.weights(light, view);
+  ASSERT_GE(weights.size(), 2u);
+  std::vector<float> image(3 * 12);
+  dec.decodeImage(light, view, image.data(), OutputScale::Normalized);
+  for (int t = 0; t < 12; ++t)
+    for (int c = 0; c < 3; ++c) {
+      // PCA is linear: blending mean and basis rows blends the neighbours' values.
+      double blend = 0, lo = 1e30, hi = -1e30;
+      for (const ImageWeight& w : weights) {
+        double value = testing::pcaValue(b, t, w.image, c);
+        blend += w.weight * value;
+        lo = std::min(lo, value), hi = std::max(hi, value);
+      }
+      EXPECT_NEAR(image[3 * t + c], blend, 1e-5) << t << " " << c;
+      EXPECT_GE(image[3 * t + c], lo - 1e-5);
+      EXPECT_LE(image[3 * t + c], hi + 1e-5);
+    }
+  // The blend uses measured neighbours of both directions, nearest first.
+  EXPECT_EQ(weights[0].image / nv, 1);  // light (15, 0) or (15, 60): equidistant, lowest index first
+  EXPECT_TRUE(weights[1].image / nv == 2 || weights[1].image / nv == 1);
+  // Bad input is checked as for the neural methods.
+  EXPECT_THROW(dec.evaluate(4, 0, light, view), Error);
+  EXPECT_THROW(dec.evaluate(0, 0, Direction{95, 0}, view), Error);
 }
 
 }  // namespace

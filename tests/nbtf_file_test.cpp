@@ -18,6 +18,13 @@ namespace {
 namespace fs = std::filesystem;
 using testing::makeBtf;
 using testing::makeDecoder;
+using testing::makePcaBtf;
+
+// The files every damage test runs on: clustered neural and the PCA baseline (whose
+// sections have their own size fields and checks).
+std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
+  return {{"clustered", serializeNbtf(makeBtf(5))}, {"pca", serializeNbtf(makePcaBtf())}};
+}
 
 std::string errorOf(const std::vector<std::uint8_t>& bytes, std::size_t size = SIZE_MAX,
                     NbtfParseOptions options = {}) {
@@ -137,6 +144,125 @@ TEST(NbtfFile, PerTexelRoundTripThroughDisk) {
   fs::remove_all(dir);
 }
 
+TEST(NbtfFile, PcaRoundTripIsBitExact) {
+  CompressedBtf b = makePcaBtf(3);
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  EXPECT_EQ(back.method, CodecMethod::Pca);
+  EXPECT_TRUE(back.isPca());
+  EXPECT_EQ(back.pcaComponents(), 3);
+  EXPECT_EQ(back.latentRows, 12);
+  EXPECT_EQ(back.pcaMean, b.pcaMean);
+  EXPECT_EQ(back.pcaBasis, b.pcaBasis);
+  EXPECT_EQ(back.latents, b.latents);  // the coefficients
+  EXPECT_TRUE(back.decoder.layers.empty());
+  EXPECT_TRUE(back.ids.empty());
+  EXPECT_EQ(back.holdoutImages, b.holdoutImages);
+  EXPECT_EQ(back.crop, b.crop);
+  EXPECT_EQ(back.lights, b.lights);
+  EXPECT_EQ(back.views, b.views);
+  // The PCA sections are there, the neural ones are not; PCA files say format 1.1, neural
+  // files keep 1.0 (their bytes did not change).
+  for (const char* tag : {"PCAM", "PCAB", "PCAC"}) EXPECT_NE(findSection(bytes, tag), 0u) << tag;
+  for (const char* tag : {"DECD", "LATN", "TXID"}) EXPECT_EQ(findSection(bytes, tag), 0u) << tag;
+  EXPECT_EQ(back.formatMajor, 1);
+  EXPECT_EQ(back.formatMinor, 1);
+  std::vector<std::uint8_t> neural = serializeNbtf(makeBtf(5));
+  EXPECT_EQ(parseNbtf(neural.data(), neural.size(), "mem").formatMinor, 0);
+  // Sizes: mean 6 images x 3 x 4, basis x 3 components, coefficients 12 texels x 3 x 4.
+  NbtfSizes s = computeSizes(back);
+  EXPECT_TRUE(s.pca);
+  EXPECT_EQ(s.pcaMean, 6u * 3 * 4);
+  EXPECT_EQ(s.pcaBasis, 6u * 3 * 3 * 4);
+  EXPECT_EQ(s.pcaCoefficients, 12u * 3 * 4);
+  EXPECT_EQ(s.total, s.pcaMean + s.pcaBasis + s.pcaCoefficients);
+  EXPECT_EQ(s.decoder + s.latents + s.ids, 0u);
+  EXPECT_EQ(s.rawFloat32, 12u * 6 * 3 * 4);
+  EXPECT_DOUBLE_EQ(s.ratio, double(s.rawFloat32) / double(s.total));
+  std::string table = formatSizeTable(s);
+  for (const char* part : {"mean", "basis", "coefficients", "total", "raw float32", "ratio"})
+    EXPECT_TRUE(contains(table, part)) << part << "\n" << table;
+  EXPECT_FALSE(contains(table, "decoder")) << table;
+}
+
+TEST(NbtfFile, PcaContentIsCheckedByName) {
+  const std::vector<std::uint8_t> good = serializeNbtf(makePcaBtf(3));
+  // PCAB's component count disagreeing with INFO.
+  {
+    std::vector<std::uint8_t> b = good;
+    std::size_t at = findSection(b, "PCAB");
+    putU32(b, at + 24 + 4, 4);
+    resealSection(b, at);
+    EXPECT_TRUE(contains(errorOf(b), "section 'PCAB' (PCA basis)") && contains(errorOf(b), "4 components disagree"))
+        << errorOf(b);
+  }
+  // 4 billion basis rows, mean values, coefficient rows in a few bytes: refused before allocating.
+  for (const char* tag : {"PCAM", "PCAB", "PCAC"}) {
+    std::vector<std::uint8_t> b = good;
+    std::size_t at = findSection(b, tag);
+    putU32(b, at + 24, 0xFFFFFFFF);
+    resealSection(b, at);
+    std::string e = errorOf(b);
+    EXPECT_TRUE(contains(e, std::string("section '") + tag + "'") && contains(e, "the section holds")) << tag << ": " << e;
+  }
+  // A consistent lie: one image fewer in the mean than the directions say.
+  {
+    CompressedBtf p = makePcaBtf(3);
+    std::vector<std::uint8_t> b = good;
+    std::size_t at = findSection(b, "PCAM");
+    // Rebuild PCAM with 3 values fewer (payload shrinks by 12 bytes: count + floats).
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(p.pcaMean.size() - 3));
+    for (std::size_t i = 0; i + 3 < p.pcaMean.size(); ++i) w.f32(p.pcaMean[i]);
+    std::vector<std::uint8_t> rebuilt(b.begin(), b.begin() + static_cast<std::ptrdiff_t>(at));
+    std::uint64_t oldSize = 0;
+    for (int i = 0; i < 8; ++i) oldSize |= std::uint64_t(b[at + 8 + i]) << (8 * i);
+    std::size_t next = at + 24 + oldSize + (8 - oldSize % 8) % 8;
+    appendSection(rebuilt, "PCAM", 1, w.bytes());
+    rebuilt.insert(rebuilt.end(), b.begin() + static_cast<std::ptrdiff_t>(next), b.end());
+    resealHeader(rebuilt);
+    EXPECT_TRUE(contains(errorOf(rebuilt), "PCA mean holds 15 values, expected 3 x 6 images")) << errorOf(rebuilt);
+  }
+  // A NaN in the basis.
+  {
+    std::vector<std::uint8_t> b = good;
+    std::size_t at = findSection(b, "PCAB");
+    putU32(b, at + 24 + 8 + 4, 0x7FC00000);
+    resealSection(b, at);
+    EXPECT_TRUE(contains(errorOf(b), "PCA basis contains non-finite values")) << errorOf(b);
+  }
+  // A required PCA part missing, and a neural section in a PCA file.
+  {
+    std::vector<std::uint8_t> b = good;
+    std::size_t at = findSection(b, "PCAC");
+    b[at] = 'X';  // renamed: an unknown required section...
+    resealSection(b, at);
+    EXPECT_TRUE(contains(errorOf(b), "required section 'XCAC' is unknown")) << errorOf(b);
+    b[at + 4] = 0;  // ...made optional: skipped, so the coefficients are missing
+    resealSection(b, at);
+    EXPECT_TRUE(contains(errorOf(b), "missing section 'PCAC' (PCA coefficients) (required by the PCA method)"))
+        << errorOf(b);
+    std::vector<std::uint8_t> extra = good;
+    ByteWriter latents;  // well-formed latents of the right shape (12 rows x 3)
+    latents.u32(12);
+    latents.u32(3);
+    for (int i = 0; i < 36; ++i) latents.f32(0);
+    appendSection(extra, "LATN", 1, latents.bytes());
+    EXPECT_TRUE(contains(errorOf(extra), "section 'LATN' (latents) present, but the method is pca")) << errorOf(extra);
+  }
+  // More components than min(texels, 3 x images) allows: the writer refuses.
+  {
+    CompressedBtf p = makePcaBtf(13);  // 12 texels
+    EXPECT_THROW(serializeNbtf(p), Error);
+    try {
+      serializeNbtf(p);
+    } catch (const Error& e) {
+      EXPECT_TRUE(contains(e.what(), "13 PCA components, expected 1 to 12")) << e.what();
+    }
+  }
+}
+
 TEST(NbtfFile, SerializationIsDeterministic) {
   EXPECT_EQ(serializeNbtf(makeBtf(5)), serializeNbtf(makeBtf(5)));
   EXPECT_NE(serializeNbtf(makeBtf(5)), serializeNbtf(makeBtf(5, 4, 3, 8, 8)));
@@ -220,43 +346,47 @@ TEST(NbtfFile, SizesReproduceThePapersTable1) {
 // ---- Rejected files
 
 TEST(NbtfFile, EveryTruncationIsRejectedAsTruncated) {
-  std::vector<std::uint8_t> bytes = serializeNbtf(makeBtf(5));
-  for (std::size_t n = 0; n < bytes.size(); ++n) {
-    std::string e = errorOf(bytes, n);
-    ASSERT_TRUE(contains(e, "mat.nbtf: ") && contains(e, "truncated")) << "prefix " << n << ": " << e;
+  for (const auto& [kind, bytes] : damageTestFiles()) {
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      std::string e = errorOf(bytes, n);
+      ASSERT_TRUE(contains(e, "mat.nbtf: ") && contains(e, "truncated")) << kind << " prefix " << n << ": " << e;
+    }
+    EXPECT_EQ(errorOf(bytes), "") << kind;
   }
-  EXPECT_EQ(errorOf(bytes), "");
 }
 
 TEST(NbtfFile, TruncationIsCaughtStructurallyWithoutChecksums) {
   // The fuzzer's mode: with the declared size made to match and no CRCs, the section walk
   // itself must catch every cut, except one that removes whole optional trailing sections.
-  std::vector<std::uint8_t> bytes = serializeNbtf(makeBtf(5));
-  std::vector<std::size_t> boundaries;
-  for (const char* tag : {"HOLD", "META"}) boundaries.push_back(findSection(bytes, tag));
-  NbtfParseOptions noCrc;
-  noCrc.verifyChecksums = false;
-  for (std::size_t n = 32; n < bytes.size(); ++n) {
-    std::vector<std::uint8_t> cut(bytes.begin(), bytes.begin() + n);
-    resealHeader(cut);
-    bool isBoundary = std::find(boundaries.begin(), boundaries.end(), n) != boundaries.end();
-    ASSERT_EQ(errorOf(cut, SIZE_MAX, noCrc).empty(), isBoundary) << "prefix " << n << ": " << errorOf(cut, SIZE_MAX, noCrc);
+  for (const auto& [kind, bytes] : damageTestFiles()) {
+    std::vector<std::size_t> boundaries;
+    for (const char* tag : {"HOLD", "META"}) boundaries.push_back(findSection(bytes, tag));
+    NbtfParseOptions noCrc;
+    noCrc.verifyChecksums = false;
+    for (std::size_t n = 32; n < bytes.size(); ++n) {
+      std::vector<std::uint8_t> cut(bytes.begin(), bytes.begin() + n);
+      resealHeader(cut);
+      bool isBoundary = std::find(boundaries.begin(), boundaries.end(), n) != boundaries.end();
+      ASSERT_EQ(errorOf(cut, SIZE_MAX, noCrc).empty(), isBoundary)
+          << kind << " prefix " << n << ": " << errorOf(cut, SIZE_MAX, noCrc);
+    }
   }
 }
 
 TEST(NbtfFile, EveryFlippedByteIsRejected) {
-  std::vector<std::uint8_t> bytes = serializeNbtf(makeBtf(5));
-  for (std::size_t i = 0; i < bytes.size(); ++i) {
-    for (std::uint8_t mask : {0x01, 0x80}) {
-      std::vector<std::uint8_t> bad = bytes;
-      bad[i] ^= mask;
-      std::string e = errorOf(bad);
-      if (i < 8)
-        ASSERT_TRUE(contains(e, "not an .nbtf file")) << i << ": " << e;
-      else if (i < 32)
-        ASSERT_TRUE(contains(e, "header checksum mismatch")) << i << ": " << e;
-      else
-        ASSERT_TRUE(contains(e, "corrupted: checksum mismatch")) << i << ": " << e;
+  for (const auto& [kind, bytes] : damageTestFiles()) {
+    for (std::size_t i = 0; i < bytes.size(); ++i) {
+      for (std::uint8_t mask : {0x01, 0x80}) {
+        std::vector<std::uint8_t> bad = bytes;
+        bad[i] ^= mask;
+        std::string e = errorOf(bad);
+        if (i < 8)
+          ASSERT_TRUE(contains(e, "not an .nbtf file")) << kind << " " << i << ": " << e;
+        else if (i < 32)
+          ASSERT_TRUE(contains(e, "header checksum mismatch")) << kind << " " << i << ": " << e;
+        else
+          ASSERT_TRUE(contains(e, "corrupted: checksum mismatch")) << kind << " " << i << ": " << e;
+      }
     }
   }
 }
@@ -383,7 +513,7 @@ TEST(NbtfFile, InconsistentContentIsRejectedByName) {
     resealSection(b, at);
     EXPECT_TRUE(contains(errorOf(b), "light 0 direction theta = 120")) << errorOf(b);
   }
-  // The PCA method code (reserved for the baseline, not yet readable).
+  // A neural file relabelled as PCA: its decoder section does not belong to the method.
   {
     std::vector<std::uint8_t> b = good;
     std::size_t at = findSection(b, "INFO");
@@ -396,7 +526,7 @@ TEST(NbtfFile, InconsistentContentIsRejectedByName) {
 TEST(NbtfFile, RandomMutationsNeverCrash) {
   // A small in-suite fuzz pass (scripts/fuzz.sh runs the real one): every mutated file is
   // either read or rejected with an nbtf::Error; under ASan this also proves no bad access.
-  const std::vector<std::uint8_t> good = serializeNbtf(makeBtf(5));
+  for (const auto& [kind, good] : damageTestFiles()) {
   std::mt19937 rng(123);
   NbtfParseOptions noCrc;
   noCrc.verifyChecksums = false;
@@ -419,7 +549,8 @@ TEST(NbtfFile, RandomMutationsNeverCrash) {
     } catch (const Error&) {
     }
   }
-  EXPECT_LT(accepted, 3000);
+  EXPECT_LT(accepted, 3000) << kind;
+  }
 }
 
 TEST(NbtfFile, WriterRefusesInvalidContentAndLeavesNoFile) {

@@ -95,6 +95,26 @@ TEST(Sweep, WritesDataSortedByRatioAndAScriptGnuplotRuns) {
   EXPECT_EQ(png[1], 'P');
 }
 
+TEST(Sweep, PcaIsTheFirstCurveLabelledByComponents) {
+  test::TempDir tmp;
+  std::vector<SweepEntry> e = sample();
+  for (int c : {16, 4}) {
+    SweepEntry p = entry("WOOL", "pca", c, 500.0 / c, 0.08 / std::sqrt(c));
+    p.method = "PCA, C = " + std::to_string(c);
+    e.push_back(p);
+  }
+  std::string md = sweepTablesMarkdown(e);
+  EXPECT_NE(md.find("| material | PCA, C = 4 | PCA, C = 16 | per-texel-neural |"), std::string::npos) << md;
+  EXPECT_NE(md.find("PCA: mean + basis + coefficients"), std::string::npos) << md;
+  SweepFiles f = writeSweepSummary(e, tmp / "sweep");
+  std::string dat = slurp(tmp / "sweep/rd_WOOL_pca.dat");
+  EXPECT_NE(dat.find("\"C=16\""), std::string::npos) << dat;
+  std::string gp = slurp(tmp / "sweep/rd_WOOL.gp");
+  EXPECT_NE(gp.find("'rd_WOOL_pca.dat' using 1:2 with linespoints"), std::string::npos) << gp;
+  EXPECT_LT(gp.find("PCA (baseline)"), gp.find("per-texel neural BTF")) << gp;
+  EXPECT_NE(gp.find("set key below"), std::string::npos) << "an opaque key inside the plot hides points";
+}
+
 TEST(Sweep, OddMaterialNamesAreQuotedForGnuplot) {
   test::TempDir tmp;
   std::vector<SweepEntry> e = {entry("o'brien_wool", "clustered-neural", 500, 5127, 0.03),

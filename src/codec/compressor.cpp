@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cluster/clustering.h"
+#include "codec/pca_compressor.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
@@ -48,13 +49,7 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
   meta["config"] = json::parse(trainConfigJson(config));
   meta["seed"] = config.seed;
   meta["threads"] = config.threads > 0 ? config.threads : threadCount();
-  json source;
-  source["path"] = stack.source;
-  source["layout"] = layoutName(stack.layout);
-  source["sample_type"] = sampleTypeName(stack.sampleType());
-  source["crop"] = stack.crop.empty() ? json(nullptr)
-                                      : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
-  meta["source"] = source;
+  meta["source"] = json::parse(sourceMetadataJson(stack));
   json t;
   t["rmse_train"] = train.rmseTrain;
   t["rmse_holdout"] = nullable(train.rmseHoldout);
@@ -81,6 +76,16 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
 
 std::string defaultCheckpointPath(const std::string& output) { return output + ".ckpt"; }
 
+std::string sourceMetadataJson(const BtfStack& stack) {
+  json source;
+  source["path"] = stack.source;
+  source["layout"] = layoutName(stack.layout);
+  source["sample_type"] = sampleTypeName(stack.sampleType());
+  source["crop"] = stack.crop.empty() ? json(nullptr)
+                                      : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
+  return source.dump();
+}
+
 std::string trainConfigJson(const TrainConfig& c) {
   json j;
   j["model"] = {{"latent_dim", c.model.latentDim},
@@ -102,6 +107,7 @@ std::string trainConfigJson(const TrainConfig& c) {
 }
 
 CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
+  if (o.pcaBaseline) return compressPcaStack(stack, o, stats);
   const int texels = stack.numTexels();
   stats.texels = texels;
   stats.images = stack.numImages();
@@ -210,9 +216,16 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     checkWritable(options.saveEncoderPath);
   }
   CompressOptions o = options;
-  o.checkpointPath = checkpointPathFor(output, options);
-  checkWritable(o.checkpointPath);
-  if (!o.load.crop.empty())
+  if (o.pcaBaseline) {
+    if (!o.saveEncoderPath.empty()) throw Error("--save-encoder: the PCA baseline has no encoder");
+    if (o.pcaComponents < 1)
+      throw Error("--method pca needs --components C >= 1 (the principal components kept), got " +
+                  std::to_string(o.pcaComponents));
+  } else {
+    o.checkpointPath = checkpointPathFor(output, options);
+    checkWritable(o.checkpointPath);
+  }
+  if (!o.pcaBaseline && !o.load.crop.empty())
     checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
                       "the crop");
 
@@ -243,7 +256,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
   stats.seconds.write = secondsSince(t);
   // A finished run's default checkpoint is stale: remove it (a configured one is kept).
-  if (o.checkpointPath == defaultCheckpointPath(output)) {
+  if (!o.pcaBaseline && o.checkpointPath == defaultCheckpointPath(output)) {
     std::error_code ec;
     std::filesystem::remove(o.checkpointPath, ec);
   }
@@ -255,8 +268,11 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
 std::string formatCompressSummary(const CompressStats& s) {
   std::string out;
   char line[256];
+  std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
+                          : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
+                                                         : "";
   std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
-                s.clusters > 0 ? (", k = " + std::to_string(s.clusters)).c_str() : "");
+                parameter.c_str());
   out += line;
   out += formatSizeTable(s.sizes);
   std::snprintf(line, sizeof line,
@@ -264,17 +280,32 @@ std::string formatCompressSummary(const CompressStats& s) {
                 s.alpha);
   out += line;
   int trainImages = s.images - s.holdoutImages;
-  std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", "training images", s.rmseTrain, trainImages);
+  const bool pca = s.method == CodecMethod::Pca;
+  std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", pca ? "fitted images" : "training images",
+                s.rmseTrain, trainImages);
   out += line;
   if (s.rmseHoldout >= 0)
-    std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", "held-out images", s.rmseHoldout, s.holdoutImages);
+    std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images%s)\n", "held-out images", s.rmseHoldout, s.holdoutImages,
+                  pca ? ", interpolated from the fitted ones" : "");
   else
     std::snprintf(line, sizeof line, "  %-16s none (use --holdout F to measure interpolation)\n", "held-out images");
   out += line;
+  const StageSeconds& t = s.seconds;
+  if (pca) {
+    std::snprintf(line, sizeof line,
+                  "pca: %d components explain %.2f%% of the variance of the fitted ABRDFs (linear RGB / alpha)\n",
+                  s.pcaComponents, 100 * s.pcaExplainedVarianceRatio);
+    out += line;
+    std::snprintf(line, sizeof line,
+                  "time (wall clock, s): load %.2f | preprocess %.2f | pca (fit, coefficients, RMSE) %.2f | write "
+                  "%.2f | total %.2f\n",
+                  t.load, t.preprocess, t.pca, t.write, t.total());
+    out += line;
+    return out;
+  }
   std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
                 s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops);
   out += line;
-  const StageSeconds& t = s.seconds;
   std::snprintf(line, sizeof line,
                 "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | write %.2f | total "
                 "%.2f\n",
@@ -288,6 +319,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["output"] = s.output;
   j["method"] = codecMethodName(s.method);
   j["clusters"] = s.clusters;
+  j["pca_components"] = s.pcaComponents;
   j["texels"] = s.texels;
   j["images"] = s.images;
   j["holdout_images"] = s.holdoutImages;
@@ -296,10 +328,19 @@ std::string compressStatsJson(const CompressStats& s) {
   j["rmse_holdout"] = nullable(s.rmseHoldout);
   j["rmse_space"] = "linear RGB / alpha (eq. 10)";
   j["ratio"] = s.sizes.ratio;
-  j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
-                {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
+  if (s.method == CodecMethod::Pca)
+    j["bytes"] = {{"pca_mean", s.sizes.pcaMean},
+                  {"pca_basis", s.sizes.pcaBasis},
+                  {"pca_coefficients", s.sizes.pcaCoefficients},
+                  {"total", s.sizes.total},
+                  {"raw_float32", s.sizes.rawFloat32},
+                  {"file", s.sizes.fileBytes}};
+  else
+    j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
+                  {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
-                  {"train", s.seconds.train}, {"write", s.seconds.write},           {"total", s.seconds.total()}};
+                  {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
+                  {"total", s.seconds.total()}};
   j["epochs"] = s.epochs;
   j["steps"] = s.steps;
   j["samples_per_second"] = s.samplesPerSecond;

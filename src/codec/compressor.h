@@ -1,6 +1,7 @@
 // The compression pipeline behind `nbtf compress`: load -> ABRDF matrix -> standardize ->
 // (clustered) PCA + k-means++ + representatives | (per-texel) the standardized matrix
 // itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
+// The PCA baseline (pcaBaseline) replaces everything after loading: codec/pca_compressor.h.
 // Deterministic for a seed and thread count.
 #pragma once
 #include <atomic>
@@ -16,7 +17,10 @@ struct CompressOptions {
   LoadOptions load;             // layout, crop
   TrainConfig train;            // the recipe, with command-line overrides already applied
   int clusters = 500;           // k; 0 = per-texel mode (one latent per texel)
-  int pcaComponents = 0;        // PCA components before k-means; 0 = default (32, capped by the data)
+  // The classic PCA baseline instead of a neural method: pcaComponents components (>= 1),
+  // no training; uses train.seed and train.holdoutFraction only.
+  bool pcaBaseline = false;
+  int pcaComponents = 0;        // PCA components (before k-means, or of the baseline); 0 = default (32, capped by the data)
   int kmeansIterations = 0;     // Lloyd rounds at most; 0 = the clustering library's default
   std::string saveEncoderPath;  // also write this .nbtf with the encoder inside ("" = no)
   // Where training checkpoints go; "" = the config's training.checkpoint_path, else
@@ -29,13 +33,15 @@ struct CompressOptions {
 // Wall-clock seconds per stage.
 struct StageSeconds {
   double load = 0, preprocess = 0, cluster = 0, train = 0, write = 0;
-  double total() const { return load + preprocess + cluster + train + write; }
+  double pca = 0;  // PCA baseline: fit, coefficients, hold-out interpolation and the RMSE measurement
+  double total() const { return load + preprocess + cluster + train + write + pca; }
 };
 
 struct CompressStats {
   std::string output;
   CodecMethod method = CodecMethod::ClusteredNeural;
-  int clusters = 0;           // k; 0 in per-texel mode
+  int clusters = 0;           // k; 0 in per-texel mode and for PCA
+  int pcaComponents = 0;      // PCA baseline: components C; 0 otherwise
   int texels = 0, images = 0, holdoutImages = 0;
   float alpha = 1;
   // RMSE of eq. (10) over texels x images x channels, on linear RGB divided by alpha.
@@ -46,6 +52,7 @@ struct CompressStats {
   int epochs = 0;
   std::int64_t steps = 0;
   double samplesPerSecond = 0, decoderGflops = 0;
+  // Clustered: of the standardized log ABRDFs; PCA baseline: of the fitted linear ABRDFs / alpha.
   double pcaExplainedVarianceRatio = -1;  // -1 in per-texel mode
   bool interrupted = false;   // stopped by stopFlag: nothing written, checkpoint kept
   std::string checkpointPath;
@@ -69,8 +76,12 @@ std::string trainConfigJson(const TrainConfig& config);
 // The final summary table (sizes, ratio, RMSE and its space, time per stage).
 std::string formatCompressSummary(const CompressStats& stats);
 // The same as JSON: rmse_train, rmse_holdout (null when none), ratio,
-// bytes {decoder, latents, ids, total, raw_float32, file}, seconds {load, preprocess,
-// cluster, train, write, total}, and context keys (method, clusters, texels, images, ...).
+// bytes {decoder, latents, ids, total, raw_float32, file} (PCA: {pca_mean, pca_basis,
+// pca_coefficients, total, raw_float32, file}), seconds {load, preprocess, cluster, train,
+// pca, write, total}, and context keys (method, clusters, pca_components, texels, ...).
 std::string compressStatsJson(const CompressStats& stats);
+
+// The "source" object of the file's metadata (path, layout, sample type, crop) as JSON text.
+std::string sourceMetadataJson(const BtfStack& stack);
 
 }  // namespace nbtf

@@ -6,10 +6,18 @@
 #include <sstream>
 
 #include "codec/decoder_kernels.h"
+#include "codec/pca_model.h"
 #include "util/error.h"
 #include "util/parallel.h"
 
 namespace nbtf {
+namespace detail {
+// The PCA baseline's decoding state: the interpolation over the measured pairs.
+struct PcaState {
+  DirectionInterpolator interpolator;
+};
+}  // namespace detail
+
 namespace {
 
 // Batches below this many samples run on the calling thread: starting threads costs more.
@@ -92,6 +100,10 @@ void NbtfDecoder::build(const DecoderOptions& options) {
   isa_ = options.isa == DecoderIsa::Auto ? detail::bestSupportedIsa() : options.isa;
   if (!decoderIsaSupported(isa_))
     throw Error("instruction set '" + decoderIsaName(isa_) + "' is not supported by this CPU");
+  if (material_.isPca()) {
+    pca_ = std::make_unique<detail::PcaState>(detail::PcaState{DirectionInterpolator(material_.lights, material_.views)});
+    return;
+  }
   packed_ = std::make_unique<detail::PackedDecoder>(detail::packDecoder(material_.decoder, material_.latentDim));
   packed_->latents = material_.latents.data();
   // The per-row half of the first layer, once, with the same kernel the evaluation uses
@@ -108,6 +120,7 @@ void NbtfDecoder::build(const DecoderOptions& options) {
 }
 
 double NbtfDecoder::flopsPerEvaluation() const {
+  if (pca_) return 6.0 * material_.latentDim;
   double f = 0;
   for (const DenseLayer& l : material_.decoder.layers) f += 2.0 * l.in * l.out;
   return f;
@@ -184,6 +197,40 @@ void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std:
 }
 }  // namespace
 
+// ---- PCA baseline ------------------------------------------------------------------------
+
+void NbtfDecoder::pcaBasisAt(const std::array<double, 3>& light, const std::array<double, 3>& view,
+                             float* meanBasis) const {
+  combinePcaRows(material_.pcaMean.data(), material_.pcaBasis.data(), material_.latentDim,
+                 pca_->interpolator.weights(light, view), meanBasis, meanBasis + 3);
+}
+
+template <class QueryFn>
+void NbtfDecoder::evaluatePca(std::size_t count, float* rgb, OutputScale scale, const QueryFn& query) const {
+  const int c = material_.latentDim;
+  auto body = [&](std::size_t begin, std::size_t end) {
+    // Consecutive queries often share their directions: combine the basis once for them.
+    std::vector<float> meanBasis(3 + 3 * static_cast<std::size_t>(c));
+    std::array<double, 3> lastLight{}, lastView{};
+    bool have = false;
+    for (std::size_t i = begin; i < end; ++i) {
+      int texel = 0;
+      std::array<double, 3> l, v;
+      query(i, texel, l, v);
+      if (!have || l != lastLight || v != lastView) {
+        pcaBasisAt(l, v, meanBasis.data());
+        lastLight = l, lastView = v, have = true;
+      }
+      float* out = rgb + 3 * i;
+      pcaTexelValue(material_.latents.data() + static_cast<std::size_t>(texel) * c, meanBasis.data(),
+                    meanBasis.data() + 3, c, out);
+      if (scale == OutputScale::Linear) out[0] *= material_.alpha, out[1] *= material_.alpha, out[2] *= material_.alpha;
+    }
+  };
+  if (count >= kMinParallelSamples) parallelFor(count, body, 1024);
+  else body(0, count);
+}
+
 // ---- Single evaluations -------------------------------------------------------------------
 
 Rgb NbtfDecoder::evaluate(int x, int y, const Direction& light, const Direction& view, OutputScale scale) const {
@@ -197,6 +244,7 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   checkHemisphere(light, "light");
   checkHemisphere(view, "view");
   int texel = texelOfUv(u, v);
+  if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
   std::int32_t row = latentRowOfTexel(texel);
   auto dirs = decoderDirectionInput(light, view);
   Rgb out;
@@ -224,6 +272,15 @@ void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* 
       throw Error(count == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
     }
   }
+  if (pca_) {
+    evaluatePca(count, rgb, scale, [&](std::size_t i, int& texel, std::array<double, 3>& l, std::array<double, 3>& v) {
+      const TexelQuery& q = queries[i];
+      texel = q.y * width() + q.x;
+      l = q.light.unitVector();
+      v = q.view.unitVector();
+    });
+    return;
+  }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
            [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
              // Consecutive queries often share directions: convert each distinct one once.
@@ -250,6 +307,20 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
       throw Error(count == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
     }
   }
+  if (pca_) {
+    auto unit = [](const std::array<float, 3>& d) {
+      std::array<double, 3> u{d[0], d[1], d[2]};
+      double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);  // > 0: checked above
+      return std::array<double, 3>{u[0] / n, u[1] / n, u[2] / n};
+    };
+    evaluatePca(count, rgb, scale, [&](std::size_t i, int& texel, std::array<double, 3>& l, std::array<double, 3>& v) {
+      const UvQuery& q = queries[i];
+      texel = texelOfUv(q.u, q.v);
+      l = unit(q.light);
+      v = unit(q.view);
+    });
+    return;
+  }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
            [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
              for (int i = 0; i < n; ++i) {
@@ -268,6 +339,24 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
                              bool parallel) const {
   checkHemisphere(light, "light");
   checkHemisphere(view, "view");
+  if (pca_) {
+    // The basis at this pair once, then 3 dot products of length C per texel.
+    const int c = material_.latentDim;
+    std::vector<float> meanBasis(3 + 3 * static_cast<std::size_t>(c));
+    pcaBasisAt(light.unitVector(), view.unitVector(), meanBasis.data());
+    const float factor = material_.alpha;
+    auto body = [&](std::size_t begin, std::size_t end) {
+      for (std::size_t t = begin; t < end; ++t) {
+        float* out = rgb + 3 * t;
+        pcaTexelValue(material_.latents.data() + t * c, meanBasis.data(), meanBasis.data() + 3, c, out);
+        if (scale == OutputScale::Linear) out[0] *= factor, out[1] *= factor, out[2] *= factor;
+      }
+    };
+    const std::size_t texels = static_cast<std::size_t>(numTexels());
+    if (parallel && texels >= kMinParallelSamples) parallelFor(texels, body, 1024);
+    else body(0, texels);
+    return;
+  }
   const auto dirs = decoderDirectionInput(light, view);
   const std::size_t count = static_cast<std::size_t>(latentRows());
   auto tile = detail::kernelsFor(isa_).tile;

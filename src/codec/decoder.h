@@ -19,6 +19,11 @@
 // decodeImage() scatters them by the texel -> id list. The remaining layers run as small
 // register-blocked matrix products (AVX-512, AVX2+FMA or portable SIMD, picked at run
 // time). All methods are const and thread-safe.
+//
+// PCA files (the classic baseline, `nbtf compress --method pca`) are evaluated through the
+// same API: per (light, view) the mean and basis rows are combined once (interpolated over
+// neighbouring measured pairs when the pair was not measured, codec/pca_model.h), then each
+// texel costs 3 dot products of length C.
 #pragma once
 #include <array>
 #include <cstddef>
@@ -73,6 +78,7 @@ struct DecoderOptions {
 
 namespace detail {
 struct PackedDecoder;
+struct PcaState;
 }
 
 class NbtfDecoder {
@@ -97,12 +103,14 @@ class NbtfDecoder {
   int numImages() const { return material_.numImages(); }
   float alpha() const { return material_.alpha; }
   bool clustered() const { return material_.method == CodecMethod::ClusteredNeural; }
-  // Decoder evaluations per image: k (clustered) or texels (per-texel).
+  bool pca() const { return material_.isPca(); }
+  // Decoder evaluations per image: k (clustered) or texels (per-texel, PCA).
   int latentRows() const { return material_.latentRows; }
   int latentRowOfTexel(int texel) const { return material_.latentRowOfTexel(texel); }
   DecoderIsa isa() const { return isa_; }
   // FLOPs of one full decoder evaluation (every layer, multiply-add = 2), the unit
   // throughput figures are quoted in. The split first layer actually does less.
+  // PCA: 3 dot products of length C per texel (the per-image basis combination not counted).
   double flopsPerEvaluation() const;
 
   // ---- Single evaluations (throw nbtf::Error on bad input; see the checks below)
@@ -139,11 +147,17 @@ class NbtfDecoder {
   // The inner evaluation: n samples (latent row + 4 stereographic coordinates each).
   void evaluateSamples(const std::int32_t* rows, const float* dirs, std::size_t n, float* rgb,
                        OutputScale scale) const;
+  // PCA: the mean (3) and basis (3 x C) at a pair of unit vectors, into meanBasis.
+  void pcaBasisAt(const std::array<double, 3>& light, const std::array<double, 3>& view, float* meanBasis) const;
+  // PCA: `count` queries; query(i, texel, light, view) gives query i (unit vectors).
+  template <class QueryFn>
+  void evaluatePca(std::size_t count, float* rgb, OutputScale scale, const QueryFn& query) const;
 
   CompressedBtf material_;
   std::string name_;
   DecoderIsa isa_ = DecoderIsa::Portable;
-  std::unique_ptr<detail::PackedDecoder> packed_;
+  std::unique_ptr<detail::PackedDecoder> packed_;  // neural methods
+  std::unique_ptr<detail::PcaState> pca_;          // PCA baseline
 };
 
 // The decoder's direction input for a (light, view) pair: stereographic (x, y) of each,

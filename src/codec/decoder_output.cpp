@@ -410,10 +410,15 @@ std::string formatDecodeSummary(const DecodeStackResult& r, const NbtfDecoder& d
                   r.format == ImageFormat::Png ? "PNG" : "JPEG", decoder.alpha());
   }
   out += buf;
-  std::snprintf(buf, sizeof buf, "  decoder  %s, %d evaluation%s per image (%llu in all), %s kernels\n",
-                decoder.clustered() ? "clustered" : "per-texel", decoder.latentRows(),
-                decoder.latentRows() == 1 ? "" : "s", static_cast<unsigned long long>(r.evaluations),
-                decoderIsaName(decoder.isa()).c_str());
+  if (decoder.pca())
+    std::snprintf(buf, sizeof buf, "  decoder  PCA baseline, %d components, %d texel evaluation%s per image (%llu in all)\n",
+                  decoder.material().latentDim, decoder.latentRows(), decoder.latentRows() == 1 ? "" : "s",
+                  static_cast<unsigned long long>(r.evaluations));
+  else
+    std::snprintf(buf, sizeof buf, "  decoder  %s, %d evaluation%s per image (%llu in all), %s kernels\n",
+                  decoder.clustered() ? "clustered" : "per-texel", decoder.latentRows(),
+                  decoder.latentRows() == 1 ? "" : "s", static_cast<unsigned long long>(r.evaluations),
+                  decoderIsaName(decoder.isa()).c_str());
   out += buf;
   if (r.clampedNegative) {
     std::snprintf(buf, sizeof buf, "  clamped  %llu negative linear value%s written as 0\n",

@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "codec/pca_model.h"
+
 namespace nbtf {
 namespace {
 
@@ -53,6 +55,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   std::string method = codecMethodName(btf.method);
   if (btf.method == CodecMethod::ClusteredNeural) method += ", k = " + std::to_string(btf.latentRows) + " clusters";
   else if (btf.method == CodecMethod::PerTexelNeural) method += ", one latent per texel";
+  else if (btf.isPca()) method += " (classic baseline), C = " + std::to_string(btf.latentDim) + " components";
   field("method", method);
   std::string texels = std::to_string(btf.width) + " x " + std::to_string(btf.height) + " = " +
                        std::to_string(btf.numTexels());
@@ -64,22 +67,36 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   field("images", std::to_string(btf.numImages()) + " (" + std::to_string(btf.lights.size()) + " lights x " +
                       std::to_string(btf.views.size()) + " views)");
   field("source", "layout " + layoutName(btf.layout) + ", " + sampleTypeName(btf.sourceSampleType));
-  field("directions", "stereographic projection (eq. 7-9), light then view");
-  field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
-  std::size_t params = 0;
-  for (const auto& l : btf.decoder.layers) params += l.parameterCount();
-  std::string digits = std::to_string(params), grouped;
-  for (std::size_t i = 0; i < digits.size(); ++i) grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
-  field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
-  field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
-  if (btf.holdoutImages.empty()) {
-    field("hold-out", "none (every image was used for training)");
+  if (btf.isPca()) {
+    field("alpha", number(btf.alpha) + " ((mean + coefficients x basis) x alpha = linear RGB)");
+    const std::string c = std::to_string(btf.latentDim), rows = std::to_string(3 * btf.numImages());
+    field("mean", rows + " values (3 per image)");
+    field("basis", rows + " rows (3 per image) x " + c + " components");
+    field("coefficients", std::to_string(btf.latentRows) + " texels x " + c + " components");
+    field("interpolation", "unmeasured directions: mean and basis blended over the " + std::to_string(kPcaNeighbours) +
+                               " nearest measured (light, view) pairs");
   } else {
-    std::snprintf(line, sizeof line, "%zu images (%.1f%%) kept out of training", btf.holdoutImages.size(),
-                  100.0 * btf.holdoutImages.size() / btf.numImages());
+    field("directions", "stereographic projection (eq. 7-9), light then view");
+    field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
+    std::size_t params = 0;
+    for (const auto& l : btf.decoder.layers) params += l.parameterCount();
+    std::string digits = std::to_string(params), grouped;
+    for (std::size_t i = 0; i < digits.size(); ++i)
+      grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
+    field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
+    field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
+  }
+  if (btf.holdoutImages.empty()) {
+    field("hold-out", btf.isPca() ? "none (every image was used in the PCA fit)"
+                                  : "none (every image was used for training)");
+  } else {
+    std::snprintf(line, sizeof line, "%zu images (%.1f%%) kept out of %s", btf.holdoutImages.size(),
+                  100.0 * btf.holdoutImages.size() / btf.numImages(),
+                  btf.isPca() ? "the PCA fit (their rows are interpolated)" : "training");
     field("hold-out", line);
   }
-  field("encoder", btf.encoderState.empty() ? "not stored"
+  if (!btf.isPca())
+    field("encoder", btf.encoderState.empty() ? "not stored"
                                             : "stored (" + std::to_string(btf.encoderState.size()) + " bytes)");
   if (!btf.skippedSections.empty()) {
     std::string s;
@@ -92,9 +109,9 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   std::string train = jsonNumber(meta, "training", "rmse_train");
   if (!train.empty()) {
     std::string holdout = jsonNumber(meta, "training", "rmse_holdout");
-    std::string text = "RMSE " + train + " on training images";
+    std::string text = "RMSE " + train + (btf.isPca() ? " on fitted images" : " on training images");
     if (!holdout.empty()) text += ", " + holdout + " on held-out images";
-    field("training", text + " (linear RGB / alpha, eq. 10)");
+    field(btf.isPca() ? "fit" : "training", text + " (linear RGB / alpha, eq. 10)");
     std::string epochs = jsonNumber(meta, "training", "epochs");
     std::string seed = jsonNumber(meta, "seed");
     std::string threads = jsonNumber(meta, "threads");
@@ -106,6 +123,12 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
         meta["config"]["optimizer"].is_string())
       run += (run.empty() ? "" : ", ") + meta["config"]["optimizer"].get<std::string>();
     if (!run.empty()) field("run", run);
+  }
+  std::string pcaExplained = jsonNumber(meta, "pca", "explained_variance_ratio");
+  if (btf.isPca() && !pcaExplained.empty()) {
+    std::snprintf(line, sizeof line, "%.2f%%", 100 * std::stod(pcaExplained));
+    field("pca", std::to_string(btf.latentDim) + " components explain " + line +
+                     " of the variance of the fitted ABRDFs (linear RGB / alpha)");
   }
   std::string explained = jsonNumber(meta, "clustering", "pca_explained_variance_ratio");
   if (!explained.empty()) {

@@ -27,6 +27,7 @@ constexpr std::uint32_t kSectionRequired = 1; // a reader that does not know the
 // Limits that keep every derived size far from overflow; real materials are far below.
 constexpr std::uint32_t kMaxSide = 1u << 20;
 constexpr std::uint32_t kMaxLatentDim = 4096;
+constexpr std::uint32_t kMaxPcaComponents = 1u << 16;
 constexpr std::uint32_t kMaxLayers = 256;
 constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
 constexpr int kMaxJsonDepth = 64;
@@ -36,7 +37,8 @@ constexpr std::uint32_t tag(const char (&s)[5]) {
          std::uint32_t(std::uint8_t(s[2])) << 16 | std::uint32_t(std::uint8_t(s[3])) << 24;
 }
 constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag("DECD"), kLatents = tag("LATN"),
-                        kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META");
+                        kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
+                        kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -62,6 +64,9 @@ std::string sectionLabel(std::uint32_t t) {
                      : t == kHoldout ? "hold-out images"
                      : t == kEncoder ? "encoder"
                      : t == kMeta    ? "metadata"
+                     : t == kPcaMean ? "PCA mean"
+                     : t == kPcaBasis ? "PCA basis"
+                     : t == kPcaCoefficients ? "PCA coefficients"
                                      : nullptr;
   return "section '" + tagText(t) + "'" + (what ? std::string(" (") + what + ")" : std::string());
 }
@@ -140,13 +145,22 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   s.latents = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0)) * 4;
   s.texels = static_cast<std::uint64_t>(std::max(btf.numTexels(), 0));
   s.images = static_cast<std::uint64_t>(btf.numImages());
+  if (btf.isPca()) {
+    s.pca = true;
+    s.pcaComponents = btf.latentDim;
+    const std::uint64_t c = static_cast<std::uint64_t>(std::max(btf.latentDim, 0));
+    s.pcaMean = s.images * 3 * 4;
+    s.pcaBasis = s.images * 3 * c * 4;
+    s.pcaCoefficients = s.texels * c * 4;
+    s.latents = 0;
+  }
   if (btf.method == CodecMethod::ClusteredNeural) {
     s.idWidth = idWidthForClusters(btf.latentRows);
     s.ids = s.texels * static_cast<std::uint64_t>(s.idWidth);
     s.idsPaper = s.texels * 4;
   }
-  s.total = s.decoder + s.latents + s.ids;
-  s.totalPaper = s.decoder + s.latents + s.idsPaper;
+  s.total = s.decoder + s.latents + s.ids + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
+  s.totalPaper = s.total - s.ids + s.idsPaper;
   s.rawFloat32 = s.texels * s.images * 3 * 4;
   s.fileBytes = fileBytes;
   s.ratio = s.total ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.total) : 0;
@@ -178,6 +192,22 @@ std::string row(const char* part, std::uint64_t bytes, const std::string& note) 
 }  // namespace
 
 std::string formatSizeTable(const NbtfSizes& s) {
+  if (s.pca) {
+    // The baseline's parts, in the same table shape and units as the neural methods.
+    std::string out = "sizes (PCA baseline, parts as stored in float32; KiB = 1024 bytes, the paper's KB)\n";
+    std::string c = std::to_string(s.pcaComponents);
+    out += row("mean", s.pcaMean, withCommas(s.images) + " images x 3 x 4 bytes");
+    out += row("basis", s.pcaBasis, withCommas(s.images) + " images x 3 x " + c + " components x 4 bytes");
+    out += row("coefficients", s.pcaCoefficients, withCommas(s.texels) + " texels x " + c + " components x 4 bytes");
+    out += row("total", s.total, "mean + basis + coefficients");
+    out += row("raw float32", s.rawFloat32,
+               withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes");
+    char ratio[160];
+    std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
+    out += ratio;
+    if (s.fileBytes) out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
+    return out;
+  }
   std::string out = "sizes (as in the paper's Table 1; KiB = 1024 bytes, the paper's KB)\n";
   out += row("decoder", s.decoder, withCommas(s.decoderParameters) + " parameters x 4 bytes (float32)");
   out += row("latents", s.latents,
@@ -208,9 +238,7 @@ std::string formatSizeTable(const NbtfSizes& s) {
 
 void CompressedBtf::validate(const std::string& name) const {
   auto fail = [&](const std::string& m) { return fileError(name, m); };
-  if (method == CodecMethod::Pca)
-    throw fail("method 'pca' is reserved for the PCA baseline and not supported by this nbtf version");
-  if (method != CodecMethod::ClusteredNeural && method != CodecMethod::PerTexelNeural)
+  if (method != CodecMethod::ClusteredNeural && method != CodecMethod::PerTexelNeural && method != CodecMethod::Pca)
     throw fail("unknown method code " + std::to_string(static_cast<int>(method)));
   if (directionEncoding != DirectionEncoding::Stereographic)
     throw fail("unknown direction encoding code " + std::to_string(static_cast<int>(directionEncoding)));
@@ -255,6 +283,48 @@ void CompressedBtf::validate(const std::string& name) const {
   }
   if (!std::isfinite(alpha) || !(alpha > 0)) throw fail("alpha must be a finite positive number");
 
+  if (isPca()) validatePca(name);
+  else validateNeural(name);
+
+  // Provenance
+  for (std::size_t i = 0; i < holdoutImages.size(); ++i) {
+    int h = holdoutImages[i];
+    if (h < 0 || h >= numImages())
+      throw fail("hold-out image index " + std::to_string(h) + " is outside [0, " + std::to_string(numImages()) + ")");
+    if (i && h <= holdoutImages[i - 1]) throw fail("hold-out image indices are not strictly ascending");
+  }
+  checkMetadata(metadataJson, name);
+}
+
+void CompressedBtf::validatePca(const std::string& name) const {
+  auto fail = [&](const std::string& m) { return fileError(name, m); };
+  const std::int64_t rows = 3 * static_cast<std::int64_t>(numImages());
+  const int texels = numTexels();
+  if (!decoder.layers.empty() || !ids.empty()) throw fail("PCA file has a decoder or an id list");
+  const std::int64_t maxComponents = std::min<std::int64_t>({rows, texels, kMaxPcaComponents});
+  if (latentDim < 1 || latentDim > maxComponents)
+    throw fail(std::to_string(latentDim) + " PCA components, expected 1 to " + std::to_string(maxComponents) +
+               " (at most min(texels, 3 x images))");
+  if (latentRows != texels)
+    throw fail("PCA file has " + std::to_string(latentRows) + " coefficient rows for " + std::to_string(texels) +
+               " texels");
+  const std::size_t c = static_cast<std::size_t>(latentDim);
+  if (pcaMean.size() != static_cast<std::size_t>(rows))
+    throw fail("PCA mean holds " + std::to_string(pcaMean.size()) + " values, expected 3 x " +
+               std::to_string(numImages()) + " images");
+  if (pcaBasis.size() != static_cast<std::size_t>(rows) * c)
+    throw fail("PCA basis holds " + std::to_string(pcaBasis.size()) + " values, expected " + std::to_string(rows) +
+               " x " + std::to_string(c));
+  if (latents.size() != static_cast<std::size_t>(texels) * c)
+    throw fail("PCA coefficients hold " + std::to_string(latents.size()) + " values, expected " +
+               std::to_string(texels) + " x " + std::to_string(c));
+  if (!allFinite(pcaMean)) throw fail("PCA mean contains non-finite values (NaN or Inf)");
+  if (!allFinite(pcaBasis)) throw fail("PCA basis contains non-finite values (NaN or Inf)");
+  if (!allFinite(latents)) throw fail("PCA coefficients contain non-finite values (NaN or Inf)");
+}
+
+void CompressedBtf::validateNeural(const std::string& name) const {
+  auto fail = [&](const std::string& m) { return fileError(name, m); };
   // Decoder: latent + 2 + 2 stereographic coordinates in, RGB out, shapes chained.
   if (latentDim < 1 || latentDim > int(kMaxLatentDim)) throw fail("latent dimension " + std::to_string(latentDim) + " is out of range");
   if (decoder.layers.empty()) throw fail("decoder has no layers");
@@ -298,15 +368,7 @@ void CompressedBtf::validate(const std::string& name) const {
       throw fail("per-texel file has " + std::to_string(latentRows) + " latents for " + std::to_string(texels) +
                  " texels");
   }
-
-  // Provenance
-  for (std::size_t i = 0; i < holdoutImages.size(); ++i) {
-    int h = holdoutImages[i];
-    if (h < 0 || h >= numImages())
-      throw fail("hold-out image index " + std::to_string(h) + " is outside [0, " + std::to_string(numImages()) + ")");
-    if (i && h <= holdoutImages[i - 1]) throw fail("hold-out image indices are not strictly ascending");
-  }
-  checkMetadata(metadataJson, name);
+  if (!pcaMean.empty() || !pcaBasis.empty()) throw fail(codecMethodName(method) + " file has a PCA mean or basis");
 }
 
 // ---- Writing
@@ -335,7 +397,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   ByteWriter file;
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
-  file.u16(kNbtfFormatMinor);
+  // The lowest version that describes the file: neural files are unchanged since 1.0.
+  file.u16(btf.isPca() ? std::uint16_t(1) : std::uint16_t(0));
   file.u32(0);  // header flags (none defined)
   file.u64(0);  // file size, patched below
   file.u32(0);  // body CRC, patched below
@@ -374,7 +437,25 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
       }
     addSection(file, kDirs, true, w);
   }
-  {
+  if (btf.isPca()) {
+    // Mean, basis and coefficients (docs/file_format.md): all required, so a 1.0 reader
+    // refuses the file by name instead of missing its decoder.
+    ByteWriter mean;
+    mean.u32(static_cast<std::uint32_t>(btf.pcaMean.size()));
+    writeFloats(mean, btf.pcaMean);
+    addSection(file, kPcaMean, true, mean);
+    ByteWriter basis;
+    basis.u32(static_cast<std::uint32_t>(btf.pcaMean.size()));
+    basis.u32(static_cast<std::uint32_t>(btf.latentDim));
+    writeFloats(basis, btf.pcaBasis);
+    addSection(file, kPcaBasis, true, basis);
+    ByteWriter coefficients;
+    coefficients.u32(static_cast<std::uint32_t>(btf.latentRows));
+    coefficients.u32(static_cast<std::uint32_t>(btf.latentDim));
+    writeFloats(coefficients, btf.latents);
+    addSection(file, kPcaCoefficients, true, coefficients);
+  }
+  if (!btf.isPca()) {
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.decoder.layers.size()));
     for (const DenseLayer& l : btf.decoder.layers) {
@@ -387,7 +468,7 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     }
     addSection(file, kDecoder, true, w);
   }
-  {
+  if (!btf.isPca()) {
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.latentRows));
     w.u32(static_cast<std::uint32_t>(btf.latentDim));
@@ -535,7 +616,8 @@ void parseInfo(const SectionRef& s, CompressedBtf& btf, const std::string& name)
   btf.crop.width = checkedInt(r, r.u32(), kMaxSide, "crop width");
   btf.crop.height = checkedInt(r, r.u32(), kMaxSide, "crop height");
   btf.alpha = r.f32();
-  btf.latentDim = checkedInt(r, r.u32(), kMaxLatentDim, "latent dimension");
+  if (btf.method == CodecMethod::Pca) btf.latentDim = checkedInt(r, r.u32(), kMaxPcaComponents, "PCA components");
+  else btf.latentDim = checkedInt(r, r.u32(), kMaxLatentDim, "latent dimension");
   btf.latentRows = checkedInt(r, r.u32(), INT_MAX, "latent rows");
   r.u32();  // reserved; fields appended by later minor versions follow and are ignored
 }
@@ -602,6 +684,34 @@ void parseIds(const SectionRef& s, CompressedBtf& btf, const std::string& name) 
     if (v > static_cast<std::uint32_t>(INT_MAX)) throw r.fail("id " + std::to_string(v) + " is out of range");
     id = static_cast<std::int32_t>(v);
   }
+}
+
+// PCAM: u32 count, count f32. The count is checked against the bytes present before any
+// allocation; its agreement with the directions is checked by validate().
+void parsePcaMean(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint64_t count = r.u32();
+  if (count * 4 != r.remaining())
+    throw r.fail(std::to_string(count) + " values need " + std::to_string(count * 4) + " bytes, the section holds " +
+                 std::to_string(r.remaining()));
+  btf.pcaMean = readFloats(r, count, "PCA mean");
+}
+
+// PCAB and PCAC: u32 rows, u32 components (= INFO's), rows x components f32.
+std::vector<float> parsePcaMatrix(const SectionRef& s, const CompressedBtf& btf, const std::string& name,
+                                  const char* rowsName, std::uint64_t& rowsOut) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint64_t rows = r.u32();
+  std::uint64_t components = checkedInt(r, r.u32(), kMaxPcaComponents, "components");
+  if (components != static_cast<std::uint64_t>(btf.latentDim))
+    throw r.fail(std::to_string(components) + " components disagree with the material info (" +
+                 std::to_string(btf.latentDim) + ")");
+  const std::uint64_t count = rows * components;
+  if (count * 4 != r.remaining())
+    throw r.fail(std::to_string(rows) + " " + rowsName + " x " + std::to_string(components) + " components need " +
+                 std::to_string(count * 4) + " bytes, the section holds " + std::to_string(r.remaining()));
+  rowsOut = rows;
+  return readFloats(r, count, "values");
 }
 
 void parseHoldout(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -674,6 +784,17 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
     else if (s.tag == kLatents) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
     else if (s.tag == kHoldout) parseHoldout(s, btf, name);
+    else if (s.tag == kPcaMean) parsePcaMean(s, btf, name);
+    else if (s.tag == kPcaBasis) {
+      std::uint64_t rows = 0;
+      btf.pcaBasis = parsePcaMatrix(s, btf, name, "rows", rows);
+    } else if (s.tag == kPcaCoefficients) {
+      std::uint64_t rows = 0;
+      btf.latents = parsePcaMatrix(s, btf, name, "texels", rows);
+      if (rows != static_cast<std::uint64_t>(btf.latentRows))
+        throw fileError(name, sectionLabel(s.tag) + ": " + std::to_string(rows) +
+                                  " texels disagree with the material info (" + std::to_string(btf.latentRows) + ")");
+    }
     else if (s.tag == kEncoder) btf.encoderState.assign(s.payload, s.payload + s.size);
     else if (s.tag == kMeta) btf.metadataJson.assign(reinterpret_cast<const char*>(s.payload), s.size);
     else if (s.flags & kSectionRequired)
@@ -683,8 +804,15 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
       btf.skippedSections.push_back(tagText(s.tag));
   }
   auto has = [&](std::uint32_t t) { return std::find(seen.begin(), seen.end(), t) != seen.end(); };
-  for (std::uint32_t t : {kDirs, kDecoder, kLatents})
-    if (!has(t)) throw fileError(name, "missing " + sectionLabel(t));
+  if (!has(kDirs)) throw fileError(name, "missing " + sectionLabel(kDirs));
+  const bool pca = btf.method == CodecMethod::Pca;
+  for (std::uint32_t t : {kDecoder, kLatents, kPcaMean, kPcaBasis, kPcaCoefficients}) {
+    const bool pcaPart = t == kPcaMean || t == kPcaBasis || t == kPcaCoefficients;
+    if (pcaPart == pca && !has(t))
+      throw fileError(name, "missing " + sectionLabel(t) + (pca ? " (required by the PCA method)" : ""));
+    if (pcaPart != pca && has(t))
+      throw fileError(name, sectionLabel(t) + " present, but the method is " + codecMethodName(btf.method));
+  }
   if (btf.method == CodecMethod::ClusteredNeural && !has(kIds))
     throw fileError(name, "missing " + sectionLabel(kIds) + " (required by the clustered method)");
   if (btf.method != CodecMethod::ClusteredNeural && has(kIds))

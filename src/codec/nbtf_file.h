@@ -1,6 +1,6 @@
 // The compressed material, `.nbtf`: one self-describing, checksummed binary file holding
 // everything decoding needs (decoder MLP, latents, texel -> latent id list, directions,
-// geometry, alpha) plus provenance (hold-out images, metadata JSON, optionally the
+// geometry, alpha; or, for the PCA baseline, mean, basis and coefficients) plus provenance (hold-out images, metadata JSON, optionally the
 // encoder). Byte layout and versioning rules: docs/file_format.md.
 //
 // The reader treats the file as untrusted input: parseNbtf() validates every size and
@@ -19,10 +19,13 @@
 
 namespace nbtf {
 
-// Format version written by this build. A reader accepts any minor version of its major
-// (minor versions only add optional sections or append fields); a newer major is refused.
+// Format version read by this build. A reader accepts any minor version of its major
+// (minor versions only add optional sections, append fields, or add methods whose files
+// carry required sections an older reader refuses); a newer major is refused. The writer
+// writes the lowest version that describes the file: 1.0 for the neural methods (their
+// files are unchanged since 1.0), 1.1 for the PCA baseline (method 3, added in 1.1).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 0;
+constexpr std::uint16_t kNbtfFormatMinor = 1;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -31,7 +34,7 @@ constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0
 enum class CodecMethod : std::uint8_t {
   ClusteredNeural = 1,  // one latent per cluster + id list (the paper's method)
   PerTexelNeural = 2,   // one latent per texel (the earlier neural BTF; our baseline)
-  Pca = 3,              // classic PCA baseline (issue 6); reserved: not readable yet
+  Pca = 3,              // classic PCA baseline (issue 6): mean + coefficients x basis (format 1.1)
 };
 std::string codecMethodName(CodecMethod m);  // "clustered-neural", "per-texel-neural", "pca"
 
@@ -58,11 +61,15 @@ struct CompressedBtf {
   float alpha = 1;                        // decoder output * alpha = linear value
 
   // ---- The representation
-  Mlp decoder;                            // input: latent, light (x, y), view (x, y); output RGB
-  int latentDim = 8;
-  int latentRows = 0;                     // k (clustered) or texels (per-texel)
-  std::vector<float> latents;             // latentRows x latentDim, row-major
-  std::vector<std::int32_t> ids;          // texel -> latent row; empty in per-texel mode
+  Mlp decoder;                            // input: latent, light (x, y), view (x, y); output RGB; empty for PCA
+  int latentDim = 8;                      // PCA: the number of components C
+  int latentRows = 0;                     // k (clustered) or texels (per-texel, PCA)
+  std::vector<float> latents;             // latentRows x latentDim, row-major; PCA: the coefficients
+  std::vector<std::int32_t> ids;          // texel -> latent row; empty in per-texel mode and PCA
+  // PCA baseline only (codec/pca_model.h): value(t, image, c) = pcaMean[3 image + c] +
+  // latents(t) . basis row 3 image + c, in linear RGB / alpha.
+  std::vector<float> pcaMean;             // 3 x images (image-major, RGB)
+  std::vector<float> pcaBasis;            // (3 x images) rows x C, row-major (one row per image channel)
 
   // ---- Provenance (not needed to decode)
   std::vector<int> holdoutImages;         // ascending image indices kept out of training
@@ -70,13 +77,15 @@ struct CompressedBtf {
   std::string metadataJson = "{}";        // config, seed, training statistics (a JSON object)
 
   // Filled by parseNbtf only: the file's format version and the optional sections this
-  // reader did not know (skipped). The writer always writes the current version.
+  // reader did not know (skipped). The writer picks the version (see kNbtfFormatMinor).
   std::uint16_t formatMajor = kNbtfFormatMajor, formatMinor = kNbtfFormatMinor;
   std::vector<std::string> skippedSections;
 
   int numImages() const { return static_cast<int>(lights.size() * views.size()); }
   int numTexels() const { return width * height; }
   int numClusters() const { return method == CodecMethod::ClusteredNeural ? latentRows : 0; }
+  bool isPca() const { return method == CodecMethod::Pca; }
+  int pcaComponents() const { return isPca() ? latentDim : 0; }
   // The latent row texel t decodes from.
   int latentRowOfTexel(int texel) const { return ids.empty() ? texel : ids[static_cast<std::size_t>(texel)]; }
   const float* latentOfTexel(int texel) const {
@@ -86,6 +95,10 @@ struct CompressedBtf {
   // Checks every invariant the reader checks (shapes agree, values finite, ids in range,
   // directions on the hemisphere...). Throws nbtf::Error prefixed with `name`.
   void validate(const std::string& name = "compressed BTF") const;
+
+ private:
+  void validateNeural(const std::string& name) const;  // decoder, latents, ids
+  void validatePca(const std::string& name) const;     // mean, basis, coefficients
 };
 
 // Smallest unsigned integer width (1, 2 or 4 bytes) that holds every id in [0, k).
@@ -96,6 +109,7 @@ int idWidthForClusters(std::int64_t k);
 // store the smallest width that fits k), total = decoder + latents + ids (the paper's
 // definition: headers, directions and metadata are not counted; fileBytes is the actual
 // file size), raw = texels x images x 3 x 4 (float32 RGB), ratio = raw / total.
+// PCA: decoder, latents and ids are 0; total = mean + basis + coefficients (float32 each).
 struct NbtfSizes {
   std::uint64_t decoderParameters = 0;
   std::uint64_t latentRows = 0, texels = 0, images = 0;
@@ -108,6 +122,10 @@ struct NbtfSizes {
   // The same with the paper's 4-byte ids, to compare with its Table 1.
   std::uint64_t idsPaper = 0, totalPaper = 0;
   double ratioPaper = 0;
+  // PCA baseline: components C; mean 3N x 4, basis 3N x C x 4, coefficients texels x C x 4.
+  bool pca = false;
+  int pcaComponents = 0;
+  std::uint64_t pcaMean = 0, pcaBasis = 0, pcaCoefficients = 0;
 };
 NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes = 0);
 

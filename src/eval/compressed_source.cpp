@@ -29,6 +29,7 @@ void checkDirections(const std::vector<Direction>& ref, const std::vector<Direct
 
 namespace {
 const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
+  if (btf.isPca()) return btf;  // no network: the decoder checks the PCA parts
   if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != 3)
     throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
                 std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
@@ -70,12 +71,15 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
   t.rawFloat32 = s.rawFloat32, t.decoder = s.decoder, t.latents = s.latents, t.ids = s.ids, t.total = s.total;
   t.fileBytes = s.fileBytes;
   t.idsPaper = s.idsPaper, t.totalPaper = s.totalPaper;
+  t.pca = s.pca, t.pcaComponents = s.pcaComponents;
+  t.pcaMean = s.pcaMean, t.pcaBasis = s.pcaBasis, t.pcaCoefficients = s.pcaCoefficients;
   return t;
 }
 
 std::string methodDescription(const CompressedBtf& btf) {
   if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
   if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
+  if (btf.isPca()) return "PCA, C = " + std::to_string(btf.latentDim);
   return codecMethodName(btf.method);
 }
 
@@ -91,8 +95,19 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.method = methodDescription(btf);
   in.methodFamily = codecMethodName(btf.method);
   if (btf.method == CodecMethod::ClusteredNeural) in.methodParameter = btf.latentRows;
+  if (btf.isPca()) in.methodParameter = btf.latentDim;
   in.referenceName = referenceName;
   in.compressedName = fileName;
+  if (btf.isPca()) {
+    in.details = {{"method", codecMethodName(btf.method)},
+                  {"PCA components", std::to_string(btf.latentDim)},
+                  {"data", "linear RGB / alpha, mean-centred"},
+                  {"unmeasured directions", "mean and basis interpolated over the nearest measured pairs"},
+                  {"texel evaluations per image", std::to_string(reconstruction.evaluationsPerImage())},
+                  {"held-out images", std::to_string(btf.holdoutImages.size()) +
+                                          (btf.holdoutImages.empty() ? "" : " (left out of the fit, interpolated)")}};
+    return in;
+  }
   std::string shape = std::to_string(btf.decoder.inputSize());
   for (const auto& layer : btf.decoder.layers) shape += " -> " + std::to_string(layer.out);
   in.details = {{"method", codecMethodName(btf.method)},

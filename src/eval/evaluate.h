@@ -26,6 +26,10 @@ struct SizeTable {
   std::uint64_t rawFloat32 = 0, decoder = 0, latents = 0, ids = 0, total = 0, fileBytes = 0;
   // The same with the paper's 4-byte ids (0 = not given, or equal to the above).
   std::uint64_t idsPaper = 0, totalPaper = 0;
+  // The PCA baseline's parts instead (decoder, latents, ids 0): total = mean + basis + coefficients.
+  bool pca = false;
+  int pcaComponents = 0;
+  std::uint64_t pcaMean = 0, pcaBasis = 0, pcaCoefficients = 0;
   bool known() const { return total > 0; }
   double ratio() const { return total ? static_cast<double>(rawFloat32) / static_cast<double>(total) : 0; }
 };

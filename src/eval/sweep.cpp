@@ -149,10 +149,13 @@ std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entriesIn) {
   table("RMSE, all images", "Linear RGB / alpha, eq. (10) of the paper (4 decimals, as in its Table 2).",
         [](const SweepEntry& e) { return fmt("%.4f", e.rmse); });
   if (anyHoldout)
-    table("RMSE, held-out images (interpolation)", "Linear RGB / alpha, on the images kept out of training.",
+    table("RMSE, held-out images (interpolation)",
+          "Linear RGB / alpha, on the images kept out of training (or out of the PCA fit).",
           [](const SweepEntry& e) { return std::isnan(e.rmseHoldout) ? std::string("-") : fmt("%.4f", e.rmseHoldout); });
   table("RMSE in 8-bit sRGB", "sRGB code values 0-255.", [](const SweepEntry& e) { return fmt("%.2f", e.rmseSrgb8); });
-  table("Compression ratio", "Raw float32 size / total compressed size (decoder + latents + id list), 1 : x.",
+  table("Compression ratio",
+        "Raw float32 size / total compressed size (neural: decoder + latents + id list; PCA: mean + basis + "
+        "coefficients), 1 : x.",
         [](const SweepEntry& e) { return "1 : " + fmt("%.0f", e.ratio); });
   table("Effective blur sigma", "Texels (median over the estimated images; below ~0.3 = no measurable blur).",
         [](const SweepEntry& e) { return fmt("%.2f", e.blurSigma); });
@@ -177,7 +180,9 @@ std::string rateDistortionScript(const std::string& material, const std::vector<
      << "set ylabel 'RMSE (linear RGB / alpha, eq. 10)'\n"
      << "set format x '1:%g'\n"
      << "set grid xtics mxtics ytics\n"
-     << "set key top right box opaque\n"
+     // Below the plot: an opaque key inside it hid points (the per-texel one, top right).
+     << "set key below center horizontal box\n"
+     << "set bmargin 6\n"  // room for the x label and the key under it
      << "set yrange [0:*]\n"
      << "set offsets graph 0.08, graph 0.08, graph 0.1, 0\n"
      << "plot \\\n";
@@ -223,7 +228,7 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
       dat << "# " << mat << ", " << fam
           << ": ratio (raw/total)  rmse (linear/alpha)  rmse_holdout (NaN = none)  parameter  label\n";
       for (const auto* e : pts) {
-        std::string label = std::isnan(e->parameter) ? "" : (fam == "clustered-neural" ? "k=" : "") + fmt("%g", e->parameter);
+        std::string label = std::isnan(e->parameter) ? "" : (fam == "clustered-neural" ? "k=" : fam == "pca" ? "C=" : "") + fmt("%g", e->parameter);
         dat << fmt("%.6g", e->ratio) << ' ' << fmt("%.8g", e->rmse) << ' '
             << (std::isnan(e->rmseHoldout) ? std::string("NaN") : fmt("%.8g", e->rmseHoldout)) << ' '
             << (std::isnan(e->parameter) ? std::string("NaN") : fmt("%g", e->parameter)) << " \""
