@@ -112,21 +112,38 @@ std::vector<TexelQuery> randomQueries(std::size_t n, unsigned seed) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_decode <work folder> [--quick]\n");
+    std::fprintf(stderr, "usage: bench_decode <work folder> [--quick] [--files CLUSTERED.nbtf PER_TEXEL.nbtf]\n");
     return 2;
   }
   namespace fs = std::filesystem;
   const fs::path work = argv[1];
-  const bool quick = argc > 2 && std::string(argv[2]) == "--quick";
+  bool quick = false;
+  std::string clusteredPath = (work / "clustered_k500.nbtf").string();
+  std::string perTexelPath = (work / "per_texel.nbtf").string();
+  bool given = false;
+  for (int a = 2; a < argc; ++a) {
+    const std::string arg = argv[a];
+    if (arg == "--quick") {
+      quick = true;
+    } else if (arg == "--files" && a + 2 < argc) {
+      clusteredPath = argv[++a], perTexelPath = argv[++a], given = true;
+    } else {
+      std::fprintf(stderr, "bench_decode: unknown argument '%s'\n", arg.c_str());
+      return 2;
+    }
+  }
   fs::create_directories(work);
   Progress::setQuiet(true);
   std::printf("threads %d\n", threadCount());
 
-  // The two files, written and opened the way `nbtf decode` opens them.
-  const std::string clusteredPath = (work / "clustered_k500.nbtf").string();
-  const std::string perTexelPath = (work / "per_texel.nbtf").string();
-  writeNbtf(clusteredPath, makeMaterial(true, 1));
-  writeNbtf(perTexelPath, makeMaterial(false, 1));
+  // The two files: really compressed ones (--files), or files of the paper's shapes with
+  // random weights, written and opened the way `nbtf decode` opens them.
+  if (!given) {
+    writeNbtf(clusteredPath, makeMaterial(true, 1));
+    writeNbtf(perTexelPath, makeMaterial(false, 1));
+  }
+  std::printf("files %s %s (%s)\n", clusteredPath.c_str(), perTexelPath.c_str(),
+              given ? "compressed by nbtf compress" : "random weights, paper shapes");
   NbtfDecoder clustered = NbtfDecoder::open(clusteredPath);
   NbtfDecoder perTexel = NbtfDecoder::open(perTexelPath);
   std::printf("decoder kernels %s; %.0f FLOPs per evaluation (12-106-106-106-3, multiply-add = 2)\n",
