@@ -46,5 +46,25 @@ TEST(NbtfDescribe, PerTexelFileWithoutMetadataStillDescribes) {
   EXPECT_FALSE(contains(text, "training  ")) << text;
 }
 
+// The metadata comes from the file, so it is untrusted: odd but valid JSON numbers and
+// wrong types must still describe (found by reasoning about the fuzz target, which calls
+// describeNbtf on every file that parses: "%.6g" printed a subnormal that std::stod then
+// refused to read back, an exception out of `nbtf info`).
+TEST(NbtfDescribe, HostileMetadataValuesStillDescribe) {
+  CompressedBtf b = testing::makeBtf(5);
+  for (const char* meta : {R"({"clustering": {"pca_explained_variance_ratio": 1e-320, "pca_components": "x"}})",
+                           R"({"clustering": {"pca_explained_variance_ratio": 1e308}})",
+                           R"({"clustering": {"pca_explained_variance_ratio": -5e-324}})",
+                           R"({"training": {"rmse_train": 4.9e-324, "epochs": [1]}, "seed": {"a": 1}})",
+                           R"({"clustering": 3, "training": null, "config": {"optimizer": 7}})"}) {
+    b.metadataJson = meta;
+    std::string text;
+    ASSERT_NO_THROW(text = describeNbtf(b, "m.nbtf", 0)) << meta;
+    EXPECT_TRUE(contains(text, "clustered-neural, k = 5 clusters")) << text;
+  }
+  b.metadataJson = R"({"clustering": {"pca_explained_variance_ratio": 1e-320, "pca_components": 2}})";
+  EXPECT_TRUE(contains(describeNbtf(b, "m.nbtf", 0), "explains 0.0% of the variance"));
+}
+
 }  // namespace
 }  // namespace nbtf

@@ -132,7 +132,10 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   }
   std::string explained = jsonNumber(meta, "clustering", "pca_explained_variance_ratio");
   if (!explained.empty()) {
-    std::snprintf(line, sizeof line, "%.1f%%", 100 * std::stod(explained));
+    // The number itself, not its text: "%.6g" of a subnormal does not read back (std::stod
+    // throws), and the metadata is the file's, so untrusted.
+    std::snprintf(line, sizeof line, "%.1f%%",
+                  100 * meta["clustering"]["pca_explained_variance_ratio"].get<double>());
     field("clustering", "PCA with " + jsonNumber(meta, "clustering", "pca_components") + " components explains " +
                             line + " of the variance (standardized log ABRDFs); k-means " +
                             jsonNumber(meta, "clustering", "kmeans_iterations") + " iterations");
