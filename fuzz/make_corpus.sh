@@ -25,6 +25,10 @@ compress clustered --clusters 3
 compress clustered_crop_holdout --clusters 5 --crop 1,2,5,4 --holdout 0.01
 # Per-texel (no id list), cropped to 3 x 2 texels.
 compress per_texel --clusters 0 --crop 2,2,3,2
+# PCA baseline (sections PCAM/PCAB/PCAC), one component over 3 x 2 texels (the basis alone is
+# 3 x 6561 floats, so this seed is ~80 KB).
+"$bin/nbtf" compress "$tmp/stack" -o "$tmp/pca.nbtf" --method pca --components 1 --crop 2,2,3,2 --seed 1 \
+  --threads 1 -q >/dev/null
 
 rm -f "$out"/*.nbtf
 cp "$tmp"/*.nbtf "$out/"
