@@ -76,6 +76,23 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
 
 std::string defaultCheckpointPath(const std::string& output) { return output + ".ckpt"; }
 
+CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha) {
+  CompressedBtf b;
+  b.method = method;
+  b.width = stack.width();
+  b.height = stack.height();
+  b.crop = stack.crop;
+  // In-memory stacks (tests, benchmarks) may not say where they came from.
+  b.sourceWidth = stack.sourceWidth > 0 ? stack.sourceWidth : stack.width();
+  b.sourceHeight = stack.sourceHeight > 0 ? stack.sourceHeight : stack.height();
+  b.layout = stack.layout;
+  b.sourceSampleType = stack.sampleType();
+  b.lights = stack.lights();
+  b.views = stack.views();
+  b.alpha = alpha;
+  return b;
+}
+
 std::string sourceMetadataJson(const BtfStack& stack) {
   json source;
   source["path"] = stack.source;
@@ -179,19 +196,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.rmseHoldout = train.rmseHoldout;
 
   // ---- Assemble the compressed material
-  CompressedBtf b;
-  b.method = stats.method;
-  b.width = stack.width();
-  b.height = stack.height();
-  b.crop = stack.crop;
-  // In-memory stacks (tests, benchmarks) may not say where they came from.
-  b.sourceWidth = stack.sourceWidth > 0 ? stack.sourceWidth : stack.width();
-  b.sourceHeight = stack.sourceHeight > 0 ? stack.sourceHeight : stack.height();
-  b.layout = stack.layout;
-  b.sourceSampleType = stack.sampleType();
-  b.lights = stack.lights();
-  b.views = stack.views();
-  b.alpha = alpha;
+  CompressedBtf b = compressedFrame(stack, stats.method, alpha);
   b.decoder = std::move(train.decoder);
   b.latentDim = config.model.latentDim;
   b.latentRows = train.latentRows;

@@ -84,4 +84,8 @@ std::string compressStatsJson(const CompressStats& stats);
 // The "source" object of the file's metadata (path, layout, sample type, crop) as JSON text.
 std::string sourceMetadataJson(const BtfStack& stack);
 
+// A compressed material's description of its source, common to every method: size, crop,
+// source size, layout, sample type, directions, alpha. The method's own parts are left empty.
+CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha);
+
 }  // namespace nbtf

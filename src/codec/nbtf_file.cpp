@@ -192,6 +192,13 @@ std::string row(const char* part, std::uint64_t bytes, const std::string& note) 
 }  // namespace
 
 std::string formatSizeTable(const NbtfSizes& s) {
+  auto rawAndRatio = [&] {
+    char ratio[160];
+    std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
+    return row("raw float32", s.rawFloat32,
+               withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes") +
+           ratio;
+  };
   if (s.pca) {
     // The baseline's parts, in the same table shape and units as the neural methods.
     std::string out = "sizes (PCA baseline, parts as stored in float32; KiB = 1024 bytes, the paper's KB)\n";
@@ -200,11 +207,7 @@ std::string formatSizeTable(const NbtfSizes& s) {
     out += row("basis", s.pcaBasis, withCommas(s.images) + " images x 3 x " + c + " components x 4 bytes");
     out += row("coefficients", s.pcaCoefficients, withCommas(s.texels) + " texels x " + c + " components x 4 bytes");
     out += row("total", s.total, "mean + basis + coefficients");
-    out += row("raw float32", s.rawFloat32,
-               withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes");
-    char ratio[160];
-    std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
-    out += ratio;
+    out += rawAndRatio();
     if (s.fileBytes) out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
     return out;
   }
@@ -219,11 +222,8 @@ std::string formatSizeTable(const NbtfSizes& s) {
   else
     out += row("id list", 0, "none (per-texel: one latent per texel)");
   out += row("total", s.total, "decoder + latents + id list");
-  out += row("raw float32", s.rawFloat32,
-             withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes");
+  out += rawAndRatio();
   char ratio[160];
-  std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
-  out += ratio;
   if (s.idWidth && s.idWidth != 4) {
     std::snprintf(ratio, sizeof ratio, "  %-12s total %s, 1 : %.1f (with the paper's 4-byte ids)\n", "paper-style",
                   kib(s.totalPaper).c_str(), s.ratioPaper);

@@ -131,18 +131,7 @@ CompressedBtf compressPcaStack(const BtfStack& stack, const CompressOptions& o, 
   x.resize(0, 0);
 
   // ---- Assemble: every image gets a mean and basis row; held-out ones are interpolated
-  CompressedBtf b;
-  b.method = CodecMethod::Pca;
-  b.width = stack.width();
-  b.height = stack.height();
-  b.crop = stack.crop;
-  b.sourceWidth = stack.sourceWidth > 0 ? stack.sourceWidth : stack.width();
-  b.sourceHeight = stack.sourceHeight > 0 ? stack.sourceHeight : stack.height();
-  b.layout = stack.layout;
-  b.sourceSampleType = stack.sampleType();
-  b.lights = stack.lights();
-  b.views = stack.views();
-  b.alpha = alpha;
+  CompressedBtf b = compressedFrame(stack, CodecMethod::Pca, alpha);
   b.latentDim = components;
   b.latentRows = texels;
   const std::size_t c = static_cast<std::size_t>(components);
