@@ -86,6 +86,24 @@ TEST(Trainer, FusedConvPoolMatchesTorch) {
   EXPECT_EQ(convPoolReferenceError(4, 5, 8, 16, 245), 0.0);  // past the 16-wide vector loops
 }
 
+TEST(Trainer, SmallLinearMatchesTorch) {
+  EXPECT_EQ(smallLinearReferenceError(1, 64, 3888, 8), 0.0);  // the encoder's shape for N = 6561
+  EXPECT_EQ(smallLinearReferenceError(2, 1, 5, 3), 0.0);      // a single input
+  EXPECT_EQ(smallLinearReferenceError(3, 7, 2, 11), 0.0);
+}
+
+TEST(Trainer, BatchNormMatchesTorchInTraining) {
+  // Values, all gradients and the running statistics; float rounding differs from torch's.
+  for (int threads : {1, 2}) {  // torch's own sums change order with its thread count
+    EXPECT_LT(batchNormReferenceError(1, 64, 4, 2187, false, threads), 1e-5);  // the first encoder block
+    EXPECT_LT(batchNormReferenceError(2, 3, 16, 5, false, threads), 1e-5);
+    EXPECT_LT(batchNormReferenceError(3, 2, 3, 1, false, threads), 1e-5);      // two values per channel
+  }
+  // A constant channel: finite, no NaN. torch's float mean of the constant is off by an ulp,
+  // which 1 / sqrt(eps) = 316 amplifies; ours (summed in double) is exact.
+  EXPECT_LT(batchNormReferenceError(4, 8, 3, 40, true, 2), 1e-4);
+}
+
 TEST(Trainer, PerTexelModeLearnsTheMaterial) {
   const TestMaterial& m = material();
   TrainResult r = trainModel(m.perTexel(), quickConfig());

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "model/simd_clones.h"
+
 namespace nbtf::detail {
 
 // ---- Vector kernels, cloned per instruction-set feature (picked at load time by the ifunc
@@ -13,14 +15,14 @@ namespace nbtf::detail {
 // plain C++ that the compiler vectorizes for each target.
 
 // out[l] += w0 * p[l] + w1 * p[l + 1] + w2 * p[l + 2] for l < n (p padded by one each side).
-__attribute__((target_clones("default", "avx2", "avx512f")))
+NBTF_SIMD_CLONES
 void stencil3Accumulate(float* __restrict out, const float* __restrict p, int n, float w0, float w1, float w2) {
   for (int l = 0; l < n; ++l) out[l] += w0 * p[l] + w1 * p[l + 1] + w2 * p[l + 2];
 }
 
 // sum over l < n of a[l] * b[l], in 16 interleaved partial sums (vectorizable without
 // reassociating, so the result is the same on every run).
-__attribute__((target_clones("default", "avx2", "avx512f")))
+NBTF_SIMD_CLONES
 float dot16(const float* __restrict a, const float* __restrict b, int n) {
   float acc[16] = {};
   int l = 0;
@@ -35,7 +37,7 @@ float dot16(const float* __restrict a, const float* __restrict b, int n) {
 // Max over windows of 3: y[p] = max(row[3p..3p+2]), which[p] = the winner's offset. torch's
 // rule: a later value wins only if strictly greater (or NaN). Branch-free: the winner is
 // data-dependent and unpredictable.
-__attribute__((target_clones("default", "avx2", "avx512f")))
+NBTF_SIMD_CLONES
 void pool3(const float* __restrict row, int pooled, float* __restrict y, std::uint8_t* __restrict which) {
   for (int p = 0; p < pooled; ++p) {
     const float v0 = row[3 * p], v1 = row[3 * p + 1], v2 = row[3 * p + 2];

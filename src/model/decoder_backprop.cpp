@@ -4,6 +4,8 @@
 
 #include <algorithm>
 
+#include "model/simd_clones.h"
+
 // The Fortran BLAS entry point (OpenBLAS here, see src/CMakeLists.txt). Called from inside
 // a parallel region, the OpenMP build of OpenBLAS runs single-threaded, which is what we want.
 extern "C" void sgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k,
@@ -35,14 +37,7 @@ void accumulateWeightGradient(int rows, int in, int out, const float* dy, const 
   sgemm_("N", "T", &in, &out, &rows, &one, x, &in, dy, &out, &one, dw, &in);
 }
 
-// ---- Element-wise kernels. The library is built for baseline x86-64 (SSE2); these loops
-// are a fifth of a step there, so GCC builds AVX-512 and AVX2 clones too and picks one at
-// load time for the CPU at hand.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-#define NBTF_SIMD_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define NBTF_SIMD_CLONES
-#endif
+// ---- Element-wise kernels: a fifth of a step at SSE2 width, hence the clones.
 
 // h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n.
 NBTF_SIMD_CLONES void layer0Forward(int n, int W, std::int64_t r0, int rowsPerTile, const float* __restrict tiles,

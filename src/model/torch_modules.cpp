@@ -3,7 +3,9 @@
 #include <cmath>
 #include <cstring>
 
+#include "model/batch_norm.h"
 #include "model/conv_pool.h"
+#include "model/small_linear.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -52,8 +54,14 @@ EncoderImpl::EncoderImpl(int imageCount, const ModelConfig& model) {
 
 torch::Tensor EncoderImpl::forward(const torch::Tensor& x) {
   torch::Tensor h = x;
-  for (int b = 0; b < blocks; ++b) h = norms[b]->forward(convPool3(h, convs[b]->weight, convs[b]->bias));
-  return toLatent->forward(h.flatten(1));
+  for (int b = 0; b < blocks; ++b) {
+    h = convPool3(h, convs[b]->weight, convs[b]->bias);
+    auto& norm = norms[b];
+    h = is_training() ? batchNormTrain(h, norm->weight, norm->bias, norm->running_mean, norm->running_var,
+                                       norm->num_batches_tracked, norm->options.momentum().value(), norm->options.eps())
+                      : norm->forward(h);
+  }
+  return smallLinear(h.flatten(1), toLatent->weight, toLatent->bias);
 }
 
 DecoderImpl::DecoderImpl(const ModelConfig& model) {

@@ -10,8 +10,9 @@ namespace nbtf::detail {
 
 // N_blocks x [Conv1d(k3, s1, p1) -> MaxPool1d(k3, s3) -> BatchNorm1d], then a linear map
 // of the flattened features to the latent. Input [batch, 3, N] (RGB channels x images).
-// The Conv1d modules hold the parameters (torch's initialization); conv + pool run fused
-// (conv_pool.h).
+// The Conv1d and Linear modules hold the parameters (torch's initialization); conv + pool
+// run fused (conv_pool.h), BatchNorm in training as batchNormTrain (batch_norm.h), the
+// linear map as smallLinear (small_linear.h).
 struct EncoderImpl : torch::nn::Module {
   EncoderImpl(int imageCount, const ModelConfig& model);
   torch::Tensor forward(const torch::Tensor& x);

@@ -5,8 +5,10 @@
 #include <ctime>
 #include <tuple>
 
+#include "model/batch_norm.h"
 #include "model/conv_pool.h"
 #include "model/decoder_backprop.h"
+#include "model/small_linear.h"
 #include "model/torch_modules.h"
 
 namespace nbtf {
@@ -80,6 +82,67 @@ double convPoolReferenceError(std::uint64_t seed, int batch, int inChannels, int
   err = std::max(err, (gxa - grads[0]).abs().max().item<double>());
   err = std::max(err, (gwa - grads[1]).abs().max().item<double>());
   return std::max(err, (gba - grads[2]).abs().max().item<double>());
+}
+
+double smallLinearReferenceError(std::uint64_t seed, int batch, int in, int out) {
+  torch::manual_seed(seed);
+  torch::nn::Linear linear(in, out);
+  {
+    torch::NoGradGuard noGrad;
+    linear->weight.copy_(torch::randint(-3, 4, linear->weight.sizes()));
+    linear->bias.copy_(torch::randint(-3, 4, linear->bias.sizes()));
+  }
+  torch::Tensor x = torch::randint(-3, 4, {batch, in}, torch::kFloat);
+  torch::Tensor g = torch::randint(-3, 4, {batch, out}, torch::kFloat);
+  torch::Tensor a = x.clone().requires_grad_(true), b = x.clone().requires_grad_(true);
+  torch::Tensor ya = detail::smallLinear(a, linear->weight, linear->bias);
+  auto mine = torch::autograd::grad({ya}, {a, linear->weight, linear->bias}, {g});
+  torch::Tensor yb = linear->forward(b);
+  auto theirs = torch::autograd::grad({yb}, {b, linear->weight, linear->bias}, {g});
+  double err = (ya - yb).abs().max().item<double>();
+  for (int i = 0; i < 3; ++i) err = std::max(err, (mine[i] - theirs[i]).abs().max().item<double>());
+  return err;
+}
+
+double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int length, bool constantChannel,
+                               int threads) {
+  torch::set_num_threads(threads);
+  torch::manual_seed(seed);
+  namespace nn = torch::nn;
+  nn::BatchNorm1d mine(channels), theirs(channels);
+  {
+    torch::NoGradGuard noGrad;
+    torch::Tensor gamma = torch::rand({channels}) + 0.5, beta = torch::randn({channels});
+    torch::Tensor runMean = torch::randn({channels}), runVar = torch::rand({channels}) + 0.5;
+    for (nn::BatchNorm1d* m : {&mine, &theirs}) {
+      (*m)->weight.copy_(gamma);
+      (*m)->bias.copy_(beta);
+      (*m)->running_mean.copy_(runMean);
+      (*m)->running_var.copy_(runVar);
+    }
+  }
+  torch::Tensor x = torch::randn({batch, channels, length}) * 3 + 1;
+  if (constantChannel) x.select(1, 0).fill_(2.5);
+  torch::Tensor g = torch::randn({batch, channels, length});
+  torch::Tensor a = x.clone().requires_grad_(true), b = x.clone().requires_grad_(true);
+  torch::Tensor ya = detail::batchNormTrain(a, mine->weight, mine->bias, mine->running_mean, mine->running_var,
+                                            mine->num_batches_tracked, mine->options.momentum().value(),
+                                            mine->options.eps());
+  auto ga = torch::autograd::grad({ya}, {a, mine->weight, mine->bias}, {g});
+  theirs->train();
+  torch::Tensor yb = theirs->forward(b);
+  auto gb = torch::autograd::grad({yb}, {b, theirs->weight, theirs->bias}, {g});
+  // Each quantity's largest difference relative to its largest magnitude (at least 1): the
+  // weight and bias gradients are sums over batch x length values.
+  auto relative = [](const torch::Tensor& a, const torch::Tensor& b) {
+    return (a - b).abs().max().item<double>() / std::max(1.0, b.abs().max().item<double>());
+  };
+  double err = relative(ya, yb);
+  for (int i = 0; i < 3; ++i) err = std::max(err, relative(ga[i], gb[i]));
+  err = std::max(err, relative(mine->running_mean, theirs->running_mean));
+  err = std::max(err, relative(mine->running_var, theirs->running_var));
+  if (mine->num_batches_tracked.item<std::int64_t>() != theirs->num_batches_tracked.item<std::int64_t>()) err = 1e30;
+  return err;
 }
 
 DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads) {

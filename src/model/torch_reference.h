@@ -27,6 +27,20 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
 // weight and bias gradients (0 when they agree exactly).
 double convPoolReferenceError(std::uint64_t seed, int batch, int inChannels, int outChannels, int length);
 
+// The encoder's last layer (smallLinear, small_linear.h) against torch::nn::Linear on
+// small-integer inputs, weights and output gradients: the largest difference of outputs and
+// of the input, weight and bias gradients (0 when they agree exactly).
+double smallLinearReferenceError(std::uint64_t seed, int batch, int in, int out);
+
+// The encoder's BatchNorm in training (batchNormTrain, batch_norm.h) against
+// torch::nn::BatchNorm1d in train(), on random normal inputs and output gradients (one channel
+// constant when constantChannel): the largest difference, relative to the largest magnitude
+// (at least 1), of outputs, the input, weight and bias gradients, and the running mean and
+// variance after the step, on `threads` threads. Float rounding differs (torch sums in float, in
+// an order that depends on its thread count), so not 0.
+double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int length, bool constantChannel,
+                               int threads);
+
 // The decoder's hand-written training pass alone (forward, loss, backward; no encoder, no
 // optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads.
 struct DecoderStepRate {
