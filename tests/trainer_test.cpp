@@ -267,6 +267,17 @@ TEST(TrainConfig, ShippedConfigsLoad) {
   EXPECT_EQ(paper.batchSize, 5);
   EXPECT_EQ(paper.imagesPerInput, 1);
   EXPECT_EQ(paper.schedule, "constant");
+  // converged.json is the default recipe run 4x as long (the convergence benchmark's recipe).
+  TrainConfig converged = loadTrainConfig(std::string(NBTF_SOURCE_DIR) + "/configs/converged.json");
+  EXPECT_EQ(converged.epochs, 4 * def.epochs);
+  EXPECT_EQ(converged.model.encoderChannels, def.model.encoderChannels);
+  EXPECT_EQ(converged.optimizer, def.optimizer);
+  EXPECT_DOUBLE_EQ(converged.learningRate, def.learningRate);
+  EXPECT_EQ(converged.batchSize, def.batchSize);
+  EXPECT_EQ(converged.imagesPerInput, def.imagesPerInput);
+  EXPECT_EQ(converged.schedule, def.schedule);
+  EXPECT_DOUBLE_EQ(converged.warmupFraction, def.warmupFraction);
+  EXPECT_DOUBLE_EQ(converged.polishFraction, def.polishFraction);
 }
 
 TEST(TrainConfig, ReadsEveryComponent) {
