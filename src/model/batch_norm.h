@@ -2,7 +2,7 @@
 // src/model/*.cpp (includes torch).
 //
 // Why: torch's CPU kernel for [batch, channels, length] with few channels (4, 8, 16 in the
-// encoder) made normalization cost as much as the convolutions it follows. This one works a
+// encoder) was a large part of the encoder's step. This one works a
 // channel at a time over contiguous rows, threads over channels (so sums have a fixed order:
 // deterministic for any thread count), and accumulates the statistics in double.
 #pragma once

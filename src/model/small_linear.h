@@ -2,9 +2,9 @@
 // PRIVATE to src/model/*.cpp (includes torch).
 //
 // Why: the encoder's last layer maps 64 inputs x 3888 features to 8 latents each step. Through
-// torch (OpenBLAS with OpenMP threads) that product took 4x longer on 2 threads than on one on
-// an idle machine, and 100x longer (12 ms instead of 0.12) when another process kept the cores
-// busy: the threads wait for each other at every barrier. Here it is dot products and axpys
+// torch (OpenBLAS with OpenMP threads) that product ran slower on 2 threads than on one even on
+// an idle machine, and many times slower when another process kept the cores busy: the threads
+// wait for each other at every barrier. Here it is dot products and axpys
 // over contiguous feature rows, each output row summed by one thread in a fixed order.
 #pragma once
 #include <torch/torch.h>
