@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "model/simd_clones.h"
+#include "model/vector_kernels.h"
 
 namespace nbtf::detail {
 
@@ -18,20 +19,6 @@ namespace nbtf::detail {
 NBTF_SIMD_CLONES
 void stencil3Accumulate(float* __restrict out, const float* __restrict p, int n, float w0, float w1, float w2) {
   for (int l = 0; l < n; ++l) out[l] += w0 * p[l] + w1 * p[l + 1] + w2 * p[l + 2];
-}
-
-// sum over l < n of a[l] * b[l], in 16 interleaved partial sums (vectorizable without
-// reassociating, so the result is the same on every run).
-NBTF_SIMD_CLONES
-float dot16(const float* __restrict a, const float* __restrict b, int n) {
-  float acc[16] = {};
-  int l = 0;
-  for (; l + 16 <= n; l += 16)
-    for (int k = 0; k < 16; ++k) acc[k] += a[l + k] * b[l + k];
-  for (; l < n; ++l) acc[l % 16] += a[l] * b[l];
-  float s = 0;
-  for (float v : acc) s += v;
-  return s;
 }
 
 // Max over windows of 3: y[p] = max(row[3p..3p+2]), which[p] = the winner's offset. torch's

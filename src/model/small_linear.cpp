@@ -2,30 +2,10 @@
 
 #include <ATen/Parallel.h>
 
-#include "model/simd_clones.h"
+#include "model/vector_kernels.h"
 
 namespace nbtf::detail {
 namespace {
-
-// ---- Row kernels over the long (feature) dimension, contiguous in every operand.
-constexpr int kLanes = 16;
-
-// sum a[i] b[i] in 16 lanes, reduced in lane order (the same on every run).
-NBTF_SIMD_CLONES float dot(const float* __restrict a, const float* __restrict b, int n) {
-  float acc[kLanes] = {};
-  int i = 0;
-  for (; i + kLanes <= n; i += kLanes)
-    for (int k = 0; k < kLanes; ++k) acc[k] += a[i + k] * b[i + k];
-  for (; i < n; ++i) acc[i % kLanes] += a[i] * b[i];
-  float s = 0;
-  for (float v : acc) s += v;
-  return s;
-}
-
-// y += a x
-NBTF_SIMD_CLONES void axpy(float a, const float* __restrict x, float* __restrict y, int n) {
-  for (int i = 0; i < n; ++i) y[i] += a * x[i];
-}
 
 struct SmallLinearFunction : torch::autograd::Function<SmallLinearFunction> {
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& input,
@@ -45,7 +25,7 @@ struct SmallLinearFunction : torch::autograd::Function<SmallLinearFunction> {
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
       for (std::int64_t r = b0; r < b1; ++r)
         for (int o = 0; o < out; ++o)
-          ys[r * out + o] = b[o] + dot(xs + r * in, w + static_cast<std::size_t>(o) * in, in);
+          ys[r * out + o] = b[o] + dot16(xs + r * in, w + static_cast<std::size_t>(o) * in, in);
     });
     ctx->save_for_backward({x, weight});
     return y;
