@@ -77,6 +77,14 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
   EXPECT_LT(decoderBackpropError(small, 4, 1, 9), 1e-5);
   small.decoderLayers = 6;
   EXPECT_LT(decoderBackpropError(small, 5, 3, 2), 1e-5);
+  // Several 512-row chunks with a short last one, split between two threads; a width
+  // whose padded rows (with the bias column) need two vector panels.
+  ModelConfig wide;
+  wide.decoderWidth = 130;
+  for (int threads : {1, 2}) {
+    EXPECT_LT(decoderBackpropError(model, 6, 5, 211, threads), 1e-5) << threads << " threads";
+    EXPECT_LT(decoderBackpropError(wide, 7, 2, 300, threads), 1e-5) << threads << " threads";
+  }
 }
 
 TEST(Trainer, FusedConvPoolMatchesTorch) {
@@ -90,6 +98,12 @@ TEST(Trainer, SmallLinearMatchesTorch) {
   EXPECT_EQ(smallLinearReferenceError(1, 64, 3888, 8), 0.0);  // the encoder's shape for N = 6561
   EXPECT_EQ(smallLinearReferenceError(2, 1, 5, 3), 0.0);      // a single input
   EXPECT_EQ(smallLinearReferenceError(3, 7, 2, 11), 0.0);
+}
+
+TEST(Trainer, FusedAdamMatchesTorch) {
+  // The decoder's and encoder's parameter sizes, a tail past the 16-wide loop, one element.
+  EXPECT_LT(fusedAdamReferenceError(1, {106 * 106, 106, 31104, 8}, 25, 0.002), 1e-5);
+  EXPECT_LT(fusedAdamReferenceError(2, {17, 1}, 40, 0.08), 1e-5);
 }
 
 TEST(Trainer, BatchNormMatchesTorchInTraining) {

@@ -4,15 +4,19 @@
 // Why not autograd: the decoder is where the flops are, and at width 106 the time goes to
 // memory passes over [batch x 106] tensors as much as to the matrix products. Here the
 // batch is cut into chunks of a few hundred rows; each thread runs a chunk through every
-// layer and back while its activations are still in L2 (single-threaded BLAS products,
-// bias/ReLU/masks in the same cache-resident pass), and accumulates the weight gradients
-// over its chunks. Rows come in tiles that share one latent, so the first layer splits
-// into W_z z (once per tile) + W_d d (per row): no product with K = 12 and no gradient for
-// the direction inputs. A thread's share of the chunks is fixed by the thread count and the
-// per-thread sums are added in thread order, so results are bit-identical run to run.
+// layer and back while its activations are still in L2, with register-blocked products
+// that apply the ReLU (or its mask) before storing (dense_kernels.h), and accumulates the
+// weight gradients over its chunks. Activations carry a constant-1 column after the
+// hidden units, so each layer's bias is one more row of its (transposed, padded) weight
+// matrix and its gradient one more column of the weight gradient. Rows come in tiles that
+// share one latent, so the first layer splits into W_z z (once per tile) + W_d d (per
+// row): no product with K = 12 and no gradient for the direction inputs. A thread's share
+// of the chunks is fixed by the thread count and the per-thread sums are added in thread
+// order, so results are bit-identical run to run.
 #pragma once
 #include <vector>
 
+#include "model/dense_kernels.h"
 #include "model/torch_modules.h"
 
 namespace nbtf::detail {
@@ -32,29 +36,35 @@ class DecoderBackprop {
                    torch::Tensor& dz);
 
  private:
-  // One thread's scratch (chunk activations) and gradient sums.
+  // One thread's scratch (chunk activations, row stride stride_) and gradient sums.
   struct Worker {
-    std::vector<float> hidden;       // (layers - 1) x chunk x width, post-ReLU
-    std::vector<float> grad, grad2;  // chunk x width
-    std::vector<float> out;          // chunk x 3
-    std::vector<float> weightGrad, biasGrad;  // all layers, concatenated
-    std::vector<float> dirGrad;      // 4 x width: dLoss/dW_d, transposed
-    std::vector<float> tileGrad;     // tiles x width: dLoss/d(W_z z + b)
+    AlignedFloats hidden;          // (layers - 1) x chunk x stride, post-ReLU, column width_ = 1
+    AlignedFloats grad, grad2;     // chunk x stride
+    std::vector<float> out;        // chunk x outputs
+    AlignedFloats weightGrad;      // layers 1 .. layers - 1: [out x stride], bias in column width_
+    std::vector<float> dirGrad;    // 4 x width: dLoss/dW_d, transposed
+    std::vector<float> tileGrad;   // tiles x width: dLoss/d(W_z z + b)
     double loss = 0;
   };
-  // Sets up the per-tile part of layer 0 and the workers, then runs them in parallel.
+  // Sets up the per-tile part of layer 0, the padded weights and the workers, then runs them
+  // in parallel.
   void run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile, float* outRows);
   // Runs the chunks of worker `w`; targets == nullptr: forward only (outputs to outRows).
   void runWorker(int w, int workers, std::int64_t rows, int rowsPerTile, const float* dirs, const float* targets,
                  float* outRows);
 
   Decoder decoder_;
-  int latentDim_, layers_, width_;
-  std::vector<std::int64_t> weightOffset_, biasOffset_;  // into Worker::weightGrad / biasGrad
+  int latentDim_, layers_, width_, outputs_;
+  int stride_;                           // padded row length: width_ hidden units + the 1 column
+  std::vector<std::size_t> gradOffset_;  // layer l >= 1 -> offset in Worker::weightGrad
+  // Per call, for layers l >= 1: forward_[l] = [W^T; b^T] padded ([in + 1] x stride, the
+  // product's right-hand side; hidden layers also map the 1 column to itself), backward_[l]
+  // = W padded ([out x stride]). For the last layer both are [outputs x stride] (rowDots).
+  std::vector<AlignedFloats> forward_, backward_;
   std::vector<Worker> workers_;
   std::vector<float> dirWeightT_;  // 4 x width: W_d transposed, refreshed every call
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
-  torch::Tensor out_;              // [rows, 3]
+  torch::Tensor out_;              // [rows, outputs]
   std::vector<torch::Tensor> weightGrad_, biasGrad_;
 };
 

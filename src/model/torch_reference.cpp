@@ -8,6 +8,7 @@
 #include "model/batch_norm.h"
 #include "model/conv_pool.h"
 #include "model/decoder_backprop.h"
+#include "model/fused_adam.h"
 #include "model/small_linear.h"
 #include "model/torch_modules.h"
 
@@ -26,7 +27,8 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
   return r;
 }
 
-double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile) {
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads) {
+  if (threads > 0) torch::set_num_threads(threads);
   torch::manual_seed(seed);
   detail::Decoder decoder(model);
   const int rows = tiles * rowsPerTile;
@@ -101,6 +103,39 @@ double smallLinearReferenceError(std::uint64_t seed, int batch, int in, int out)
   auto theirs = torch::autograd::grad({yb}, {b, linear->weight, linear->bias}, {g});
   double err = (ya - yb).abs().max().item<double>();
   for (int i = 0; i < 3; ++i) err = std::max(err, (mine[i] - theirs[i]).abs().max().item<double>());
+  return err;
+}
+
+double fusedAdamReferenceError(std::uint64_t seed, const std::vector<std::int64_t>& sizes, int steps, double lr) {
+  torch::manual_seed(seed);
+  std::vector<torch::Tensor> mine, theirs;
+  for (std::int64_t n : sizes) {
+    torch::Tensor p = torch::randn({n});
+    mine.push_back(p.clone().requires_grad_(true));
+    theirs.push_back(p.clone().requires_grad_(true));
+  }
+  torch::optim::Adam a(mine, torch::optim::AdamOptions(lr)), b(theirs, torch::optim::AdamOptions(lr));
+  for (int s = 0; s < steps; ++s) {
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+      torch::Tensor g = torch::randn({sizes[i]}) * (s % 3 + 1);
+      mine[i].mutable_grad() = g.clone();
+      theirs[i].mutable_grad() = g.clone();
+    }
+    detail::fusedAdamStep(a);
+    b.step();
+  }
+  auto relative = [](const torch::Tensor& x, const torch::Tensor& y) {
+    return (x - y).abs().max().item<double>() / std::max(1e-30, y.abs().max().item<double>());
+  };
+  double err = 0;
+  for (std::size_t i = 0; i < sizes.size(); ++i) {
+    err = std::max(err, relative(mine[i], theirs[i]));
+    auto key = [](const torch::Tensor& p) { return c10::guts::to_string(p.unsafeGetTensorImpl()); };
+    auto& sa = static_cast<torch::optim::AdamParamState&>(*a.state().at(key(mine[i])));
+    auto& sb = static_cast<torch::optim::AdamParamState&>(*b.state().at(key(theirs[i])));
+    if (sa.step() != sb.step()) return 1e30;
+    err = std::max({err, relative(sa.exp_avg(), sb.exp_avg()), relative(sa.exp_avg_sq(), sb.exp_avg_sq())});
+  }
   return err;
 }
 

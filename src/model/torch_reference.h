@@ -2,6 +2,7 @@
 // torch-free; the work happens in torch_reference.cpp.
 #pragma once
 #include <cstdint>
+#include <vector>
 
 #include "model/mlp.h"
 #include "model/trainer.h"
@@ -19,7 +20,9 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
 // Runs the hand-written decoder backward pass that training uses and torch autograd on the
 // same random batch (tiles x rowsPerTile rows); returns the largest difference over all
 // parameter gradients and the latent gradient, relative to the largest gradient magnitude.
-double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile);
+// threads > 0 sets torch's thread count first (the pass splits its rows among threads).
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
+                            int threads = 0);
 
 // The encoder's fused conv + pool (conv_pool.h) against torch::nn::Conv1d(k3, s1, p1) then
 // MaxPool1d(3, stride 3), on small-integer inputs, weights and output gradients (so both
@@ -38,6 +41,12 @@ double smallLinearReferenceError(std::uint64_t seed, int batch, int in, int out)
 // (at least 1), of outputs, the input, weight and bias gradients, and the running mean and
 // variance after the step, on `threads` threads. Float rounding differs (torch sums in float, in
 // an order that depends on its thread count), so not 0.
+// detail::fusedAdamStep against torch::optim::Adam::step: the same random parameters
+// (tensors of the given sizes) and gradients for `steps` steps, lr and betas as given;
+// returns the largest parameter difference relative to the largest parameter magnitude,
+// after checking that both optimizers' states (step count, moments) agree likewise.
+double fusedAdamReferenceError(std::uint64_t seed, const std::vector<std::int64_t>& sizes, int steps, double lr);
+
 double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int length, bool constantChannel,
                                int threads);
 

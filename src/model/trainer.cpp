@@ -12,6 +12,7 @@
 #include <memory>
 
 #include "model/decoder_backprop.h"
+#include "model/fused_adam.h"
 #include "model/torch_modules.h"
 #include "model/train_checkpoint.h"
 #include "model/train_eval.h"
@@ -287,7 +288,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
                   " (loss is not finite); lower optimizer.learning_rate");
-    optimizer->step();
+    if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer.get())) detail::fusedAdamStep(*adam);
+    else optimizer->step();
     lap(prof.optimizer);
     ++step;
     emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;

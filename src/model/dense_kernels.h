@@ -1,0 +1,54 @@
+// Register-blocked dense products for the decoder's training pass (decoder_backprop.cpp).
+// Torch-free.
+//
+// Why not BLAS: the decoder's products are small (a few hundred rows x 106 x 106 per
+// call), where OpenBLAS spends a good part of its time packing the operands and the
+// element-wise passes around it (bias, ReLU, ReLU mask) stream the activations once more.
+// These kernels keep a block of rows x up to 112 columns of the result in vector registers
+// through the whole inner sum, read the right-hand matrix in its natural row-major layout
+// (no packing), and apply the ReLU or its mask before storing.
+//
+// Layout: row-major; a matrix with `cols` columns has row stride `cols` unless a stride
+// is given; `cols` is a multiple of kDenseLanes (pad with zero columns). Every sum runs in
+// one fixed order (products and outer sums: index increasing), the same on every run.
+#pragma once
+#include <cstddef>
+#include <vector>
+
+namespace nbtf::detail {
+
+constexpr int kDenseLanes = 16;
+inline int paddedWidth(int width) { return (width + kDenseLanes - 1) / kDenseLanes * kDenseLanes; }
+
+// A zero-filled float buffer whose data starts on a 64-byte boundary (a cache line, an
+// AVX-512 vector): the kernels' rows then never straddle two cache lines.
+class AlignedFloats {
+ public:
+  void assign(std::size_t n) {
+    storage_.assign(n + 16, 0.0f);
+    const auto address = reinterpret_cast<std::size_t>(storage_.data());
+    offset_ = ((64 - address % 64) % 64) / sizeof(float);
+    size_ = n;
+  }
+  float* data() { return storage_.data() + offset_; }
+  const float* data() const { return storage_.data() + offset_; }
+  std::size_t size() const { return size_; }
+
+ private:
+  std::vector<float> storage_;
+  std::size_t offset_ = 0, size_ = 0;
+};
+
+// y[r][j] = max(0, sum_{q<k} x[r * ldx + q] b[q][j]) for r < n, j < cols.
+void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y);
+
+// y[r][j] = h[r][j] > 0 ? sum_{q<k} x[r * ldx + q] b[q][j] : 0 (the ReLU's backward, h its output).
+void productMasked(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h, float* y);
+
+// w[i][j] += sum_{r<n} g[r * ldg + i] h[r][j] for i < m, j < cols (a weight gradient).
+void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w);
+
+// out[r * m + i] = sum_{j<cols} h[r][j] w[i][j] for r < n, i < m (a narrow output layer).
+void rowDots(int n, int m, const float* h, int cols, const float* w, float* out);
+
+}  // namespace nbtf::detail
