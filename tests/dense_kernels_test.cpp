@@ -27,7 +27,8 @@ double relativeError(const float* a, const std::vector<double>& b) {
 }
 
 // Shapes that cover the register blocks' row tails (n not a multiple of the block), every
-// panel width of 1 to 7 vectors, a second panel (cols > 112) and an unaligned row stride.
+// panel width (1 to 4 vectors), several panels (cols > 64), an unaligned row stride, and
+// sums deeper than one slice of the product (k > 48).
 struct Shape {
   int n, k, cols, ld;
 };

@@ -24,9 +24,17 @@ inline __attribute__((always_inline)) Vec load(const float* p) {
 }
 inline __attribute__((always_inline)) void store(float* p, Vec v) { std::memcpy(p, &v, sizeof v); }
 
-// Columns per panel: 7 vectors (112 floats, the decoder's 106 + bias column padded) keeps
-// rows x 7 accumulators, the 7 row vectors of b and a broadcast within 32 registers.
-constexpr int kPanelVectors = 7;
+// Columns per panel: 4 vectors (64 floats); with 6 rows that is 24 accumulators, plus the 4
+// row vectors of b and a broadcast, within the 32 vector registers. Measured against 7
+// vectors x 3 rows (the decoder's whole 112-float row at once): about 1.3x faster, as each
+// loaded value feeds more FMAs.
+constexpr int kPanelVectors = 4;
+
+// Rows (or gradient rows) per register block for a panel of V vectors.
+template <int V>
+constexpr int blockRows() {
+  return V == 4 ? 6 : V == 3 ? 8 : V == 2 ? 12 : 16;
+}
 
 enum class Epilogue { Relu, Mask };
 
@@ -62,7 +70,7 @@ inline __attribute__((always_inline)) void productBlock(int q0, int q1, bool fir
     }
 }
 
-// The sum over q in slices of at most kSliceDepth rows of b (7 x 16 floats each), so a
+// The sum over q in slices of at most kSliceDepth rows of b (a panel: 4 x 16 floats each), so a
 // slice of b stays in L1 while every row block of x passes over it; rows in blocks of R
 // (R x V accumulators fit the registers), the rest one by one. Each y entry still sums q
 // in increasing order.
@@ -71,7 +79,7 @@ constexpr int kSliceDepth = 48;
 template <int V, Epilogue E>
 inline __attribute__((always_inline)) void productPanel(int n, int k, const float* x, int ldx, const float* b,
                                                         int cols, float* y, const float* h) {
-  constexpr int R = V >= 6 ? 3 : V == 5 ? 4 : V == 4 ? 5 : V == 3 ? 6 : 8;
+  constexpr int R = blockRows<V>();
   const int slices = std::max(1, (k + kSliceDepth - 1) / kSliceDepth), depth = std::max(1, (k + slices - 1) / slices);
   for (int q0 = 0; q0 < std::max(k, 1); q0 += depth) {
     const int q1 = std::min(k, q0 + depth);
@@ -99,9 +107,6 @@ inline __attribute__((always_inline)) void product(int n, int k, const float* x,
     float* yp = y + c0;
     const float* hp = h ? h + c0 : nullptr;
     switch (std::min(kPanelVectors, (cols - c0) / kDenseLanes)) {
-      case 7: productPanel<7, E>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 6: productPanel<6, E>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 5: productPanel<5, E>(n, k, x, ldx, bp, cols, yp, hp); break;
       case 4: productPanel<4, E>(n, k, x, ldx, bp, cols, yp, hp); break;
       case 3: productPanel<3, E>(n, k, x, ldx, bp, cols, yp, hp); break;
       case 2: productPanel<2, E>(n, k, x, ldx, bp, cols, yp, hp); break;
@@ -132,7 +137,7 @@ inline __attribute__((always_inline)) void outerBlock(int r0, int r1, const floa
 template <int V>
 inline __attribute__((always_inline)) void outerPanel(int r0, int r1, int m, const float* g, int ldg, const float* h,
                                                       int cols, float* w) {
-  constexpr int M = V >= 6 ? 3 : V == 5 ? 4 : V == 4 ? 5 : V == 3 ? 6 : 8;
+  constexpr int M = blockRows<V>();
   int i = 0;
   for (; i + M <= m; i += M) outerBlock<M, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
   for (; i < m; ++i) outerBlock<1, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
@@ -159,9 +164,6 @@ NBTF_SIMD_CLONES void accumulateOuter(int n, int m, const float* g, int ldg, con
       const float* hp = h + c0;
       float* wp = w + c0;
       switch (std::min(kPanelVectors, (cols - c0) / kDenseLanes)) {
-        case 7: outerPanel<7>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 6: outerPanel<6>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 5: outerPanel<5>(r0, r1, m, g, ldg, hp, cols, wp); break;
         case 4: outerPanel<4>(r0, r1, m, g, ldg, hp, cols, wp); break;
         case 3: outerPanel<3>(r0, r1, m, g, ldg, hp, cols, wp); break;
         case 2: outerPanel<2>(r0, r1, m, g, ldg, hp, cols, wp); break;
