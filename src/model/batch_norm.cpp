@@ -9,37 +9,38 @@
 namespace nbtf::detail {
 namespace {
 
-// ---- Row kernels (one channel of one batch item: `n` contiguous values). Partial sums in 16
-// lanes, reduced in lane order: vectorized without reassociation, the same on every run.
-constexpr int kLanes = 16;
+// ---- Row kernels (one channel of one batch item: `n` contiguous values). Partial sums in
+// kAccumulators x kLanes lanes (independent FMA chains, so a row streams at the cache's pace,
+// not at the adder's latency), reduced in a fixed order: the same on every run.
+constexpr int kLanes = 16, kAccumulators = 4, kWide = kLanes * kAccumulators;
 
 double laneTotal(const float* acc) {
   double s = 0;
-  for (int k = 0; k < kLanes; ++k) s += acc[k];
+  for (int k = 0; k < kWide; ++k) s += acc[k];
   return s;
 }
 
 NBTF_SIMD_CLONES double rowSum(const float* __restrict x, int n) {
-  float acc[kLanes] = {};
+  float acc[kWide] = {};
   int i = 0;
-  for (; i + kLanes <= n; i += kLanes)
-    for (int k = 0; k < kLanes; ++k) acc[k] += x[i + k];
-  for (; i < n; ++i) acc[i % kLanes] += x[i];
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) acc[k] += x[i + k];
+  for (; i < n; ++i) acc[i % kWide] += x[i];
   return laneTotal(acc);
 }
 
 // sum (x - mean)^2
 NBTF_SIMD_CLONES double rowSquaredDeviation(const float* __restrict x, int n, float mean) {
-  float acc[kLanes] = {};
+  float acc[kWide] = {};
   int i = 0;
-  for (; i + kLanes <= n; i += kLanes)
-    for (int k = 0; k < kLanes; ++k) {
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) {
       const float d = x[i + k] - mean;
       acc[k] += d * d;
     }
   for (; i < n; ++i) {
     const float d = x[i] - mean;
-    acc[i % kLanes] += d * d;
+    acc[i % kWide] += d * d;
   }
   return laneTotal(acc);
 }
@@ -53,16 +54,16 @@ NBTF_SIMD_CLONES void rowNormalize(const float* __restrict x, int n, float mean,
 // sum g and sum g * (x - mean)
 NBTF_SIMD_CLONES void rowGradientSums(const float* __restrict g, const float* __restrict x, int n, float mean,
                                       double& sumG, double& sumGx) {
-  float a[kLanes] = {}, b[kLanes] = {};
+  float a[kWide] = {}, b[kWide] = {};
   int i = 0;
-  for (; i + kLanes <= n; i += kLanes)
-    for (int k = 0; k < kLanes; ++k) {
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) {
       a[k] += g[i + k];
       b[k] += g[i + k] * (x[i + k] - mean);
     }
   for (; i < n; ++i) {
-    a[i % kLanes] += g[i];
-    b[i % kLanes] += g[i] * (x[i] - mean);
+    a[i % kWide] += g[i];
+    b[i % kWide] += g[i] * (x[i] - mean);
   }
   sumG += laneTotal(a);
   sumGx += laneTotal(b);
