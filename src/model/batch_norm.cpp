@@ -14,9 +14,12 @@ namespace {
 // not at the adder's latency), reduced in a fixed order: the same on every run.
 constexpr int kLanes = 16, kAccumulators = 4, kWide = kLanes * kAccumulators;
 
-double laneTotal(const float* acc) {
+// Inlined into each clone: an out-of-line baseline (SSE) copy called from AVX-512 code was slow.
+inline __attribute__((always_inline)) double laneTotal(const float* acc) {
+  float lanes[kLanes];  // the accumulators added lane-wise first: short rows are common
+  for (int k = 0; k < kLanes; ++k) lanes[k] = (acc[k] + acc[kLanes + k]) + (acc[2 * kLanes + k] + acc[3 * kLanes + k]);
   double s = 0;
-  for (int k = 0; k < kWide; ++k) s += acc[k];
+  for (int k = 0; k < kLanes; ++k) s += lanes[k];
   return s;
 }
 
@@ -25,7 +28,9 @@ NBTF_SIMD_CLONES double rowSum(const float* __restrict x, int n) {
   int i = 0;
   for (; i + kWide <= n; i += kWide)
     for (int k = 0; k < kWide; ++k) acc[k] += x[i + k];
-  for (; i < n; ++i) acc[i % kWide] += x[i];
+  for (; i + kLanes <= n; i += kLanes)  // short rows: the rest a vector at a time
+    for (int k = 0; k < kLanes; ++k) acc[k] += x[i + k];
+  for (; i < n; ++i) acc[i % kLanes] += x[i];
   return laneTotal(acc);
 }
 
@@ -38,9 +43,14 @@ NBTF_SIMD_CLONES double rowSquaredDeviation(const float* __restrict x, int n, fl
       const float d = x[i + k] - mean;
       acc[k] += d * d;
     }
+  for (; i + kLanes <= n; i += kLanes)
+    for (int k = 0; k < kLanes; ++k) {
+      const float d = x[i + k] - mean;
+      acc[k] += d * d;
+    }
   for (; i < n; ++i) {
     const float d = x[i] - mean;
-    acc[i % kWide] += d * d;
+    acc[i % kLanes] += d * d;
   }
   return laneTotal(acc);
 }
@@ -61,9 +71,14 @@ NBTF_SIMD_CLONES void rowGradientSums(const float* __restrict g, const float* __
       a[k] += g[i + k];
       b[k] += g[i + k] * (x[i + k] - mean);
     }
+  for (; i + kLanes <= n; i += kLanes)
+    for (int k = 0; k < kLanes; ++k) {
+      a[k] += g[i + k];
+      b[k] += g[i + k] * (x[i + k] - mean);
+    }
   for (; i < n; ++i) {
-    a[i % kWide] += g[i];
-    b[i % kWide] += g[i] * (x[i] - mean);
+    a[i % kLanes] += g[i];
+    b[i % kLanes] += g[i] * (x[i] - mean);
   }
   sumG += laneTotal(a);
   sumGx += laneTotal(b);
