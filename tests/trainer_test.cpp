@@ -91,6 +91,7 @@ TEST(Trainer, FusedConvPoolMatchesTorch) {
   EXPECT_EQ(convPoolReferenceError(7, 3, 4, 5, 46), 0.0);
   EXPECT_EQ(convPoolReferenceError(8, 1, 2, 20, 97), 0.0);
   EXPECT_EQ(convPoolReferenceError(9, 2, 16, 4, 5), 0.0);
+  EXPECT_EQ(convPoolReferenceError(10, 2, 3, 4, 800), 0.0);  // chunks of 128 windows, the last partial
 }
 
 TEST(Trainer, SmallLinearMatchesTorch) {

@@ -13,6 +13,10 @@ namespace {
 
 int roundUp(int n, int multiple) { return (n + multiple - 1) / multiple * multiple; }
 
+// Windows per convolve() call: its output (at most 16 channels x 3 rows) stays in L1 for
+// pooling or merging.
+constexpr int kChunk = 8 * phases::kLanes;
+
 // Scratch rows, 64-byte aligned so the phase rows start on a vector.
 struct Scratch {
   std::vector<float> storage;
@@ -53,14 +57,17 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
       // Per item, cache-resident: the input in phase rows and the convolution's.
-      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride), conv(static_cast<std::size_t>(outPadded) * 3 * stride);
+      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride), conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
       for (std::int64_t b = b0; b < b1; ++b) {
         splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
-        phases::convolve(phaseRows.data, in, stride, coef.data(), biasPadded.data(), outPadded,
-                         phases::vectorsFor(pooled), conv.data);
-        for (int o = 0; o < out; ++o) {
-          const std::size_t base = (static_cast<std::size_t>(b) * out + o) * pooled;
-          phases::pool(conv.data + static_cast<std::size_t>(o) * 3 * stride, stride, pooled, ys + base, arg + base);
+        for (int p0 = 0; p0 < pooled; p0 += kChunk) {
+          const int windows = std::min(kChunk, pooled - p0);
+          phases::convolve(phaseRows.data + p0, in, stride, coef.data(), biasPadded.data(), outPadded,
+                           phases::vectorsFor(windows), conv.data, kChunk);
+          for (int o = 0; o < out; ++o) {
+            const std::size_t base = (static_cast<std::size_t>(b) * out + o) * pooled + p0;
+            phases::pool(conv.data + static_cast<std::size_t>(o) * 3 * kChunk, kChunk, windows, ys + base, arg + base);
+          }
         }
       }
     });
@@ -98,7 +105,7 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
       // The convolution's gradient in phase rows (channels past `out` stay 0), and dx's rows.
       Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride), gconv(static_cast<std::size_t>(outPadded) * 3 * stride);
-      Scratch dx(wantInput ? static_cast<std::size_t>(inPadded) * 3 * stride : 0);
+      Scratch dx(wantInput ? static_cast<std::size_t>(inPadded) * 3 * kChunk : 0);
       for (std::int64_t b = b0; b < b1; ++b) {
         float* mine = partial.data() + b * perItem;
         splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
@@ -110,11 +117,16 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
         phases::weightGradient(gconv.data, outPadded, phaseRows.data, in, stride, phases::vectorsFor(pooled),
                                mine);
         if (wantInput) {
-          phases::convolve(gconv.data, out, stride, coefT.data(), nullptr, inPadded,
-                           phases::vectorsFor(pooled + 1), dx.data);
-          for (int c = 0; c < in; ++c)
-            phases::merge(dx.data + static_cast<std::size_t>(c) * 3 * stride, stride, length,
-                          gxs + (b * in + c) * length);
+          // dx at 3p + j for every window p that holds a position below length.
+          const int needed = (length + 2) / 3;
+          for (int p0 = 0; p0 < needed; p0 += kChunk) {
+            const int windows = std::min(kChunk, needed - p0);
+            phases::convolve(gconv.data + p0, out, stride, coefT.data(), nullptr, inPadded, phases::vectorsFor(windows),
+                             dx.data, kChunk);
+            for (int c = 0; c < in; ++c)
+              phases::merge(dx.data + static_cast<std::size_t>(c) * 3 * kChunk, kChunk,
+                            std::min(3 * windows, length - 3 * p0), gxs + (b * in + c) * length + 3 * p0);
+          }
         }
       }
     });

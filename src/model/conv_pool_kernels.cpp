@@ -21,7 +21,7 @@ typedef float UnalignedVec __attribute__((vector_size(kLanes * sizeof(float)), a
 // channels: each source vector is loaded once and feeds 9 B FMAs.
 template <int B>
 NBTF_INLINE void convolveBlock(const float* src, int srcChannels, int stride, const float* coef, const float* bias,
-                               int vectors, float* dst) {
+                               int vectors, float* dst, int dstStride) {
   for (int v = 0; v < vectors; ++v) {
     Vec acc[B][3] = {};
 #pragma GCC unroll 8
@@ -46,7 +46,7 @@ NBTF_INLINE void convolveBlock(const float* src, int srcChannels, int stride, co
     }
 #pragma GCC unroll 8
     for (int d = 0; d < B; ++d)
-      for (int j = 0; j < 3; ++j) NBTF_STORE(dst + static_cast<std::ptrdiff_t>(d * 3 + j) * stride + v * kLanes, acc[d][j]);
+      for (int j = 0; j < 3; ++j) NBTF_STORE(dst + static_cast<std::ptrdiff_t>(d * 3 + j) * dstStride + v * kLanes, acc[d][j]);
   }
 }
 
@@ -111,14 +111,15 @@ NBTF_SIMD_CLONES void split(const float* __restrict x, int length, int stride, f
 }
 
 NBTF_SIMD_CLONES void convolve(const float* src, int srcChannels, int stride, const float* coef, const float* bias,
-                               int dstChannels, int vectors, float* dst) {
+                               int dstChannels, int vectors, float* dst, int dstStride) {
   int d = 0;
   for (; d + 8 <= dstChannels; d += 8)
     convolveBlock<8>(src, srcChannels, stride, coef + static_cast<std::ptrdiff_t>(d) * srcChannels * 3,
-                     bias ? bias + d : nullptr, vectors, dst + static_cast<std::ptrdiff_t>(d) * 3 * stride);
+                     bias ? bias + d : nullptr, vectors, dst + static_cast<std::ptrdiff_t>(d) * 3 * dstStride, dstStride);
   for (; d < dstChannels; d += kChannelBlock)
     convolveBlock<kChannelBlock>(src, srcChannels, stride, coef + static_cast<std::ptrdiff_t>(d) * srcChannels * 3,
-                                 bias ? bias + d : nullptr, vectors, dst + static_cast<std::ptrdiff_t>(d) * 3 * stride);
+                                 bias ? bias + d : nullptr, vectors, dst + static_cast<std::ptrdiff_t>(d) * 3 * dstStride,
+                                 dstStride);
 }
 
 // (pool and unpool are plain loops for the vectorizer: with target_clones GCC lowers vector

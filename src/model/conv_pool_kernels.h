@@ -23,13 +23,14 @@ inline int vectorsFor(int windows) { return (windows + kLanes - 1) / kLanes; }
 // x [length] -> its padded phase rows phases[k * stride + p] = xpad[3p + k], zero past the end.
 void split(const float* x, int length, int stride, float* phases);
 
-// dst[(d * 3 + j) * stride + p] = bias[d] + sum_{s, t} coef[(d * srcChannels + s) * 3 + t] * P^s_{j + t}[p]
+// dst[(d * 3 + j) * dstStride + p] = bias[d] + sum_{s, t} coef[(d * srcChannels + s) * 3 + t] * P^s_{j + t}[p]
 // for d < dstChannels (a multiple of kChannelBlock), j < 3, p < 16 * vectors; src holds
-// srcChannels padded phase rows ([s][k][stride]); bias may be null (0).
+// srcChannels padded phase rows ([s][k][stride]); bias may be null (0). Callers go a chunk of
+// windows at a time (src and dst advanced) so that dst stays in L1 for the next pass.
 // Forward: coef = weight, dst row j = convolution at 3p + j. Input gradient: src = the
 // convolution's gradient in phase rows, coef[c][o][t] = weight[o][c][2 - t], dst row j = dx at 3p + j.
 void convolve(const float* src, int srcChannels, int stride, const float* coef, const float* bias, int dstChannels,
-              int vectors, float* dst);
+              int vectors, float* dst, int dstStride);
 
 // Max over the three rows of a window: y[p], which[p] = the winning row, for p < pooled.
 // torch's rule: a later value wins only if strictly greater (or NaN).
