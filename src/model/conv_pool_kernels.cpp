@@ -15,6 +15,10 @@ typedef float Vec __attribute__((vector_size(kLanes * sizeof(float))));
 typedef float UnalignedVec __attribute__((vector_size(kLanes * sizeof(float)), aligned(4), may_alias));
 #define NBTF_LOAD(p) (*reinterpret_cast<const UnalignedVec*>(p))
 #define NBTF_STORE(p, v) (*reinterpret_cast<UnalignedVec*>(p) = (v))
+// x in every lane. (Not x - Vec{}: where a Vec spans several registers GCC lowers that lane
+// by lane, with AVX2 20 times slower.)
+static_assert(kLanes == 16, "NBTF_BROADCAST lists 16 lanes");
+#define NBTF_BROADCAST(x) Vec{x, x, x, x, x, x, x, x, x, x, x, x, x, x, x, x}
 #define NBTF_INLINE inline __attribute__((always_inline))
 
 // B destination channels x 3 rows of accumulators stay in registers over all source
@@ -26,8 +30,8 @@ NBTF_INLINE void convolveBlock(const float* src, int srcChannels, int stride, co
     Vec acc[B][3] = {};
 #pragma GCC unroll 8
     for (int d = 0; d < B; ++d) {
-      const Vec b = (bias ? bias[d] : 0.0f) - Vec{};  // a broadcast (x - 0 is x: folded)
-      acc[d][0] = acc[d][1] = acc[d][2] = b;
+      const float b = bias ? bias[d] : 0.0f;
+      acc[d][0] = acc[d][1] = acc[d][2] = NBTF_BROADCAST(b);
     }
     for (int s = 0; s < srcChannels; ++s) {
       const float* row = src + static_cast<std::ptrdiff_t>(s) * 3 * stride + v * kLanes;
@@ -38,9 +42,10 @@ NBTF_INLINE void convolveBlock(const float* src, int srcChannels, int stride, co
         const float* w = coef + (static_cast<std::ptrdiff_t>(d) * srcChannels + s) * 3;
 #pragma GCC unroll 3
         for (int t = 0; t < 3; ++t) {
-          const Vec wt = w[t] - Vec{};
+          const float wt = w[t];
+          const Vec weight = NBTF_BROADCAST(wt);
 #pragma GCC unroll 3
-          for (int j = 0; j < 3; ++j) acc[d][j] += wt * in[j + t];
+          for (int j = 0; j < 3; ++j) acc[d][j] += weight * in[j + t];
         }
       }
     }
@@ -110,8 +115,10 @@ NBTF_SIMD_CLONES void split(const float* __restrict x, int length, int stride, f
   std::fill(p2 + pooled + 1, p2 + stride, 0.0f);
 }
 
-NBTF_SIMD_CLONES void convolve(const float* src, int srcChannels, int stride, const float* coef, const float* bias,
-                               int dstChannels, int vectors, float* dst, int dstStride) {
+namespace {
+
+NBTF_AVX512 void convolveBlocked(const float* src, int srcChannels, int stride, const float* coef, const float* bias,
+                                 int dstChannels, int vectors, float* dst, int dstStride) {
   int d = 0;
   for (; d + 8 <= dstChannels; d += 8)
     convolveBlock<8>(src, srcChannels, stride, coef + static_cast<std::ptrdiff_t>(d) * srcChannels * 3,
@@ -120,6 +127,35 @@ NBTF_SIMD_CLONES void convolve(const float* src, int srcChannels, int stride, co
     convolveBlock<kChannelBlock>(src, srcChannels, stride, coef + static_cast<std::ptrdiff_t>(d) * srcChannels * 3,
                                  bias ? bias + d : nullptr, vectors, dst + static_cast<std::ptrdiff_t>(d) * 3 * dstStride,
                                  dstStride);
+}
+
+// The same a row at a time, plain loops for the vectorizer: for CPUs without AVX-512.
+NBTF_SIMD_CLONES void convolveRows(const float* src, int srcChannels, int stride, const float* coef, const float* bias,
+                                   int dstChannels, int vectors, float* dst, int dstStride) {
+  const int n = vectors * kLanes;
+  for (int d = 0; d < dstChannels; ++d)
+    for (int j = 0; j < 3; ++j) {
+      float* __restrict out = dst + static_cast<std::ptrdiff_t>(d * 3 + j) * dstStride;
+      std::fill(out, out + n, bias ? bias[d] : 0.0f);
+      for (int s = 0; s < srcChannels; ++s) {
+        const float* w = coef + (static_cast<std::ptrdiff_t>(d) * srcChannels + s) * 3;
+        // Tap t reads phase row (j + t) % 3 at window p + (j + t) / 3.
+        const float* rows = src + static_cast<std::ptrdiff_t>(s) * 3 * stride;
+        const float* __restrict r0 = rows + j % 3 * stride + j / 3;
+        const float* __restrict r1 = rows + (j + 1) % 3 * stride + (j + 1) / 3;
+        const float* __restrict r2 = rows + (j + 2) % 3 * stride + (j + 2) / 3;
+        const float w0 = w[0], w1 = w[1], w2 = w[2];
+        for (int p = 0; p < n; ++p) out[p] += w0 * r0[p] + w1 * r1[p] + w2 * r2[p];
+      }
+    }
+}
+
+}  // namespace
+
+void convolve(const float* src, int srcChannels, int stride, const float* coef, const float* bias, int dstChannels,
+              int vectors, float* dst, int dstStride) {
+  static const bool blocked = hasAvx512();
+  (blocked ? convolveBlocked : convolveRows)(src, srcChannels, stride, coef, bias, dstChannels, vectors, dst, dstStride);
 }
 
 // (pool and unpool are plain loops for the vectorizer: with target_clones GCC lowers vector
