@@ -30,7 +30,8 @@ struct Scratch {
 // x [channels, length] -> phase rows [channels][3][stride].
 void splitChannels(const float* x, int channels, int length, int stride, float* rows) {
   for (int c = 0; c < channels; ++c)
-    phases::split(x + static_cast<std::size_t>(c) * length, length, stride, rows + static_cast<std::size_t>(c) * 3 * stride);
+    phases::split(x + static_cast<std::size_t>(c) * length, length, stride,
+                  rows + static_cast<std::size_t>(c) * 3 * stride);
 }
 
 struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
@@ -57,7 +58,8 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
       // Per item, cache-resident: the input in phase rows and the convolution's.
-      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride), conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
+      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
+      Scratch conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
       for (std::int64_t b = b0; b < b1; ++b) {
         splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
         for (int p0 = 0; p0 < pooled; p0 += kChunk) {
@@ -104,7 +106,8 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     float* gxs = wantInput ? gx.data_ptr<float>() : nullptr;
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
       // The convolution's gradient in phase rows (channels past `out` stay 0), and dx's rows.
-      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride), gconv(static_cast<std::size_t>(outPadded) * 3 * stride);
+      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
+      Scratch gconv(static_cast<std::size_t>(outPadded) * 3 * stride);
       Scratch dx(wantInput ? static_cast<std::size_t>(inPadded) * 3 * kChunk : 0);
       for (std::int64_t b = b0; b < b1; ++b) {
         float* mine = partial.data() + b * perItem;

@@ -51,7 +51,8 @@ NBTF_INLINE void convolveBlock(const float* src, int srcChannels, int stride, co
     }
 #pragma GCC unroll 8
     for (int d = 0; d < B; ++d)
-      for (int j = 0; j < 3; ++j) NBTF_STORE(dst + static_cast<std::ptrdiff_t>(d * 3 + j) * dstStride + v * kLanes, acc[d][j]);
+      for (int j = 0; j < 3; ++j)
+        NBTF_STORE(dst + static_cast<std::ptrdiff_t>(d * 3 + j) * dstStride + v * kLanes, acc[d][j]);
   }
 }
 
@@ -77,7 +78,8 @@ NBTF_INLINE void weightGradientBlock(const float* g, const float* x, int stride,
   Vec acc[B][3] = {};
   for (int v = 0; v < vectors; ++v) {
     const float* xr = x + v * kLanes;
-    const Vec in[5] = {NBTF_LOAD(xr), NBTF_LOAD(xr + stride), NBTF_LOAD(xr + 2 * stride), NBTF_LOAD(xr + 1), NBTF_LOAD(xr + stride + 1)};
+    const Vec in[5] = {NBTF_LOAD(xr), NBTF_LOAD(xr + stride), NBTF_LOAD(xr + 2 * stride), NBTF_LOAD(xr + 1),
+                       NBTF_LOAD(xr + stride + 1)};
 #pragma GCC unroll 8
     for (int d = 0; d < B; ++d) {
       // The convolution's gradient at 3p + j: phase rows 1, 2 at p and row 0 at p + 1.
