@@ -9,20 +9,26 @@
 namespace nbtf::detail {
 namespace {
 
-// ---- Row kernels (one channel of one batch item: `n` contiguous values). Partial sums in 16
-// lanes, reduced in lane order: vectorized without reassociation, the same on every run.
-constexpr int kLanes = 16;
+// ---- Row kernels (one channel of one batch item: `n` contiguous values). Partial sums in
+// kAccumulators x kLanes lanes (independent FMA chains, so a row streams at the cache's pace,
+// not at the adder's latency), reduced in a fixed order: the same on every run.
+constexpr int kLanes = 16, kAccumulators = 4, kWide = kLanes * kAccumulators;
 
-double laneTotal(const float* acc) {
+// Inlined into each clone: an out-of-line baseline (SSE) copy called from AVX-512 code was slow.
+inline __attribute__((always_inline)) double laneTotal(const float* acc) {
+  float lanes[kLanes];  // the accumulators added lane-wise first: short rows are common
+  for (int k = 0; k < kLanes; ++k) lanes[k] = (acc[k] + acc[kLanes + k]) + (acc[2 * kLanes + k] + acc[3 * kLanes + k]);
   double s = 0;
-  for (int k = 0; k < kLanes; ++k) s += acc[k];
+  for (int k = 0; k < kLanes; ++k) s += lanes[k];
   return s;
 }
 
 NBTF_SIMD_CLONES double rowSum(const float* __restrict x, int n) {
-  float acc[kLanes] = {};
+  float acc[kWide] = {};
   int i = 0;
-  for (; i + kLanes <= n; i += kLanes)
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) acc[k] += x[i + k];
+  for (; i + kLanes <= n; i += kLanes)  // short rows: the rest a vector at a time
     for (int k = 0; k < kLanes; ++k) acc[k] += x[i + k];
   for (; i < n; ++i) acc[i % kLanes] += x[i];
   return laneTotal(acc);
@@ -30,8 +36,13 @@ NBTF_SIMD_CLONES double rowSum(const float* __restrict x, int n) {
 
 // sum (x - mean)^2
 NBTF_SIMD_CLONES double rowSquaredDeviation(const float* __restrict x, int n, float mean) {
-  float acc[kLanes] = {};
+  float acc[kWide] = {};
   int i = 0;
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) {
+      const float d = x[i + k] - mean;
+      acc[k] += d * d;
+    }
   for (; i + kLanes <= n; i += kLanes)
     for (int k = 0; k < kLanes; ++k) {
       const float d = x[i + k] - mean;
@@ -53,8 +64,13 @@ NBTF_SIMD_CLONES void rowNormalize(const float* __restrict x, int n, float mean,
 // sum g and sum g * (x - mean)
 NBTF_SIMD_CLONES void rowGradientSums(const float* __restrict g, const float* __restrict x, int n, float mean,
                                       double& sumG, double& sumGx) {
-  float a[kLanes] = {}, b[kLanes] = {};
+  float a[kWide] = {}, b[kWide] = {};
   int i = 0;
+  for (; i + kWide <= n; i += kWide)
+    for (int k = 0; k < kWide; ++k) {
+      a[k] += g[i + k];
+      b[k] += g[i + k] * (x[i + k] - mean);
+    }
   for (; i + kLanes <= n; i += kLanes)
     for (int k = 0; k < kLanes; ++k) {
       a[k] += g[i + k];

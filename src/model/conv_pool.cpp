@@ -6,58 +6,32 @@
 #include <cstdint>
 #include <vector>
 
-#include "model/simd_clones.h"
-#include "model/vector_kernels.h"
+#include "model/conv_pool_kernels.h"
 
 namespace nbtf::detail {
-
-// ---- Vector kernels, cloned per instruction-set feature (picked at load time by the ifunc
-// resolver; feature names, not CPU models, so newer CPUs get the wide clone): the loops are
-// plain C++ that the compiler vectorizes for each target.
-
-// out[l] += w0 * p[l] + w1 * p[l + 1] + w2 * p[l + 2] for l < n (p padded by one each side).
-NBTF_SIMD_CLONES
-void stencil3Accumulate(float* __restrict out, const float* __restrict p, int n, float w0, float w1, float w2) {
-  for (int l = 0; l < n; ++l) out[l] += w0 * p[l] + w1 * p[l + 1] + w2 * p[l + 2];
-}
-
-// Max over windows of 3: y[p] = max(row[3p..3p+2]), which[p] = the winner's offset. torch's
-// rule: a later value wins only if strictly greater (or NaN). Branch-free: the winner is
-// data-dependent and unpredictable.
-NBTF_SIMD_CLONES
-void pool3(const float* __restrict row, int pooled, float* __restrict y, std::uint8_t* __restrict which) {
-  for (int p = 0; p < pooled; ++p) {
-    const float v0 = row[3 * p], v1 = row[3 * p + 1], v2 = row[3 * p + 2];
-    const bool take1 = v1 > v0 || v1 != v1;
-    const float best = take1 ? v1 : v0;
-    const bool take2 = v2 > best || v2 != v2;
-    y[p] = take2 ? v2 : best;
-    which[p] = static_cast<std::uint8_t>(take2 ? 2 : take1 ? 1 : 0);
-  }
-}
-
-// The inverse routing: padded[1 + 3p + which[p]] = g[p], every other of the length + 2
-// entries 0. Returns the sum of g (the bias gradient's share).
-float unpool3(const float* __restrict g, const std::uint8_t* __restrict which, int pooled, int length,
-              float* __restrict padded) {
-  std::fill(padded, padded + length + 2, 0.0f);
-  float sum = 0;
-  for (int p = 0; p < pooled; ++p) {
-    padded[1 + 3 * p + which[p]] = g[p];
-    sum += g[p];
-  }
-  return sum;
-}
-
 namespace {
 
-// x[b] as channels x (length + 2) with a zero on each side: the convolution's padding.
-void padRows(const float* x, int channels, int length, float* padded) {
-  for (int c = 0; c < channels; ++c) {
-    float* row = padded + static_cast<std::size_t>(c) * (length + 2);
-    row[0] = row[length + 1] = 0.0f;
-    std::copy(x + static_cast<std::size_t>(c) * length, x + static_cast<std::size_t>(c + 1) * length, row + 1);
+int roundUp(int n, int multiple) { return (n + multiple - 1) / multiple * multiple; }
+
+// Windows per convolve() call: its output (at most 16 channels x 3 rows) stays in L1 for
+// pooling or merging.
+constexpr int kChunk = 8 * phases::kLanes;
+
+// Scratch rows, 64-byte aligned so the phase rows start on a vector.
+struct Scratch {
+  std::vector<float> storage;
+  float* data;
+  explicit Scratch(std::size_t n) : storage(n + 16, 0.0f) {
+    auto address = reinterpret_cast<std::uintptr_t>(storage.data());
+    data = storage.data() + ((64 - address % 64) % 64) / sizeof(float);
   }
+};
+
+// x [channels, length] -> phase rows [channels][3][stride].
+void splitChannels(const float* x, int channels, int length, int stride, float* rows) {
+  for (int c = 0; c < channels; ++c)
+    phases::split(x + static_cast<std::size_t>(c) * length, length, stride,
+                  rows + static_cast<std::size_t>(c) * 3 * stride);
 }
 
 struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
@@ -71,27 +45,31 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     TORCH_CHECK(bias.dim() == 1 && bias.size(0) == weight.size(0), "convPool3: bias must be [out]");
     TORCH_CHECK(x.size(2) >= 3, "convPool3: length must be at least 3");
     const int batch = static_cast<int>(x.size(0)), in = static_cast<int>(x.size(1)), length = static_cast<int>(x.size(2));
-    const int out = static_cast<int>(weight.size(0)), pooled = length / 3, span = 3 * pooled;
+    const int out = static_cast<int>(weight.size(0)), pooled = length / 3;
+    const int stride = phases::rowStride(length), outPadded = roundUp(out, phases::kChannelBlock);
+    // Weights and bias with zero rows up to a whole channel block.
+    std::vector<float> coef(static_cast<std::size_t>(outPadded) * in * 3, 0.0f), biasPadded(outPadded, 0.0f);
+    std::copy(weight.data_ptr<float>(), weight.data_ptr<float>() + weight.numel(), coef.begin());
+    std::copy(bias.data_ptr<float>(), bias.data_ptr<float>() + out, biasPadded.begin());
     torch::Tensor y = torch::empty({batch, out, pooled});
     torch::Tensor which = torch::empty({batch, out, pooled}, torch::kByte);
     const float* xs = x.data_ptr<float>();
-    const float* w = weight.data_ptr<float>();
-    const float* bs = bias.data_ptr<float>();
     float* ys = y.data_ptr<float>();
     std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
-      std::vector<float> padded(static_cast<std::size_t>(in) * (length + 2)), row(span);
+      // Per item, cache-resident: the input in phase rows and the convolution's.
+      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
+      Scratch conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
       for (std::int64_t b = b0; b < b1; ++b) {
-        padRows(xs + b * in * length, in, length, padded.data());
-        for (int o = 0; o < out; ++o) {
-          std::fill(row.begin(), row.end(), bs[o]);
-          for (int c = 0; c < in; ++c) {
-            const float* wc = w + (static_cast<std::size_t>(o) * in + c) * 3;
-            stencil3Accumulate(row.data(), padded.data() + static_cast<std::size_t>(c) * (length + 2), span, wc[0],
-                               wc[1], wc[2]);
+        splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
+        for (int p0 = 0; p0 < pooled; p0 += kChunk) {
+          const int windows = std::min(kChunk, pooled - p0);
+          phases::convolve(phaseRows.data + p0, in, stride, coef.data(), biasPadded.data(), outPadded,
+                           phases::vectorsFor(windows), conv.data, kChunk);
+          for (int o = 0; o < out; ++o) {
+            const std::size_t base = (static_cast<std::size_t>(b) * out + o) * pooled + p0;
+            phases::pool(conv.data + static_cast<std::size_t>(o) * 3 * kChunk, kChunk, windows, ys + base, arg + base);
           }
-          const std::size_t base = (static_cast<std::size_t>(b) * out + o) * pooled;
-          pool3(row.data(), pooled, ys + base, arg + base);
         }
       }
     });
@@ -105,36 +83,52 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     const torch::Tensor &x = saved[0], &weight = saved[1], &which = saved[2];
     torch::Tensor gy = grads[0].contiguous();
     const int batch = static_cast<int>(x.size(0)), in = static_cast<int>(x.size(1)), length = static_cast<int>(x.size(2));
-    const int out = static_cast<int>(weight.size(0)), pooled = length / 3, span = 3 * pooled;
+    const int out = static_cast<int>(weight.size(0)), pooled = length / 3;
+    const int stride = phases::rowStride(length), outPadded = roundUp(out, phases::kChannelBlock),
+              inPadded = roundUp(in, phases::kChannelBlock);
     const bool wantInput = ctx->needs_input_grad(0);
-    torch::Tensor gx = wantInput ? torch::zeros_like(x) : torch::Tensor();
+    torch::Tensor gx = wantInput ? torch::empty({batch, in, length}) : torch::Tensor();
+    const float* w = weight.data_ptr<float>();
+    // The transposed convolution's coefficients: [c][o][t] = weight[o][c][2 - t], zero rows
+    // up to a whole channel block.
+    std::vector<float> coefT(static_cast<std::size_t>(inPadded) * out * 3, 0.0f);
+    for (int o = 0; o < out; ++o)
+      for (int c = 0; c < in; ++c)
+        for (int t = 0; t < 3; ++t)
+          coefT[(static_cast<std::size_t>(c) * out + o) * 3 + t] = w[(static_cast<std::size_t>(o) * in + c) * 3 + 2 - t];
     // Weight and bias gradients per batch item, summed in item order afterwards: the result
     // does not depend on how items were split among threads.
-    const int perItem = out * in * 3 + out;
+    const int perItem = outPadded * in * 3 + out;
     std::vector<float> partial(static_cast<std::size_t>(batch) * perItem);
     const float* xs = x.data_ptr<float>();
-    const float* w = weight.data_ptr<float>();
     const float* g = gy.data_ptr<float>();
     const std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     float* gxs = wantInput ? gx.data_ptr<float>() : nullptr;
     at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
-      std::vector<float> padded(static_cast<std::size_t>(in) * (length + 2)), gpad(length + 2);
+      // The convolution's gradient in phase rows (channels past `out` stay 0), and dx's rows.
+      Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
+      Scratch gconv(static_cast<std::size_t>(outPadded) * 3 * stride);
+      Scratch dx(wantInput ? static_cast<std::size_t>(inPadded) * 3 * kChunk : 0);
       for (std::int64_t b = b0; b < b1; ++b) {
-        padRows(xs + b * in * length, in, length, padded.data());
         float* mine = partial.data() + b * perItem;
+        splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
         for (int o = 0; o < out; ++o) {
-          // The convolution's gradient: the pooled gradient at each window's winner, else 0.
           const std::size_t base = (static_cast<std::size_t>(b) * out + o) * pooled;
-          mine[out * in * 3 + o] = unpool3(g + base, arg + base, pooled, length, gpad.data());
-          for (int c = 0; c < in; ++c) {
-            const float* xc = padded.data() + static_cast<std::size_t>(c) * (length + 2);
-            float* gw = mine + (static_cast<std::size_t>(o) * in + c) * 3;
-            for (int j = 0; j < 3; ++j) gw[j] = dot16(gpad.data() + 1, xc + j, span);
-            if (wantInput) {
-              const float* wc = w + (static_cast<std::size_t>(o) * in + c) * 3;
-              // dx[m] = w0 dconv[m + 1] + w1 dconv[m] + w2 dconv[m - 1]
-              stencil3Accumulate(gxs + (b * in + c) * length, gpad.data(), length, wc[2], wc[1], wc[0]);
-            }
+          mine[outPadded * in * 3 + o] =
+              phases::unpool(g + base, arg + base, pooled, stride, gconv.data + static_cast<std::size_t>(o) * 3 * stride);
+        }
+        phases::weightGradient(gconv.data, outPadded, phaseRows.data, in, stride, phases::vectorsFor(pooled),
+                               mine);
+        if (wantInput) {
+          // dx at 3p + j for every window p that holds a position below length.
+          const int needed = (length + 2) / 3;
+          for (int p0 = 0; p0 < needed; p0 += kChunk) {
+            const int windows = std::min(kChunk, needed - p0);
+            phases::convolve(gconv.data + p0, out, stride, coefT.data(), nullptr, inPadded, phases::vectorsFor(windows),
+                             dx.data, kChunk);
+            for (int c = 0; c < in; ++c)
+              phases::merge(dx.data + static_cast<std::size_t>(c) * 3 * kChunk, kChunk,
+                            std::min(3 * windows, length - 3 * p0), gxs + (b * in + c) * length + 3 * p0);
           }
         }
       }
@@ -145,7 +139,7 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     for (int b = 0; b < batch; ++b) {
       const float* mine = partial.data() + static_cast<std::size_t>(b) * perItem;
       for (int i = 0; i < out * in * 3; ++i) gws[i] += mine[i];
-      for (int o = 0; o < out; ++o) gbs[o] += mine[out * in * 3 + o];
+      for (int o = 0; o < out; ++o) gbs[o] += mine[outPadded * in * 3 + o];
     }
     return {gx, gw, gb};
   }

@@ -4,8 +4,9 @@
 //
 // Why: with 3 -> 4 channels over 6561 positions, torch's CPU convolution (im2col + a GEMM
 // with an inner size of 9) ran at a few GFLOP/s and made the encoder cost more than the
-// decoder it feeds. This kernel computes a row of the convolution in registers-friendly
-// passes, pools it at once, and in backward touches only the winning positions.
+// decoder it feeds. Here each batch item is split into phase rows (conv_pool_kernels.h): the
+// convolution, its transpose and its weight gradient become register-blocked FMAs over whole
+// vectors of pooling windows, and pooling and its gradient are lane-wise.
 #pragma once
 #include <torch/torch.h>
 

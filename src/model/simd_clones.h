@@ -7,6 +7,12 @@
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define NBTF_SIMD_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// Code that only pays with 16-float registers (it keeps many 16-float vectors live, which on
+// narrower targets spill): built for AVX-512 alone, called only where hasAvx512().
+#define NBTF_AVX512 __attribute__((target("avx512f")))
+inline bool hasAvx512() { return __builtin_cpu_supports("avx512f"); }
 #else
 #define NBTF_SIMD_CLONES
+#define NBTF_AVX512
+inline bool hasAvx512() { return false; }
 #endif
