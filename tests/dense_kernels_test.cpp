@@ -38,7 +38,17 @@ const Shape kShapes[] = {{512, 107, 112, 112}, {7, 5, 16, 5},   {13, 3, 32, 3}, 
 
 }  // namespace
 
-TEST(DenseKernels, ProductsMatchADoubleReference) {
+// Both builds of the kernels: the AVX-512 register blocks (on a CPU that has them) and the
+// narrow path of every other CPU.
+class DenseKernels : public testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override { setDenseKernelsGeneric(GetParam()); }
+  void TearDown() override { setDenseKernelsGeneric(false); }
+};
+INSTANTIATE_TEST_SUITE_P(Paths, DenseKernels, testing::Values(false, true),
+                         [](const testing::TestParamInfo<bool>& p) { return p.param ? "Generic" : "Native"; });
+
+TEST_P(DenseKernels, ProductsMatchADoubleReference) {
   std::mt19937 rng(7);
   for (const Shape& s : kShapes) {
     SCOPED_TRACE(testing::Message() << "n " << s.n << " k " << s.k << " cols " << s.cols);
@@ -68,7 +78,7 @@ TEST(DenseKernels, ProductsMatchADoubleReference) {
   }
 }
 
-TEST(DenseKernels, AccumulateOuterAddsToTheGradient) {
+TEST_P(DenseKernels, AccumulateOuterAddsToTheGradient) {
   std::mt19937 rng(8);
   for (const Shape& s : kShapes) {
     const int m = s.k;  // gradient rows
@@ -92,7 +102,7 @@ TEST(DenseKernels, AccumulateOuterAddsToTheGradient) {
   }
 }
 
-TEST(DenseKernels, RowDotsMatchADoubleReference) {
+TEST(DenseKernelsRowDots, MatchADoubleReference) {
   std::mt19937 rng(9);
   for (int cols : {16, 112, 208}) {
     const int n = 9, m = 3;
@@ -107,7 +117,7 @@ TEST(DenseKernels, RowDotsMatchADoubleReference) {
   }
 }
 
-TEST(DenseKernels, AlignedFloatsIsAlignedAndZeroed) {
+TEST(AlignedFloats, IsAlignedAndZeroed) {
   AlignedFloats a;
   for (std::size_t n : {1, 17, 1000}) {
     a.assign(n);

@@ -30,9 +30,12 @@ inline __attribute__((always_inline)) void store(float* p, Vec v) { std::memcpy(
 // loaded value feeds more FMAs.
 constexpr int kPanelVectors = 4;
 
-// Rows (or gradient rows) per register block for a panel of V vectors.
-template <int V>
+// Rows (or gradient rows) per register block for a panel of V vectors. With Wide false
+// (CPUs without AVX-512, where a 16-float vector takes 2 or 4 registers of 16) panels are
+// one vector and blocks two rows, so nothing spills.
+template <int V, bool Wide>
 constexpr int blockRows() {
+  if constexpr (!Wide) return 2;
   return V == 4 ? 6 : V == 3 ? 8 : V == 2 ? 12 : 16;
 }
 
@@ -76,10 +79,10 @@ inline __attribute__((always_inline)) void productBlock(int q0, int q1, bool fir
 // in increasing order.
 constexpr int kSliceDepth = 48;
 
-template <int V, Epilogue E>
+template <int V, Epilogue E, bool Wide>
 inline __attribute__((always_inline)) void productPanel(int n, int k, const float* x, int ldx, const float* b,
                                                         int cols, float* y, const float* h) {
-  constexpr int R = blockRows<V>();
+  constexpr int R = blockRows<V, Wide>();
   const int slices = std::max(1, (k + kSliceDepth - 1) / kSliceDepth), depth = std::max(1, (k + slices - 1) / slices);
   for (int q0 = 0; q0 < std::max(k, 1); q0 += depth) {
     const int q1 = std::min(k, q0 + depth);
@@ -98,19 +101,20 @@ inline __attribute__((always_inline)) void productPanel(int n, int k, const floa
   }
 }
 
-template <Epilogue E>
+template <Epilogue E, bool Wide>
 inline __attribute__((always_inline)) void product(int n, int k, const float* x, int ldx, const float* b, int cols,
                                                    float* y, const float* h) {
   // Column panels: b, y and h are addressed from the panel's first column, strides unchanged.
-  for (int c0 = 0; c0 < cols; c0 += kPanelVectors * kDenseLanes) {
+  constexpr int panel = Wide ? kPanelVectors : 1;
+  for (int c0 = 0; c0 < cols; c0 += panel * kDenseLanes) {
     const float* bp = b + c0;
     float* yp = y + c0;
     const float* hp = h ? h + c0 : nullptr;
-    switch (std::min(kPanelVectors, (cols - c0) / kDenseLanes)) {
-      case 4: productPanel<4, E>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 3: productPanel<3, E>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 2: productPanel<2, E>(n, k, x, ldx, bp, cols, yp, hp); break;
-      default: productPanel<1, E>(n, k, x, ldx, bp, cols, yp, hp); break;
+    switch (std::min(panel, (cols - c0) / kDenseLanes)) {
+      case 4: productPanel<4, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
+      case 3: productPanel<3, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
+      case 2: productPanel<2, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
+      default: productPanel<1, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
     }
   }
 }
@@ -134,43 +138,82 @@ inline __attribute__((always_inline)) void outerBlock(int r0, int r1, const floa
     for (int v = 0; v < V; ++v) store(w + static_cast<std::size_t>(i) * cols + kDenseLanes * v, acc[i][v]);
 }
 
-template <int V>
+template <int V, bool Wide>
 inline __attribute__((always_inline)) void outerPanel(int r0, int r1, int m, const float* g, int ldg, const float* h,
                                                       int cols, float* w) {
-  constexpr int M = blockRows<V>();
+  constexpr int M = blockRows<V, Wide>();
   int i = 0;
   for (; i + M <= m; i += M) outerBlock<M, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
   for (; i < m; ++i) outerBlock<1, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
 }
 
-}  // namespace
-
-NBTF_SIMD_CLONES void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu>(n, k, x, ldx, b, cols, y, nullptr);
-}
-
-NBTF_SIMD_CLONES void productMasked(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
-                                    float* y) {
-  product<Epilogue::Mask>(n, k, x, ldx, b, cols, y, h);
-}
-
-NBTF_SIMD_CLONES void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
+template <bool Wide>
+inline __attribute__((always_inline)) void outer(int n, int m, const float* g, int ldg, const float* h, int cols,
+                                                 float* w) {
   // Rows in slices of 32, so a slice of g and h (2 x 32 x 112 floats) stays in L1 while
   // every block of gradient rows passes over it. Each w entry still sums r in order.
-  constexpr int kSliceRows = 32;
+  constexpr int kSliceRows = 32, panel = Wide ? kPanelVectors : 1;
   for (int r0 = 0; r0 < n; r0 += kSliceRows) {
     const int r1 = std::min(n, r0 + kSliceRows);
-    for (int c0 = 0; c0 < cols; c0 += kPanelVectors * kDenseLanes) {
+    for (int c0 = 0; c0 < cols; c0 += panel * kDenseLanes) {
       const float* hp = h + c0;
       float* wp = w + c0;
-      switch (std::min(kPanelVectors, (cols - c0) / kDenseLanes)) {
-        case 4: outerPanel<4>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 3: outerPanel<3>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 2: outerPanel<2>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        default: outerPanel<1>(r0, r1, m, g, ldg, hp, cols, wp); break;
+      switch (std::min(panel, (cols - c0) / kDenseLanes)) {
+        case 4: outerPanel<4, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        case 3: outerPanel<3, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        case 2: outerPanel<2, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        default: outerPanel<1, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
       }
     }
   }
+}
+
+// ---- The two builds of each kernel: AVX-512 register blocks, and the narrow blocks that
+// every other target (and clang or sanitizer builds) runs.
+NBTF_AVX512 void productReluWide(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  product<Epilogue::Relu, true>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_SIMD_CLONES void productReluNarrow(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  product<Epilogue::Relu, false>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_AVX512 void productMaskedWide(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
+                                   float* y) {
+  product<Epilogue::Mask, true>(n, k, x, ldx, b, cols, y, h);
+}
+NBTF_SIMD_CLONES void productMaskedNarrow(int n, int k, const float* x, int ldx, const float* b, int cols,
+                                          const float* h, float* y) {
+  product<Epilogue::Mask, false>(n, k, x, ldx, b, cols, y, h);
+}
+NBTF_AVX512 void outerWide(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
+  outer<true>(n, m, g, ldg, h, cols, w);
+}
+NBTF_SIMD_CLONES void outerNarrow(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
+  outer<false>(n, m, g, ldg, h, cols, w);
+}
+
+bool genericOnly = false;  // setDenseKernelsGeneric
+bool wide() {
+  static const bool avx512 = hasAvx512();
+  return avx512 && !genericOnly;
+}
+
+}  // namespace
+
+void setDenseKernelsGeneric(bool generic) { genericOnly = generic; }
+
+void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  if (wide()) productReluWide(n, k, x, ldx, b, cols, y);
+  else productReluNarrow(n, k, x, ldx, b, cols, y);
+}
+
+void productMasked(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h, float* y) {
+  if (wide()) productMaskedWide(n, k, x, ldx, b, cols, h, y);
+  else productMaskedNarrow(n, k, x, ldx, b, cols, h, y);
+}
+
+void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
+  if (wide()) outerWide(n, m, g, ldg, h, cols, w);
+  else outerNarrow(n, m, g, ldg, h, cols, w);
 }
 
 NBTF_SIMD_CLONES void rowDots(int n, int m, const float* h, int cols, const float* w, float* out) {

@@ -48,6 +48,10 @@ void productMasked(int n, int k, const float* x, int ldx, const float* b, int co
 // w[i][j] += sum_{r<n} g[r * ldg + i] h[r][j] for i < m, j < cols (a weight gradient).
 void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w);
 
+// Tests only: true makes the kernels below take the narrow path that CPUs without AVX-512
+// run (the AVX-512 register blocks spill on narrower targets), so both are tested here.
+void setDenseKernelsGeneric(bool generic);
+
 // out[r * m + i] = sum_{j<cols} h[r][j] w[i][j] for r < n, i < m (a narrow output layer).
 void rowDots(int n, int m, const float* h, int cols, const float* w, float* out);
 
