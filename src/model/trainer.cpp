@@ -68,9 +68,16 @@ class EncoderInputSource {
   }
   torch::Tensor rows(const int* rows, std::int64_t count) const {
     if (!planar_.defined()) return gatherEncoderInputs(x_, rows, count);
-    torch::Tensor index = torch::empty({count}, torch::kLong);
-    for (std::int64_t j = 0; j < count; ++j) index.data_ptr<std::int64_t>()[j] = rows[j];
-    return planar_.index_select(0, index);
+    // Whole-row copies on all threads (index_select copied on one).
+    torch::Tensor out = torch::empty({count, planar_.size(1), planar_.size(2)});
+    const std::int64_t rowFloats = planar_.size(1) * planar_.size(2);
+    const float* src = planar_.data_ptr<float>();
+    float* dst = out.data_ptr<float>();
+    at::parallel_for(0, count, 8, [&](std::int64_t begin, std::int64_t end) {
+      for (std::int64_t j = begin; j < end; ++j)
+        std::memcpy(dst + j * rowFloats, src + rows[j] * rowFloats, rowFloats * sizeof(float));
+    });
+    return out;
   }
 
  private:
