@@ -87,6 +87,16 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
   }
 }
 
+TEST(Trainer, HandWrittenBackpropIsTheSameOnAnyThreadCount) {
+  // Threads take 512-row chunks as they free up and the chunks' sums are added in chunk
+  // order: the result must not depend on the thread count or on which thread ran which chunk.
+  ModelConfig model;
+  const std::vector<float> one = decoderTrainStepResult(model, 11, 9, 300, 1);
+  EXPECT_GT(one.size(), 24000u);
+  for (int run = 0; run < 3; ++run) EXPECT_EQ(decoderTrainStepResult(model, 11, 9, 300, 2), one) << "run " << run;
+  EXPECT_NE(decoderTrainStepResult(model, 12, 9, 300, 1), one);  // a different batch does differ
+}
+
 TEST(Trainer, FusedConvPoolMatchesTorch) {
   EXPECT_EQ(convPoolReferenceError(1, 3, 3, 4, 30), 0.0);
   EXPECT_EQ(convPoolReferenceError(2, 2, 5, 3, 31), 0.0);    // a tail that pooling drops

@@ -3,6 +3,7 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -26,6 +27,20 @@ struct Scratch {
     data = storage.data() + ((64 - address % 64) % 64) / sizeof(float);
   }
 };
+
+// Runs work(take) on up to `items` of torch's threads; take() hands out the next batch item
+// (-1 when none is left), so a thread the host slows down does not hold the others up. Each
+// item's results go to its own slots, so they do not depend on which thread ran it.
+template <class Work>
+void forEachItem(int items, const Work& work) {
+  std::atomic<int> next{0};
+  auto take = [&] {
+    const int item = next++;
+    return item < items ? item : -1;
+  };
+  const int threads = std::max(1, std::min(at::get_num_threads(), items));
+  at::parallel_for(0, threads, 1, [&](std::int64_t, std::int64_t) { work(take); });
+}
 
 // x [channels, length] -> phase rows [channels][3][stride].
 void splitChannels(const float* x, int channels, int length, int stride, float* rows) {
@@ -56,11 +71,11 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     const float* xs = x.data_ptr<float>();
     float* ys = y.data_ptr<float>();
     std::uint8_t* arg = which.data_ptr<std::uint8_t>();
-    at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
+    forEachItem(batch, [&](const auto& take) {
       // Per item, cache-resident: the input in phase rows and the convolution's.
       Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
       Scratch conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
-      for (std::int64_t b = b0; b < b1; ++b) {
+      for (std::int64_t b = take(); b >= 0; b = take()) {
         splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
         for (int p0 = 0; p0 < pooled; p0 += kChunk) {
           const int windows = std::min(kChunk, pooled - p0);
@@ -97,19 +112,19 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
         for (int t = 0; t < 3; ++t)
           coefT[(static_cast<std::size_t>(c) * out + o) * 3 + t] = w[(static_cast<std::size_t>(o) * in + c) * 3 + 2 - t];
     // Weight and bias gradients per batch item, summed in item order afterwards: the result
-    // does not depend on how items were split among threads.
+    // does not depend on which thread ran which item.
     const int perItem = outPadded * in * 3 + out;
     std::vector<float> partial(static_cast<std::size_t>(batch) * perItem);
     const float* xs = x.data_ptr<float>();
     const float* g = gy.data_ptr<float>();
     const std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     float* gxs = wantInput ? gx.data_ptr<float>() : nullptr;
-    at::parallel_for(0, batch, 1, [&](std::int64_t b0, std::int64_t b1) {
+    forEachItem(batch, [&](const auto& take) {
       // The convolution's gradient in phase rows (channels past `out` stay 0), and dx's rows.
       Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
       Scratch gconv(static_cast<std::size_t>(outPadded) * 3 * stride);
       Scratch dx(wantInput ? static_cast<std::size_t>(inPadded) * 3 * kChunk : 0);
-      for (std::int64_t b = b0; b < b1; ++b) {
+      for (std::int64_t b = take(); b >= 0; b = take()) {
         float* mine = partial.data() + b * perItem;
         splitChannels(xs + b * in * length, in, length, stride, phaseRows.data);
         for (int o = 0; o < out; ++o) {

@@ -3,6 +3,7 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
+#include <atomic>
 
 #include "model/simd_clones.h"
 
@@ -34,14 +35,15 @@ NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, std::int64_t r0, int ro
   }
 }
 
-// Layer 0's gradient: per tile (sum of its rows) and per direction input (transposed).
-// One stream per loop and restrict-qualified pointers, so every loop vectorizes.
-NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, std::int64_t r0, int rowsPerTile,
+// Layer 0's gradient: per tile (sum of its rows; tileGrad starts at tile firstTile) and per
+// direction input (transposed). One stream per loop and restrict-qualified pointers, so every
+// loop vectorizes.
+NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
                                      const float* __restrict g, const float* __restrict d,
                                      float* __restrict tileGrad, float* __restrict dirGradT) {
   for (int r = 0; r < n; ++r) {
     const float* __restrict gr = g + static_cast<std::size_t>(r) * S;
-    float* __restrict t = tileGrad + ((r0 + r) / rowsPerTile) * W;
+    float* __restrict t = tileGrad + ((r0 + r) / rowsPerTile - firstTile) * W;
     for (int j = 0; j < W; ++j) t[j] += gr[j];
     for (int q = 0; q < 4; ++q) {
       const float dq = d[4 * r + q];
@@ -77,12 +79,9 @@ DecoderBackprop::DecoderBackprop(Decoder decoder, int latentDim) : decoder_(std:
   gradOffset_.push_back(offset);
 }
 
-void DecoderBackprop::runWorker(int w, int workers, std::int64_t rows, int rowsPerTile, const float* dirs,
-                                const float* targets, float* outRows) {
-  Worker& k = workers_[w];
+void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int rowsPerTile, const float* dirs,
+                              const float* targets, float* outRows) {
   const int W = width_, S = stride_, L = layers_, O = outputs_;
-  const std::int64_t chunks = (rows + kChunkRows - 1) / kChunkRows;
-  const std::int64_t c0 = chunks * w / workers, c1 = chunks * (w + 1) / workers;
   const bool train = targets != nullptr;
   const float* tileBase = perTile_.data_ptr<float>();
   const float scale = static_cast<float>(2.0 / (static_cast<double>(O) * rows));  // d(mean squared error)/d(out)
@@ -95,42 +94,47 @@ void DecoderBackprop::runWorker(int w, int workers, std::int64_t rows, int rowsP
   k.out.resize(static_cast<std::size_t>(kChunkRows) * O);
   auto hidden = [&](int l) { return k.hidden.data() + l * chunkFloats; };
 
-  for (std::int64_t c = c0; c < c1; ++c) {
-    const std::int64_t r0 = c * kChunkRows;
-    const int n = static_cast<int>(std::min<std::int64_t>(kChunkRows, rows - r0));
-    const float* d = dirs + r0 * 4;
+  const std::int64_t r0 = c * kChunkRows;
+  const int n = static_cast<int>(std::min<std::int64_t>(kChunkRows, rows - r0));
+  const float* d = dirs + r0 * 4;
 
-    // ---- Forward. Layer 0: relu(W_d d + (W_z z + b)) with the bracket precomputed per tile.
-    layer0Forward(n, W, S, r0, rowsPerTile, tileBase, d, dirWeightT_.data(), hidden(0));
-    for (int l = 1; l + 1 < L; ++l) productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
-    float* o = train ? k.out.data() : outRows + r0 * O;
-    rowDots(n, O, hidden(L - 2), S, forward_[L - 1].data(), o);
-    if (!train) continue;
+  // ---- Forward. Layer 0: relu(W_d d + (W_z z + b)) with the bracket precomputed per tile.
+  layer0Forward(n, W, S, r0, rowsPerTile, tileBase, d, dirWeightT_.data(), hidden(0));
+  for (int l = 1; l + 1 < L; ++l) productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
+  float* o = train ? k.out.data() : outRows + r0 * O;
+  rowDots(n, O, hidden(L - 2), S, forward_[L - 1].data(), o);
+  if (!train) return;
 
-    // ---- Loss: o becomes dLoss/dout.
-    const float* y = targets + r0 * O;
-    double sse = 0;
-    for (int i = 0; i < O * n; ++i) {
-      float diff = o[i] - y[i];
-      sse += static_cast<double>(diff) * diff;
-      o[i] = diff * scale;
-    }
-    k.loss += sse;
+  // This chunk's sums, zeroed here, on the thread that fills them.
+  ChunkSums& sums = chunkSums_[c];
+  sums.weightGrad.assign(gradOffset_.back());
+  sums.dirGrad.assign(4 * static_cast<std::size_t>(W), 0.0f);
+  sums.firstTile = r0 / rowsPerTile;
+  sums.tileGrad.assign(static_cast<std::size_t>((r0 + n - 1) / rowsPerTile - sums.firstTile + 1) * W, 0.0f);
 
-    // ---- Backward, top down: each layer's weight (and bias) gradient, then the gradient
-    // below it through the layer and the ReLU under it.
-    float* dW = k.weightGrad.data();
-    float *g = k.grad.data(), *g2 = k.grad2.data();
-    accumulateOuter(n, O, o, O, hidden(L - 2), S, dW + gradOffset_[L - 1]);
-    productMasked(n, O, o, O, backward_[L - 1].data(), S, hidden(L - 2), g);
-    for (int l = L - 2; l >= 1; --l) {
-      accumulateOuter(n, W, g, S, hidden(l - 1), S, dW + gradOffset_[l]);
-      productMasked(n, W, g, S, backward_[l].data(), S, hidden(l - 1), g2);
-      std::swap(g, g2);
-    }
-    // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
-    layer0Backward(n, W, S, r0, rowsPerTile, g, d, k.tileGrad.data(), k.dirGrad.data());
+  // ---- Loss: o becomes dLoss/dout.
+  const float* y = targets + r0 * O;
+  double sse = 0;
+  for (int i = 0; i < O * n; ++i) {
+    float diff = o[i] - y[i];
+    sse += static_cast<double>(diff) * diff;
+    o[i] = diff * scale;
   }
+  sums.loss = sse;
+
+  // ---- Backward, top down: each layer's weight (and bias) gradient, then the gradient
+  // below it through the layer and the ReLU under it.
+  float* dW = sums.weightGrad.data();
+  float *g = k.grad.data(), *g2 = k.grad2.data();
+  accumulateOuter(n, O, o, O, hidden(L - 2), S, dW + gradOffset_[L - 1]);
+  productMasked(n, O, o, O, backward_[L - 1].data(), S, hidden(L - 2), g);
+  for (int l = L - 2; l >= 1; --l) {
+    accumulateOuter(n, W, g, S, hidden(l - 1), S, dW + gradOffset_[l]);
+    productMasked(n, W, g, S, backward_[l].data(), S, hidden(l - 1), g2);
+    std::swap(g, g2);
+  }
+  // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
+  layer0Backward(n, W, S, r0, rowsPerTile, sums.firstTile, g, d, sums.tileGrad.data(), sums.dirGrad.data());
 }
 
 void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile,
@@ -169,21 +173,20 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
     f.data()[static_cast<std::size_t>(W) * S + W] = 1.0f;  // the 1 column maps to itself
   }
 
-  const int workers = std::max(1, std::min<int>(at::get_num_threads(), (rows + kChunkRows - 1) / kChunkRows));
+  const std::int64_t chunks = (rows + kChunkRows - 1) / kChunkRows;
+  const int workers = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(at::get_num_threads(), chunks)));
   workers_.resize(workers);
-  for (Worker& k : workers_) {
-    if (!targets) break;
-    k.weightGrad.assign(gradOffset_.back());
-    k.dirGrad.assign(4 * static_cast<std::size_t>(W), 0.0f);
-    k.tileGrad.assign(static_cast<std::size_t>(tiles) * W, 0.0f);
-    k.loss = 0;
-  }
+  if (targets) chunkSums_.resize(chunks);
   const float* d = dirs.data_ptr<float>();
+  std::atomic<std::int64_t> next{0};
+  auto work = [&](Worker& k) {
+    for (std::int64_t c = next++; c < chunks; c = next++) runChunk(k, c, rows, rowsPerTile, d, targets, outRows);
+  };
   if (workers == 1) {
-    runWorker(0, 1, rows, rowsPerTile, d, targets, outRows);
+    work(workers_[0]);
   } else {
     at::parallel_for(0, workers, 1, [&](std::int64_t begin, std::int64_t end) {
-      for (std::int64_t w = begin; w < end; ++w) runWorker(static_cast<int>(w), workers, rows, rowsPerTile, d, targets, outRows);
+      for (std::int64_t w = begin; w < end; ++w) work(workers_[w]);
     });
   }
 }
@@ -204,18 +207,27 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
   TORCH_CHECK(y.size(0) == rows && y.size(1) == outputs_, "decoder: targets must be [rows, outputs]");
   run(zc, dirs.contiguous(), y.data_ptr<float>(), rowsPerTile, nullptr);
 
-  // Add the workers' sums in worker order (deterministic), into the parameters' grads.
+  // Add the chunks' sums in chunk order (deterministic): the weight gradients on all threads,
+  // each over a range of entries, into chunk 0's.
   const int W = width_, S = stride_, L = layers_;
-  Worker& sum = workers_[0];
-  for (std::size_t w = 1; w < workers_.size(); ++w) {
-    const Worker& k = workers_[w];
-    for (std::size_t i = 0; i < sum.weightGrad.size(); ++i) sum.weightGrad.data()[i] += k.weightGrad.data()[i];
-    for (std::size_t i = 0; i < sum.dirGrad.size(); ++i) sum.dirGrad[i] += k.dirGrad[i];
-    for (std::size_t i = 0; i < sum.tileGrad.size(); ++i) sum.tileGrad[i] += k.tileGrad[i];
-    sum.loss += k.loss;
+  const std::int64_t tiles = zc.size(0), chunks = static_cast<std::int64_t>(chunkSums_.size());
+  float* sumW = chunkSums_[0].weightGrad.data();
+  at::parallel_for(0, static_cast<std::int64_t>(gradOffset_.back()), 2048, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t c = 1; c < chunks; ++c) {
+      const float* __restrict w = chunkSums_[c].weightGrad.data();
+      for (std::int64_t i = begin; i < end; ++i) sumW[i] += w[i];
+    }
+  });
+  std::vector<float> dirGrad(4 * static_cast<std::size_t>(W), 0.0f), tileGradSum(static_cast<std::size_t>(tiles) * W, 0.0f);
+  double loss = 0;
+  for (const ChunkSums& sums : chunkSums_) {
+    for (std::size_t i = 0; i < dirGrad.size(); ++i) dirGrad[i] += sums.dirGrad[i];
+    float* t = tileGradSum.data() + sums.firstTile * W;
+    for (std::size_t i = 0; i < sums.tileGrad.size(); ++i) t[i] += sums.tileGrad[i];
+    loss += sums.loss;
   }
   for (int l = 1; l < L; ++l) {  // [out x stride] rows: the weights, then the bias in column W
-    const float* g = sum.weightGrad.data() + gradOffset_[l];
+    const float* g = sumW + gradOffset_[l];
     float* gw = weightGrad_[l].data_ptr<float>();
     float* gb = biasGrad_[l].data_ptr<float>();
     for (std::int64_t i = 0; i < weightGrad_[l].size(0); ++i) {
@@ -224,10 +236,10 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
     }
   }
   // Layer 0 from the per-tile and per-direction sums.
-  torch::Tensor tileGrad = torch::from_blob(sum.tileGrad.data(), {zc.size(0), W});
+  torch::Tensor tileGrad = torch::from_blob(tileGradSum.data(), {tiles, W});
   float* g0 = weightGrad_[0].data_ptr<float>();
   for (int j = 0; j < W; ++j)
-    for (int q = 0; q < 4; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + 4) + latentDim_ + q] = sum.dirGrad[q * W + j];
+    for (int q = 0; q < 4; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + 4) + latentDim_ + q] = dirGrad[q * W + j];
   weightGrad_[0].narrow(1, 0, latentDim_).copy_(torch::mm(tileGrad.t(), zc));
   torch::sum_out(biasGrad_[0], tileGrad, {0});
   dz = torch::mm(tileGrad, decoder_->layers[0]->weight.narrow(1, 0, latentDim_));
@@ -236,7 +248,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
     decoder_->layers[l]->weight.mutable_grad() = weightGrad_[l];
     decoder_->layers[l]->bias.mutable_grad() = biasGrad_[l];
   }
-  return sum.loss / (static_cast<double>(outputs_) * rows);
+  return loss / (static_cast<double>(outputs_) * rows);
 }
 
 }  // namespace nbtf::detail

@@ -10,9 +10,9 @@
 // hidden units, so each layer's bias is one more row of its (transposed, padded) weight
 // matrix and its gradient one more column of the weight gradient. Rows come in tiles that
 // share one latent, so the first layer splits into W_z z (once per tile) + W_d d (per
-// row): no product with K = 12 and no gradient for the direction inputs. A thread's share
-// of the chunks is fixed by the thread count and the per-thread sums are added in thread
-// order, so results are bit-identical run to run.
+// row): no product with K = 12 and no gradient for the direction inputs. Each chunk keeps
+// its own gradient sums, added in chunk order afterwards, so results are bit-identical run
+// to run whichever thread ran which chunk.
 #pragma once
 #include <vector>
 
@@ -36,22 +36,27 @@ class DecoderBackprop {
                    torch::Tensor& dz);
 
  private:
-  // One thread's scratch (chunk activations, row stride stride_) and gradient sums.
+  // One thread's scratch: a chunk's activations and gradients (row stride stride_).
   struct Worker {
     AlignedFloats hidden;          // (layers - 1) x chunk x stride, post-ReLU, column width_ = 1
     AlignedFloats grad, grad2;     // chunk x stride
     std::vector<float> out;        // chunk x outputs
+  };
+  // One chunk's gradient sums. Threads take the next chunk as they free up (a thread slowed
+  // by the host does not hold the other up), and the sums are added in chunk order.
+  struct ChunkSums {
     AlignedFloats weightGrad;      // layers 1 .. layers - 1: [out x stride], bias in column width_
     std::vector<float> dirGrad;    // 4 x width: dLoss/dW_d, transposed
-    std::vector<float> tileGrad;   // tiles x width: dLoss/d(W_z z + b)
+    std::vector<float> tileGrad;   // the chunk's tiles (from firstTile) x width: dLoss/d(W_z z + b)
+    std::int64_t firstTile = 0;
     double loss = 0;
   };
-  // Sets up the per-tile part of layer 0, the padded weights and the workers, then runs them
-  // in parallel.
+  // Sets up the per-tile part of layer 0, the padded weights and the workers, then runs the
+  // chunks on all threads.
   void run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile, float* outRows);
-  // Runs the chunks of worker `w`; targets == nullptr: forward only (outputs to outRows).
-  void runWorker(int w, int workers, std::int64_t rows, int rowsPerTile, const float* dirs, const float* targets,
-                 float* outRows);
+  // Runs chunk c on worker k; targets == nullptr: forward only (outputs to outRows).
+  void runChunk(Worker& k, std::int64_t c, std::int64_t rows, int rowsPerTile, const float* dirs, const float* targets,
+                float* outRows);
 
   Decoder decoder_;
   int latentDim_, layers_, width_, outputs_;
@@ -62,6 +67,7 @@ class DecoderBackprop {
   // = W padded ([out x stride]). For the last layer both are [outputs x stride] (rowDots).
   std::vector<AlignedFloats> forward_, backward_;
   std::vector<Worker> workers_;
+  std::vector<ChunkSums> chunkSums_;
   std::vector<float> dirWeightT_;  // 4 x width: W_d transposed, refreshed every call
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
   torch::Tensor out_;              // [rows, outputs]

@@ -61,6 +61,28 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
   return err;
 }
 
+std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
+                                          int threads) {
+  torch::set_num_threads(threads);
+  torch::manual_seed(seed);
+  detail::Decoder decoder(model);
+  const int rows = tiles * rowsPerTile;
+  torch::Tensor z = torch::randn({tiles, model.latentDim});
+  torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
+  torch::Tensor targets = torch::rand({rows, 3});
+  detail::DecoderBackprop backprop(decoder, model.latentDim);
+  torch::Tensor dz;
+  std::vector<float> result{static_cast<float>(backprop.trainStep(z, dirs, targets, rowsPerTile, dz))};
+  std::vector<torch::Tensor> parts;
+  for (auto& p : decoder->parameters()) parts.push_back(p.grad());
+  parts.push_back(dz);
+  for (auto& t : parts) {
+    torch::Tensor c = t.contiguous();
+    result.insert(result.end(), c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
+  }
+  return result;
+}
+
 double convPoolReferenceError(std::uint64_t seed, int batch, int inChannels, int outChannels, int length) {
   torch::manual_seed(seed);
   namespace nn = torch::nn;

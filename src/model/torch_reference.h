@@ -24,6 +24,11 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
 double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
                             int threads = 0);
 
+// The hand-written decoder pass's loss, every parameter gradient and the latent gradient,
+// concatenated, for a random batch like decoderBackpropError's, on `threads` threads.
+std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
+                                          int threads);
+
 // The encoder's fused conv + pool (conv_pool.h) against torch::nn::Conv1d(k3, s1, p1) then
 // MaxPool1d(3, stride 3), on small-integer inputs, weights and output gradients (so both
 // compute exactly and ties are common): the largest difference of outputs and of the input,

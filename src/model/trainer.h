@@ -53,7 +53,7 @@ struct TrainConfig {
   double momentum = 0;             // sgd only
   // ---- training
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
-  int imagesPerInput = 256;        // images per encoder input in a step (a "tile"); clamped to the training images
+  int imagesPerInput = 512;        // images per encoder input in a step (a "tile"); clamped to the training images
   int epochs = 20;                 // one epoch = (encoder inputs) x (training images) decoder samples
   double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
   std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
