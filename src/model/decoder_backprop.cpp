@@ -205,6 +205,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
   const std::int64_t rows = dirs.size(0);
   torch::Tensor zc = z.contiguous(), y = targets.contiguous();
   TORCH_CHECK(y.size(0) == rows && y.size(1) == outputs_, "decoder: targets must be [rows, outputs]");
+  TORCH_CHECK(rows > 0, "decoder: a training step needs at least one row");
   run(zc, dirs.contiguous(), y.data_ptr<float>(), rowsPerTile, nullptr);
 
   // Add the chunks' sums in chunk order (deterministic): the weight gradients on all threads,
