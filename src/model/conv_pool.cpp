@@ -3,11 +3,11 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <vector>
 
 #include "model/conv_pool_kernels.h"
+#include "model/dynamic_items.h"
 
 namespace nbtf::detail {
 namespace {
@@ -27,20 +27,6 @@ struct Scratch {
     data = storage.data() + ((64 - address % 64) % 64) / sizeof(float);
   }
 };
-
-// Runs work(take) on up to `items` of torch's threads; take() hands out the next batch item
-// (-1 when none is left), so a thread the host slows down does not hold the others up. Each
-// item's results go to its own slots, so they do not depend on which thread ran it.
-template <class Work>
-void forEachItem(int items, const Work& work) {
-  std::atomic<int> next{0};
-  auto take = [&] {
-    const int item = next++;
-    return item < items ? item : -1;
-  };
-  const int threads = std::max(1, std::min(at::get_num_threads(), items));
-  at::parallel_for(0, threads, 1, [&](std::int64_t, std::int64_t) { work(take); });
-}
 
 // x [channels, length] -> phase rows [channels][3][stride].
 void splitChannels(const float* x, int channels, int length, int stride, float* rows) {
@@ -71,7 +57,7 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     const float* xs = x.data_ptr<float>();
     float* ys = y.data_ptr<float>();
     std::uint8_t* arg = which.data_ptr<std::uint8_t>();
-    forEachItem(batch, [&](const auto& take) {
+    forEachItemDynamic(batch, [&](int, const auto& take) {
       // Per item, cache-resident: the input in phase rows and the convolution's.
       Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
       Scratch conv(static_cast<std::size_t>(outPadded) * 3 * kChunk);
@@ -119,7 +105,7 @@ struct ConvPool3Function : torch::autograd::Function<ConvPool3Function> {
     const float* g = gy.data_ptr<float>();
     const std::uint8_t* arg = which.data_ptr<std::uint8_t>();
     float* gxs = wantInput ? gx.data_ptr<float>() : nullptr;
-    forEachItem(batch, [&](const auto& take) {
+    forEachItemDynamic(batch, [&](int, const auto& take) {
       // The convolution's gradient in phase rows (channels past `out` stay 0), and dx's rows.
       Scratch phaseRows(static_cast<std::size_t>(in) * 3 * stride);
       Scratch gconv(static_cast<std::size_t>(outPadded) * 3 * stride);

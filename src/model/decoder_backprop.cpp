@@ -3,8 +3,8 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
-#include <atomic>
 
+#include "model/dynamic_items.h"
 #include "model/simd_clones.h"
 
 namespace nbtf::detail {
@@ -174,21 +174,12 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
   }
 
   const std::int64_t chunks = (rows + kChunkRows - 1) / kChunkRows;
-  const int workers = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(at::get_num_threads(), chunks)));
-  workers_.resize(workers);
+  workers_.resize(dynamicSlots(chunks));
   if (targets) chunkSums_.resize(chunks);
   const float* d = dirs.data_ptr<float>();
-  std::atomic<std::int64_t> next{0};
-  auto work = [&](Worker& k) {
-    for (std::int64_t c = next++; c < chunks; c = next++) runChunk(k, c, rows, rowsPerTile, d, targets, outRows);
-  };
-  if (workers == 1) {
-    work(workers_[0]);
-  } else {
-    at::parallel_for(0, workers, 1, [&](std::int64_t begin, std::int64_t end) {
-      for (std::int64_t w = begin; w < end; ++w) work(workers_[w]);
-    });
-  }
+  forEachItemDynamic(chunks, [&](int slot, const auto& take) {
+    for (std::int64_t c = take(); c >= 0; c = take()) runChunk(workers_[slot], c, rows, rowsPerTile, d, targets, outRows);
+  });
 }
 
 torch::Tensor DecoderBackprop::forward(const torch::Tensor& z, const torch::Tensor& dirs, int rowsPerTile) {

@@ -27,14 +27,30 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
   return r;
 }
 
-double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads) {
-  if (threads > 0) torch::set_num_threads(threads);
+namespace {
+
+// A seeded random decoder and training batch: tiles latents, tiles x rowsPerTile direction
+// rows in [-1, 1) and targets in [0, 1).
+struct DecoderBatch {
+  detail::Decoder decoder;
+  torch::Tensor z, dirs, targets;
+};
+
+DecoderBatch randomDecoderBatch(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile) {
   torch::manual_seed(seed);
   detail::Decoder decoder(model);
   const int rows = tiles * rowsPerTile;
   torch::Tensor z = torch::randn({tiles, model.latentDim});
   torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
   torch::Tensor targets = torch::rand({rows, 3});
+  return {decoder, z, dirs, targets};
+}
+
+}  // namespace
+
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads) {
+  if (threads > 0) torch::set_num_threads(threads);
+  auto [decoder, z, dirs, targets] = randomDecoderBatch(model, seed, tiles, rowsPerTile);
 
   // Autograd on the plain concatenated input.
   torch::Tensor zAuto = z.clone().requires_grad_(true);
@@ -64,12 +80,7 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
 std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
                                           int threads) {
   torch::set_num_threads(threads);
-  torch::manual_seed(seed);
-  detail::Decoder decoder(model);
-  const int rows = tiles * rowsPerTile;
-  torch::Tensor z = torch::randn({tiles, model.latentDim});
-  torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
-  torch::Tensor targets = torch::rand({rows, 3});
+  auto [decoder, z, dirs, targets] = randomDecoderBatch(model, seed, tiles, rowsPerTile);
   detail::DecoderBackprop backprop(decoder, model.latentDim);
   torch::Tensor dz;
   std::vector<float> result{static_cast<float>(backprop.trainStep(z, dirs, targets, rowsPerTile, dz))};

@@ -46,14 +46,14 @@ double smallLinearReferenceError(std::uint64_t seed, int batch, int in, int out)
 // (at least 1), of outputs, the input, weight and bias gradients, and the running mean and
 // variance after the step, on `threads` threads. Float rounding differs (torch sums in float, in
 // an order that depends on its thread count), so not 0.
+double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int length, bool constantChannel,
+                               int threads);
+
 // detail::fusedAdamStep against torch::optim::Adam::step: the same random parameters
 // (tensors of the given sizes) and gradients for `steps` steps, lr and betas as given;
 // returns the largest parameter difference relative to the largest parameter magnitude,
 // after checking that both optimizers' states (step count, moments) agree likewise.
 double fusedAdamReferenceError(std::uint64_t seed, const std::vector<std::int64_t>& sizes, int steps, double lr);
-
-double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int length, bool constantChannel,
-                               int threads);
 
 // The decoder's hand-written training pass alone (forward, loss, backward; no encoder, no
 // optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads.
