@@ -12,6 +12,7 @@ PACKAGES=(
   libcxxopts-dev          # command-line options
   libgtest-dev            # tests
   nlohmann-json3-dev      # configs, reports
+  libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do

@@ -6,9 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <random>
 
 #include "codec/pca_model.h"
+#include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
 #include "decoder_fixtures.h"
 #include "test_util.h"
@@ -139,6 +142,105 @@ TEST(Decoder, ImageFromKEvaluationsEqualsPerTexelEvaluation) {
         }
       }
   }
+}
+
+// Per-texel modulation: every path (image, single, batch by texel and by uv) gives, for
+// each texel, the sum of its cluster's R terms weighted by its coefficients.
+TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
+  const int terms = 3, k = 4;
+  CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 9, 6);
+  CompressedBtf rowsOnly = b;  // the same network with R x 3 outputs, unmodulated, to read the terms
+  std::mt19937 rng(4);
+  std::normal_distribution<float> normal(0.f, 0.5f);
+  DenseLayer& last = b.decoder.layers.back();
+  last.out = 3 * terms;
+  last.weight.resize(static_cast<std::size_t>(last.in) * last.out);
+  last.bias.resize(last.out);
+  for (float& w : last.weight) w = normal(rng);
+  for (float& x : last.bias) x = normal(rng);
+  std::vector<float> raw(54 * terms);
+  for (std::size_t i = 0; i < raw.size(); ++i) raw[i] = 0.4f + 0.05f * static_cast<float>((i * 7) % 23);
+  b.modulation = quantizeTexelCoefficients(raw, terms, 8);
+  NbtfDecoder dec(b);
+  ASSERT_TRUE(dec.modulated());
+  EXPECT_EQ(dec.modulationTerms(), terms);
+  const std::vector<float> e = effectiveTexelCoefficients(b.modulation, b.ids, k);
+  EXPECT_EQ(dec.texelCoefficients(), e);
+  const Direction l{37.5, 200}, v{10, 45};
+  std::vector<float> img(3 * 54);
+  dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
+  std::vector<TexelQuery> byTexel;
+  std::vector<UvQuery> byUv;
+  auto lu = l.unitVector(), vu = v.unitVector();
+  for (int t = 0; t < 54; ++t) {
+    byTexel.push_back({t % 9, t / 9, l, v});
+    byUv.push_back({(t % 9 + 0.5f) / 9, (t / 9 + 0.5f) / 6, {float(lu[0]), float(lu[1]), float(lu[2])},
+                    {float(vu[0]), float(vu[1]), float(vu[2])}});
+  }
+  std::vector<float> batch(3 * 54), uvBatch(3 * 54);
+  dec.evaluate(byTexel.data(), byTexel.size(), batch.data(), OutputScale::Normalized);
+  dec.evaluate(byUv.data(), byUv.size(), uvBatch.data(), OutputScale::Normalized);
+  for (int t = 0; t < 54; ++t) {
+    // The naive reference of the network (double), then the texel's mix of its terms.
+    std::array<double, 3> mag;
+    std::vector<double> term(3 * terms);
+    {
+      // referenceOutput evaluates 3 outputs; evaluate the R x 3 outputs by hand via Mlp.
+      Mlp::RowMatrix in(1, b.decoder.inputSize());
+      const float* z = b.latentOfTexel(t);
+      for (int d = 0; d < b.latentDim; ++d) in(0, d) = z[d];
+      auto ls = stereographic(l), vs = stereographic(v);
+      in(0, b.latentDim) = ls[0], in(0, b.latentDim + 1) = ls[1], in(0, b.latentDim + 2) = vs[0],
+                   in(0, b.latentDim + 3) = vs[1];
+      Mlp::RowMatrix out = b.decoder.forward(in);
+      for (int o = 0; o < 3 * terms; ++o) term[o] = out(0, o);
+    }
+    (void)mag;
+    for (int c = 0; c < 3; ++c) {
+      double want = 0, size = 0;
+      for (int r = 0; r < terms; ++r) want += e[t * terms + r] * term[3 * r + c], size += std::fabs(e[t * terms + r] * term[3 * r + c]);
+      EXPECT_NEAR(img[3 * t + c], want, 1e-4 * (1 + size)) << "texel " << t;
+      EXPECT_EQ(batch[3 * t + c], img[3 * t + c]);
+      EXPECT_EQ(uvBatch[3 * t + c], img[3 * t + c]);
+    }
+    Rgb one = dec.evaluate(t % 9, t / 9, l, v, OutputScale::Normalized);
+    EXPECT_EQ(one.r, img[3 * t]);
+    EXPECT_EQ(one.b, img[3 * t + 2]);
+  }
+  // Linear is normalized x alpha; rows alone are refused.
+  Rgb lin = dec.evaluate(2, 3, l, v), norm = dec.evaluate(2, 3, l, v, OutputScale::Normalized);
+  EXPECT_FLOAT_EQ(lin.g, norm.g * b.alpha);
+  std::vector<float> rows(3 * k);
+  test::expectErrorContaining([&] { dec.decodeRows(l, v, rows.data()); }, {"per-texel modulation", "decodeImage"});
+}
+
+// tests/data/legacy_v1_0.nbtf was written by nbtf before format 1.2 (commit 094d9fb, `nbtf
+// compress`), and its answers to the queries beside it by that commit's `nbtf query
+// --normalized --isa portable`: this build decodes the old file to the same floats.
+TEST(Decoder, CommittedFormat10FileDecodesAsBefore) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/tests/data/";
+  DecoderOptions options;
+  options.isa = DecoderIsa::Portable;
+  NbtfDecoder dec = NbtfDecoder::open(dir + "legacy_v1_0.nbtf", options);
+  EXPECT_EQ(dec.material().formatMinor, 0);
+  std::ifstream answers(dir + "legacy_v1_0.answers.csv");
+  std::string line;
+  std::getline(answers, line);  // header
+  int count = 0;
+  while (std::getline(answers, line)) {
+    float v[9];
+    ASSERT_EQ(std::sscanf(line.c_str(), "%f,%f,%f,%f,%f,%f,%f,%f,%f", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
+                          &v[7], &v[8]),
+              9)
+        << line;
+    Rgb c = dec.evaluate(static_cast<int>(v[0]), static_cast<int>(v[1]), {v[2], v[3]}, {v[4], v[5]},
+                         OutputScale::Normalized);
+    EXPECT_EQ(c.r, v[6]) << line;
+    EXPECT_EQ(c.g, v[7]) << line;
+    EXPECT_EQ(c.b, v[8]) << line;
+    ++count;
+  }
+  EXPECT_EQ(count, 4);
 }
 
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {

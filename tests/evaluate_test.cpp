@@ -79,6 +79,59 @@ TEST_F(Evaluate, MetricsMatchADirectComputation) {
   EXPECT_LE(diagonal, 1);
 }
 
+// Graininess: the mean brightness map (per texel, over all images) of a hand-made case.
+TEST_F(Evaluate, MeanBrightnessMapRmseOfAHandMadeCase) {
+  BtfStack ref = testing::syntheticStack(hemisphere81(), hemisphere81(), 4, 3);
+  const std::size_t n = 3 * 12;
+  // Reconstruction = reference + a per-texel offset that alternates in sign over images:
+  // image errors are large, but the mean maps differ only by the offset's mean.
+  EvalInputs in;
+  in.reference = &ref;
+  in.alpha = 2.0f;
+  in.reconstruct = [&](int image, float* out) {
+    ref.imageLinear(image, out);
+    for (std::size_t j = 0; j < n; ++j) out[j] += (image % 2 ? -0.3f : 0.3f) + (j == 5 ? 0.1f : 0.0f);
+  };
+  EvalOptions o;
+  o.progress = false;
+  EvalResult r = evaluate(in, o);
+  // 6561 images: one more +0.3 than -0.3, so every texel's mean moves by 0.3 / 6561, and
+  // value 5 by 0.1 more; divided by alpha.
+  const double shift = 0.3 / 6561;
+  const double expected = std::sqrt((35 * shift * shift + (shift + 0.1) * (shift + 0.1)) / 36) / 2.0;
+  EXPECT_NEAR(r.meanMapRmse, expected, 1e-7);
+  EXPECT_GT(r.all.rmse, 0.1);
+  EXPECT_EQ(r.meanMapFigure.width > 0, true);
+  EXPECT_LT(r.floorRmse, 0);  // no clusters given: no floor
+}
+
+TEST_F(Evaluate, ClusterFloorIsComputedForClusteredInputs) {
+  BtfStack ref = testing::syntheticStack(hemisphere81(), hemisphere81(), 4, 3);
+  EvalInputs in;
+  in.reference = &ref;
+  in.alpha = 1.0f;
+  in.reconstruct = [&](int image, float* out) { ref.imageLinear(image, out); };
+  in.clusters = 2;
+  in.clusterIds = {0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1};
+  EvalOptions o;
+  o.progress = false;
+  EvalResult r = evaluate(in, o);
+  // Direct: every texel against its cluster's mean, per image and channel.
+  double sse = 0;
+  std::vector<float> rgb(36);
+  for (int i = 0; i < ref.numImages(); ++i) {
+    ref.imageLinear(i, rgb.data());
+    for (int c = 0; c < 3; ++c) {
+      double mean[2] = {0, 0};
+      for (int t = 0; t < 12; ++t) mean[in.clusterIds[t]] += rgb[3 * t + c] / 6.0;
+      for (int t = 0; t < 12; ++t) sse += std::pow(rgb[3 * t + c] - mean[in.clusterIds[t]], 2);
+    }
+  }
+  EXPECT_NEAR(r.floorRmse, std::sqrt(sse / (36.0 * ref.numImages())), 1e-6);
+  EXPECT_LT(r.floorRmseModulated, 0);
+  EXPECT_EQ(r.meanMapRmse, 0.0);
+}
+
 TEST_F(Evaluate, FindsThePaperPairsAndTheWorstPair) {
   BtfStack ref = testing::syntheticStack(hemisphere81(), hemisphere81(), 12, 12);
   EvalInputs in;

@@ -9,9 +9,11 @@
 
 #include "codec/byte_io.h"
 #include "codec/crc32.h"
+#include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "test_util.h"
 
 namespace nbtf {
 namespace {
@@ -22,8 +24,33 @@ using testing::makePcaBtf;
 
 // The files every damage test runs on: clustered neural and the PCA baseline (whose
 // sections have their own size fields and checks).
+// A decoder for `terms` modulation terms: makeBtf's, with 3 x terms outputs.
+void setTerms(CompressedBtf& b, int terms) {
+  DenseLayer& last = b.decoder.layers.back();
+  last.out = 3 * terms;
+  last.weight.assign(static_cast<std::size_t>(last.in) * last.out, 0.125f);
+  last.bias.assign(last.out, -0.5f);
+}
+
+// A format-1.2 file: per-texel modulation (3 terms, 6-bit codes), half-precision decoder
+// and latents, zstd-coded ids.
+CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6) {
+  CompressedBtf b = makeBtf(k);
+  std::vector<float> coefficients(static_cast<std::size_t>(b.numTexels()) * terms);
+  for (std::size_t i = 0; i < coefficients.size(); ++i) coefficients[i] = 0.5f - 0.11f * static_cast<float>(i % 9);
+  b.modulation = quantizeTexelCoefficients(coefficients, terms, bits);
+  setTerms(b, terms);
+  b.storage.decoderHalf = b.storage.latentsHalf = b.storage.idsZstd = true;
+  roundToStorage(b);
+  return b;
+}
+
+// The files every damage test runs on: clustered neural, the PCA baseline (whose sections
+// have their own size fields and checks) and a compact 1.2 file (zstd frames, half floats).
 std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
-  return {{"clustered", serializeNbtf(makeBtf(5))}, {"pca", serializeNbtf(makePcaBtf())}};
+  return {{"clustered", serializeNbtf(makeBtf(5))},
+          {"pca", serializeNbtf(makePcaBtf())},
+          {"compact", serializeNbtf(makeCompactBtf())}};
 }
 
 std::string errorOf(const std::vector<std::uint8_t>& bytes, std::size_t size = SIZE_MAX,
@@ -330,7 +357,7 @@ TEST(NbtfFile, SizesReproduceThePapersTable1) {
   EXPECT_TRUE(contains(table, "15.6 KiB")) << table;
   EXPECT_TRUE(contains(table, "24,383 parameters")) << table;
   EXPECT_TRUE(contains(table, "750.8 MiB")) << table;
-  EXPECT_TRUE(contains(table, "1 : 5128.1 (with the paper's 4-byte ids)")) << table;
+  EXPECT_TRUE(contains(table, "1 : 5128.1 (stored the paper's way: float32, 4-byte ids)")) << table;
 
   // Per-texel (the paper's "neural BTF" column): 313 KB latents, 408 KB total, 1:1885.
   b.method = CodecMethod::PerTexelNeural;
@@ -341,6 +368,146 @@ TEST(NbtfFile, SizesReproduceThePapersTable1) {
   EXPECT_EQ(p.ids, 0u);
   EXPECT_NEAR(p.total / 1024.0, 408, 0.5);
   EXPECT_EQ(static_cast<int>(p.ratio), 1885);
+}
+
+TEST(NbtfFile, CompactPartsShrinkTheTotalAndAreListed) {
+  // The same material with half-precision parts, zstd ids and 8-bit factors per texel.
+  std::mt19937 rng(1);
+  CompressedBtf b;
+  b.width = b.height = b.sourceWidth = b.sourceHeight = 100;
+  b.lights = hemisphere81();
+  b.views = hemisphere81();
+  b.decoder = makeDecoder(8, {106, 106, 106}, rng);
+  b.latentRows = 500;
+  b.latents.assign(500 * 8, 0.25f);
+  b.ids.resize(10000);
+  for (int t = 0; t < 10000; ++t) b.ids[t] = (t % 100) / 10 + 10 * (t / 1000);  // 10 x 10 blocks: coherent
+  std::vector<float> coefficients(10000, 1.0f);
+  for (int t = 0; t < 10000; ++t) coefficients[t] = 0.5f + (t % 7) * 0.1f;
+  b.modulation = quantizeTexelCoefficients(coefficients, 1, 8);
+  b.storage.decoderHalf = b.storage.latentsHalf = b.storage.idsZstd = true;
+  roundToStorage(b);
+  NbtfSizes s = computeSizes(b);
+  EXPECT_EQ(s.decoder, 24383u * 2);
+  EXPECT_EQ(s.latents, 500u * 8 * 2);
+  EXPECT_TRUE(s.idsZstd);
+  EXPECT_LT(s.ids, 2000u);  // 20,000 raw bytes of block-coherent ids
+  EXPECT_GT(s.modulation, 0u);
+  EXPECT_LT(s.modulation, 10000u);  // 8-bit codes with 7 distinct values compress
+  EXPECT_EQ(s.total, s.decoder + s.latents + s.ids + s.modulation);
+  // The paper-style total stores the same model in float32 with 4-byte ids.
+  EXPECT_EQ(s.totalPaper, 97532u + 16000u + 40000u + s.modulation);
+  std::string table = formatSizeTable(s);
+  EXPECT_TRUE(contains(table, "x 2 bytes (half)")) << table;
+  EXPECT_TRUE(contains(table, "zstd-coded")) << table;
+  EXPECT_TRUE(contains(table, "per-texel")) << table;
+  EXPECT_TRUE(contains(table, "1 coefficient x 8-bit codes")) << table;
+  // The file holds what computeSizes counts, plus headers, directions and metadata.
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_GT(bytes.size(), s.total);
+  EXPECT_LT(bytes.size(), s.total + 4000);
+}
+
+TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
+  for (int terms : {1, 3})
+    for (int bits : {4, 8, 12}) {
+      CompressedBtf b = makeCompactBtf(5, terms, bits);
+      std::vector<std::uint8_t> bytes = serializeNbtf(b);
+      EXPECT_EQ(bytes[10], 2);  // format 1.2
+      CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+      EXPECT_EQ(serializeNbtf(back), bytes);
+      EXPECT_EQ(back.modulation.terms, terms);
+      EXPECT_EQ(back.modulation.bits, bits);
+      EXPECT_EQ(back.modulation.codes, b.modulation.codes);
+      EXPECT_EQ(back.modulation.minimum, b.modulation.minimum);
+      EXPECT_EQ(back.modulation.maximum, b.modulation.maximum);
+      EXPECT_EQ(back.ids, b.ids);
+      EXPECT_EQ(back.latents, b.latents);  // half values: exact after roundToStorage
+      EXPECT_EQ(back.decoder.layers[0].weight, b.decoder.layers[0].weight);
+      EXPECT_TRUE(back.storage.decoderHalf && back.storage.latentsHalf && back.storage.idsZstd);
+    }
+  // Each compact part alone also round-trips, and raw modulation codes too.
+  for (int part = 0; part < 4; ++part) {
+    CompressedBtf b = makeBtf(300, 20, 20);
+    if (part == 0) b.storage.decoderHalf = true;
+    if (part == 1) b.storage.latentsHalf = true;
+    if (part == 2) b.storage.idsZstd = true;  // k = 300: 2-byte ids, two planes
+    if (part == 3) {
+      b.modulation = quantizeTexelCoefficients(std::vector<float>(400, 1.5f), 1, 16);
+      b.storage.modulationZstd = false;
+    }
+    roundToStorage(b);
+    std::vector<std::uint8_t> bytes = serializeNbtf(b);
+    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(serializeNbtf(back), bytes) << "part " << part;
+    EXPECT_EQ(back.ids, b.ids) << "part " << part;
+  }
+}
+
+TEST(NbtfFile, PaperStyleFilesStayFormat10) {
+  // Without compact parts or modulation the writer still writes 1.0, readable by older nbtf.
+  std::vector<std::uint8_t> bytes = serializeNbtf(makeBtf(5));
+  EXPECT_EQ(bytes[8], 1);
+  EXPECT_EQ(bytes[10], 0);
+  EXPECT_EQ(findSection(bytes, "DECH"), 0u);
+  EXPECT_NE(findSection(bytes, "DECD"), 0u);
+}
+
+// A file written by nbtf before format 1.2 (tests/data/legacy_v1_0.nbtf, made by the
+// commit before it with `nbtf compress`) still reads, and decodes to the values it held.
+TEST(NbtfFile, CommittedFormat10FileStillReads) {
+  const std::string path = std::string(NBTF_SOURCE_DIR) + "/tests/data/legacy_v1_0.nbtf";
+  CompressedBtf b = readNbtf(path);
+  EXPECT_EQ(b.formatMajor, 1);
+  EXPECT_EQ(b.formatMinor, 0);
+  EXPECT_EQ(b.method, CodecMethod::ClusteredNeural);
+  EXPECT_TRUE(b.modulation.empty());
+  EXPECT_FALSE(b.storage.decoderHalf || b.storage.latentsHalf || b.storage.idsZstd);
+  // Re-serialized, it is the same bytes: this build writes 1.0 files exactly as before.
+  EXPECT_EQ(serializeNbtf(b), readFileBytes(path));
+}
+
+TEST(NbtfFile, CompactContentIsCheckedByName) {
+  {
+    CompressedBtf b = makeCompactBtf();
+    b.decoder.layers[0].weight[0] = 0.1f;  // not a half value
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"half precision", "cannot represent"});
+  }
+  {
+    CompressedBtf b = makeCompactBtf();
+    b.modulation.codes[3] = 64;  // 6-bit codes
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"modulation code 64", "exceeds 6 bits"});
+  }
+  {
+    CompressedBtf b = makeCompactBtf();
+    b.modulation.codes.pop_back();
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"modulation holds"});
+  }
+  {
+    CompressedBtf b = makeCompactBtf();
+    b.modulation.maximum[1] = NAN;
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"modulation range of term 1"});
+  }
+  {
+    CompressedBtf b = makeCompactBtf();
+    setTerms(b, 2);  // 3 terms of coefficients, 2 of decoder outputs
+    roundToStorage(b);
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"decoder outputs 6 values, expected 9"});
+  }
+  {
+    CompressedBtf b = makeBtf(0);  // per-texel
+    b.modulation = quantizeTexelCoefficients(std::vector<float>(12, 1.0f), 1, 8);
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"only defined for the clustered method"});
+  }
+  // Two encodings of one part in one file.
+  std::vector<std::uint8_t> bytes = serializeNbtf(makeCompactBtf());
+  std::size_t at = findSection(bytes, "LATH");
+  ASSERT_NE(at, 0u);
+  std::vector<std::uint8_t> payload(bytes.begin() + at + 24, bytes.begin() + at + 24 + 8 + 5 * 8 * 4);
+  putU32(payload, 0, 5);
+  putU32(payload, 4, 8);
+  appendSection(bytes, "LATN", 1, payload);
+  EXPECT_TRUE(contains(errorOf(bytes), "both section 'LATN'")) << errorOf(bytes);
 }
 
 // ---- Rejected files

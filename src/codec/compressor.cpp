@@ -4,10 +4,16 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <tuple>
+#include <utility>
 #include <nlohmann/json.hpp>
 
+#include "cluster/cluster_values.h"
 #include "cluster/clustering.h"
+#include "codec/decoder.h"
 #include "codec/pca_compressor.h"
+#include "codec/texel_modulation.h"
+#include "model/training_set.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
@@ -44,7 +50,8 @@ void checkClusterCount(int clusters, std::int64_t texels, const std::string& wha
 // Provenance stored in the file. Only what does not vary between identical runs: no
 // timings, no output or checkpoint paths, so the same seed gives the same bytes.
 std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const TrainConfig& config,
-                         const TrainResult& train, const ClusteringResult* clustering, int pcaComponents) {
+                         const TrainResult& train, const ClusteringResult* clustering, int pcaComponents,
+                         const CompressStats& stats) {
   json meta;
   meta["config"] = json::parse(trainConfigJson(config));
   meta["seed"] = config.seed;
@@ -67,9 +74,43 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
     c["kmeans_iterations"] = clustering->iterations;
     c["kmeans_inertia"] = clustering->inertia;
     c["representative"] = "median";
+    c["floor_rmse"] = nullable(stats.rmseFloor);
+    if (stats.rmseFloorModulated >= 0) {
+      c["floor_rmse_modulated"] = stats.rmseFloorModulated;
+      c["floor_rmse_modulated_unquantized"] = stats.rmseFloorModulatedExact;
+    }
     meta["clustering"] = c;
   }
   return meta.dump();
+}
+
+// RMSE (eq. 10, linear / alpha) of a compressed material against its stack, on the training
+// and the held-out images, measured through the decoder: what the file will decode to.
+// Per-image sums added in image order, so the result does not depend on the thread count.
+std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack& stack, float alpha,
+                                      const std::vector<std::uint8_t>& holdout) {
+  const int images = stack.numImages(), views = stack.numViews();
+  const std::size_t values = 3 * static_cast<std::size_t>(stack.numTexels());
+  std::vector<double> sse(images, 0.0);
+  const float invAlpha = 1.0f / alpha;
+  parallelFor(images, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> decoded(values), reference(values);
+    for (std::size_t i = begin; i < end; ++i) {
+      decoder.decodeImage(stack.lights()[i / views], stack.views()[i % views], decoded.data(), OutputScale::Normalized);
+      stack.imageLinear(static_cast<int>(i), reference.data());
+      double s = 0;
+      for (std::size_t j = 0; j < values; ++j) {
+        double d = static_cast<double>(decoded[j]) - static_cast<double>(reference[j] * invAlpha);
+        s += d * d;
+      }
+      sse[i] = s;
+    }
+  });
+  double sums[2] = {0, 0};
+  int counts[2] = {0, 0};
+  for (int i = 0; i < images; ++i) sums[holdout[i]] += sse[i], ++counts[holdout[i]];
+  auto rmse = [&](int k) { return counts[k] ? std::sqrt(sums[k] / (static_cast<double>(counts[k]) * values)) : -1.0; };
+  return {rmse(0), rmse(1)};
 }
 
 }  // namespace
@@ -120,6 +161,8 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"holdout_fraction", c.holdoutFraction},
                    {"seed", c.seed},
                    {"threads", c.threads}};
+  j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
+  j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids}};
   return j.dump();
 }
 
@@ -169,6 +212,33 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   } else {
     inputs.encoderInputs = &x;
   }
+
+  // ---- Per-texel modulation (beyond the paper): factors from the training images, quantized
+  // as the file stores them; training sees exactly what decoding will apply.
+  const std::vector<std::uint8_t> holdout =
+      holdoutImageMask(stack.numImages(), o.train.holdoutFraction, o.train.seed);
+  std::vector<int> trainImages;
+  for (int i = 0; i < stack.numImages(); ++i)
+    if (!holdout[i]) trainImages.push_back(i);
+  TexelModulation modulation;
+  const ModulationConfig& mc = o.train.modulation;
+  stats.modulationMode = o.clusters > 0 ? mc.mode : "none";
+  if (o.clusters > 0 && mc.mode != "none") {
+    std::vector<std::uint8_t> useImage(holdout.size());
+    for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
+    std::vector<float> coefficients =
+        texelCoefficients(stack, alpha, inputs.ids, o.clusters, useImage, mc.terms, o.progress);
+    modulation = quantizeTexelCoefficients(coefficients, mc.terms, mc.bits);
+    inputs.texelCoefficients = effectiveTexelCoefficients(modulation, inputs.ids, o.clusters);
+    inputs.coefficientTerms = mc.terms;
+    stats.modulationTerms = mc.terms;
+    stats.modulationBits = mc.bits;
+    std::vector<float> exact = orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, inputs.ids, o.clusters);
+    stats.rmseFloorModulatedExact = clusterValues(stack, alpha, inputs.ids, o.clusters, exact.data(), mc.terms, false, false)
+                                        .floorRmse(trainImages, texels);
+    stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
+                          .floorRmse(trainImages, texels);
+  }
   stats.seconds.cluster = secondsSince(t);
   if (stopRequested(o)) {
     stats.interrupted = true;
@@ -177,6 +247,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
 
   // ---- Train
   TrainConfig config = o.train;
+  config.model.outputTerms = modulation.empty() ? 1 : modulation.terms;
   config.progress = config.progress && o.progress;
   config.stopFlag = o.stopFlag;
   config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
@@ -194,6 +265,10 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   }
   stats.rmseTrain = train.rmseTrain;
   stats.rmseHoldout = train.rmseHoldout;
+  if (o.clusters > 0) {
+    if (modulation.empty()) stats.rmseFloor = train.rmseFloor;
+    else stats.rmseFloorModulated = train.rmseFloor;
+  }
 
   // ---- Assemble the compressed material
   CompressedBtf b = compressedFrame(stack, stats.method, alpha);
@@ -207,7 +282,20 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
   stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
   b.encoderState = std::move(train.encoderState);
-  b.metadataJson = metadataJson(stack, o, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents);
+  b.modulation = std::move(modulation);
+  b.storage.decoderHalf = config.storage.decoder == "half";
+  b.storage.latentsHalf = config.storage.latents == "half";
+  b.storage.idsZstd = config.storage.ids == "zstd";
+  roundToStorage(b);
+  if (b.storage.decoderHalf || b.storage.latentsHalf) {
+    // The rounded parts are what the file decodes to: measure those, not the trained floats.
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
+    stats.rmseTrain = train.rmseTrain;
+    stats.rmseHoldout = train.rmseHoldout;
+  }
+  b.metadataJson = metadataJson(stack, o, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents,
+                                stats);
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
   return b;
@@ -295,6 +383,29 @@ std::string formatCompressSummary(const CompressStats& s) {
   else
     std::snprintf(line, sizeof line, "  %-16s none (use --holdout F to measure interpolation)\n", "held-out images");
   out += line;
+  if (s.rmseFloor >= 0) {
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.6f  (cluster-mean floor: the best any one-value-per-cluster model can do, training "
+                  "images)\n",
+                  "floor", s.rmseFloor);
+    out += line;
+  }
+  if (s.rmseFloorModulated >= 0) {
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.6f  (with the per-texel coefficients as stored; %.6f unquantized: %s, %d term%s, %d-bit)\n",
+                  "modulated floor", s.rmseFloorModulated, s.rmseFloorModulatedExact, s.modulationMode.c_str(),
+                  s.modulationTerms, s.modulationTerms > 1 ? "s" : "", s.modulationBits);
+    out += line;
+  }
+  if (s.rmseTrain >= 0 && s.rmseFloor > 0) {
+    const double floor = s.rmseFloorModulated >= 0 ? s.rmseFloorModulated : s.rmseFloor;
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.0f%% of the training MSE is the floor (clustering%s), %.0f%% the network\n", "split",
+                  100 * std::min(1.0, floor * floor / (s.rmseTrain * s.rmseTrain)),
+                  s.rmseFloorModulated >= 0 ? " + per-texel modulation" : "",
+                  100 * std::max(0.0, 1 - floor * floor / (s.rmseTrain * s.rmseTrain)));
+    out += line;
+  }
   const StageSeconds& t = s.seconds;
   if (pca) {
     std::snprintf(line, sizeof line,
@@ -332,6 +443,10 @@ std::string compressStatsJson(const CompressStats& s) {
   j["rmse_train"] = nullable(s.rmseTrain);
   j["rmse_holdout"] = nullable(s.rmseHoldout);
   j["rmse_space"] = "linear RGB / alpha (eq. 10)";
+  j["rmse_floor"] = nullable(s.rmseFloor);
+  j["rmse_floor_modulated"] = nullable(s.rmseFloorModulated);
+  j["rmse_floor_modulated_unquantized"] = nullable(s.rmseFloorModulatedExact);
+  j["modulation"] = {{"mode", s.modulationMode}, {"terms", s.modulationTerms}, {"bits", s.modulationBits}};
   j["ratio"] = s.sizes.ratio;
   if (s.method == CodecMethod::Pca)
     j["bytes"] = {{"pca_mean", s.sizes.pcaMean},
@@ -342,6 +457,7 @@ std::string compressStatsJson(const CompressStats& s) {
                   {"file", s.sizes.fileBytes}};
   else
     j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
+                  {"per_texel", s.sizes.modulation},
                   {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
                   {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},

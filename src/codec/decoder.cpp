@@ -7,6 +7,7 @@
 
 #include "codec/decoder_kernels.h"
 #include "codec/pca_model.h"
+#include "codec/texel_modulation.h"
 #include "util/error.h"
 #include "util/parallel.h"
 
@@ -104,6 +105,8 @@ void NbtfDecoder::build(const DecoderOptions& options) {
     pca_ = std::make_unique<detail::PcaState>(detail::PcaState{DirectionInterpolator(material_.lights, material_.views)});
     return;
   }
+  coefficients_ = effectiveTexelCoefficients(material_.modulation, material_.ids, material_.latentRows);
+  terms_ = material_.modulation.empty() ? 1 : material_.modulation.terms;
   packed_ = std::make_unique<detail::PackedDecoder>(detail::packDecoder(material_.decoder, material_.latentDim));
   packed_->latents = material_.latents.data();
   // The per-row half of the first layer, once, with the same kernel the evaluation uses
@@ -148,48 +151,79 @@ int NbtfDecoder::texelOfUv(float u, float v) const {
 
 // ---- Evaluation core ----------------------------------------------------------------------
 
-void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const float* dirs, std::size_t n, float* rgb,
-                                  OutputScale scale) const {
+namespace {
+// Modulated materials: one sample's RGB from its R terms (3R floats) and its texel's R
+// coefficients, summed in term order (every path uses this, so they agree bit for bit).
+inline void combineTerms(const float* e, const float* f, int terms, float* rgb) {
+  for (int c = 0; c < 3; ++c) {
+    float v = 0;
+    for (int k = 0; k < terms; ++k) v += e[k] * f[3 * k + c];
+    rgb[c] = v;
+  }
+}
+using CombineFn = std::function<void(const float*, const std::int32_t*, int, float*)>;
+// n samples' terms -> RGB with their texels' coefficients; empty without modulation.
+CombineFn combinerOf(const NbtfDecoder& d) {
+  if (!d.modulated()) return {};
+  return [&d](const float* terms, const std::int32_t* texels, int n, float* rgb) {
+    const int r = d.modulationTerms();
+    for (int i = 0; i < n; ++i)
+      combineTerms(d.texelCoefficients().data() + static_cast<std::size_t>(texels[i]) * r,
+                   terms + static_cast<std::size_t>(i) * 3 * r, r, rgb + 3 * i);
+  };
+}
+}  // namespace
+
+void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const std::int32_t* texels, const float* dirs,
+                                  std::size_t n, float* rgb, OutputScale scale) const {
   // Used for single evaluations: n is small, one thread.
   auto tile = detail::kernelsFor(isa_).tile;
   float* scratch = threadScratch(packed_->scratchFloats());
+  float terms[3 * kMaxModulationTerms * detail::kTileRows];
   for (std::size_t begin = 0; begin < n; begin += detail::kTileRows) {
     detail::TileArgs a;
     a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, n - begin));
     a.rows = rows + begin;
     a.dirs = dirs + 4 * begin;
-    a.out = rgb + 3 * begin;
+    a.out = modulated() ? terms : rgb + 3 * begin;
     a.scratch = scratch;
     tile(*packed_, a);
+    if (modulated()) combinerOf(*this)(terms, texels + begin, a.n, rgb + 3 * begin);
   }
   if (scale == OutputScale::Linear)
     for (std::size_t i = 0; i < 3 * n; ++i) rgb[i] *= material_.alpha;
 }
 
 namespace {
-// Runs `count` samples in tiles, in parallel when worth it. fill(begin, n, rows, dirs)
-// writes the latent rows and direction inputs of samples [begin, begin + n).
+// Runs `count` samples in tiles, in parallel when worth it. fill(begin, n, rows, dirs, texels)
+// writes the latent rows, direction inputs and texels of samples [begin, begin + n). With
+// `combine` (modulated materials) the tile's terms go to a buffer and combine(terms, texels,
+// n, rgb) mixes them per texel.
 void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std::size_t count, float* rgb, float alpha,
               OutputScale scale, bool parallel,
-              const std::function<void(std::size_t, int, std::int32_t*, float*)>& fill) {
+              const std::function<void(std::size_t, int, std::int32_t*, float*, std::int32_t*)>& fill,
+              const CombineFn& combine) {
   const std::size_t tiles = (count + detail::kTileRows - 1) / detail::kTileRows;
   auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
     float* scratch = threadScratch(packed.scratchFloats());
-    std::int32_t rows[detail::kTileRows];
+    std::int32_t rows[detail::kTileRows], texels[detail::kTileRows];
     float dirs[4 * detail::kTileRows];
+    float terms[3 * kMaxModulationTerms * detail::kTileRows];
     for (std::size_t t = tileBegin; t < tileEnd; ++t) {
       std::size_t begin = t * detail::kTileRows;
       detail::TileArgs a;
       a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, count - begin));
-      fill(begin, a.n, rows, dirs);
+      fill(begin, a.n, rows, dirs, texels);
       a.rows = rows;
       a.dirs = dirs;
       a.prefetchRows = true;
-      a.out = rgb + 3 * begin;
+      float* out = rgb + 3 * begin;
+      a.out = combine ? terms : out;
       a.scratch = scratch;
       tile(packed, a);
+      if (combine) combine(terms, texels, a.n, out);
       if (scale == OutputScale::Linear)
-        for (int i = 0; i < 3 * a.n; ++i) a.out[i] *= alpha;
+        for (int i = 0; i < 3 * a.n; ++i) out[i] *= alpha;
     }
   };
   if (parallel && count >= kMinParallelSamples) parallelFor(tiles, body, 8);
@@ -245,10 +279,10 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   checkHemisphere(view, "view");
   int texel = texelOfUv(u, v);
   if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
-  std::int32_t row = latentRowOfTexel(texel);
+  std::int32_t row = latentRowOfTexel(texel), texel32 = texel;
   auto dirs = decoderDirectionInput(light, view);
   Rgb out;
-  evaluateSamples(&row, dirs.data(), 1, &out.r, scale);
+  evaluateSamples(&row, &texel32, dirs.data(), 1, &out.r, scale);
   return out;
 }
 
@@ -282,19 +316,21 @@ void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* 
     return;
   }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
-           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
+           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs, std::int32_t* texels) {
              // Consecutive queries often share directions: convert each distinct one once.
              const Direction* lastLight = nullptr;
              const Direction* lastView = nullptr;
              std::array<float, 2> l{}, v{};
              for (int i = 0; i < n; ++i) {
                const TexelQuery& q = queries[begin + i];
-               rows[i] = latentRowOfTexel(q.y * width() + q.x);
+               texels[i] = q.y * width() + q.x;
+               rows[i] = latentRowOfTexel(texels[i]);
                if (!lastLight || !(q.light == *lastLight)) l = stereographic(q.light), lastLight = &q.light;
                if (!lastView || !(q.view == *lastView)) v = stereographic(q.view), lastView = &q.view;
                dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
              }
-           });
+           },
+           combinerOf(*this));
 }
 
 void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb, OutputScale scale) const {
@@ -322,15 +358,17 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
     return;
   }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
-           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs) {
+           [&](std::size_t begin, int n, std::int32_t* rows, float* dirs, std::int32_t* texels) {
              for (int i = 0; i < n; ++i) {
                const UvQuery& q = queries[begin + i];
-               rows[i] = latentRowOfTexel(texelOfUv(q.u, q.v));
+               texels[i] = texelOfUv(q.u, q.v);
+               rows[i] = latentRowOfTexel(texels[i]);
                auto l = stereographicFromVector(q.light, "light");
                auto v = stereographicFromVector(q.view, "view");
                dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
              }
-           });
+           },
+           combinerOf(*this));
 }
 
 // ---- Images -------------------------------------------------------------------------------
@@ -357,8 +395,16 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
     else body(0, texels);
     return;
   }
-  const auto dirs = decoderDirectionInput(light, view);
+  if (modulated())
+    throw Error(name_ + ": decodeRows: a material with per-texel modulation has no per-row values (use decodeImage)");
+  decodeRowTerms(decoderDirectionInput(light, view), rgb, parallel);
+  if (scale == OutputScale::Linear)
+    for (std::size_t i = 0, n = 3 * static_cast<std::size_t>(latentRows()); i < n; ++i) rgb[i] *= material_.alpha;
+}
+
+void NbtfDecoder::decodeRowTerms(const std::array<float, 4>& dirs, float* out, bool parallel) const {
   const std::size_t count = static_cast<std::size_t>(latentRows());
+  const std::size_t outputs = static_cast<std::size_t>(packed_->outputs);
   auto tile = detail::kernelsFor(isa_).tile;
   const std::size_t tiles = (count + detail::kTileRows - 1) / detail::kTileRows;
   auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
@@ -372,15 +418,13 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
       a.rows = rows;
       a.dirs = dirs.data();
       a.dirStride = 0;  // one direction for the whole image: its first-layer part once per tile
-      a.out = rgb + 3 * begin;
+      a.out = out + outputs * begin;
       a.scratch = scratch;
       tile(*packed_, a);
     }
   };
   if (parallel && count >= kMinParallelSamples) parallelFor(tiles, body, 8);
   else body(0, tiles);
-  if (scale == OutputScale::Linear)
-    for (std::size_t i = 0; i < 3 * count; ++i) rgb[i] *= material_.alpha;
 }
 
 void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, float* rgb, OutputScale scale,
@@ -392,6 +436,26 @@ void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, flo
   // Per-texel material at its own size: the rows are the image.
   if (!clustered() && outWidth == width() && outHeight == height()) {
     decodeRows(light, view, rgb, scale, parallel);
+    return;
+  }
+  if (modulated()) {
+    // The R terms of every latent row once, then per texel its coefficients' mix.
+    checkHemisphere(light, "light");
+    checkHemisphere(view, "view");
+    const int r = terms_;
+    std::vector<float> terms(3 * static_cast<std::size_t>(r) * latentRows());
+    decodeRowTerms(decoderDirectionInput(light, view), terms.data(), parallel);
+    const float factor = scale == OutputScale::Linear ? material_.alpha : 1.0f;
+    for (int y = 0; y < outHeight; ++y) {
+      const int sy = y % height();
+      float* dst = rgb + static_cast<std::size_t>(y) * outWidth * 3;
+      for (int x = 0, sx = 0; x < outWidth; ++x, sx = sx + 1 == width() ? 0 : sx + 1) {
+        const int texel = sy * width() + sx;
+        combineTerms(coefficients_.data() + static_cast<std::size_t>(texel) * r,
+                     terms.data() + 3 * static_cast<std::size_t>(r) * latentRowOfTexel(texel), r, dst + 3 * x);
+        if (factor != 1.0f) dst[3 * x] *= factor, dst[3 * x + 1] *= factor, dst[3 * x + 2] *= factor;
+      }
+    }
     return;
   }
   std::vector<float> rows(3 * static_cast<std::size_t>(latentRows()));

@@ -20,6 +20,11 @@
 // register-blocked matrix products (AVX-512, AVX2+FMA or portable SIMD, picked at run
 // time). All methods are const and thread-safe.
 //
+// Per-texel modulation (format 1.2, codec/texel_modulation.h): a clustered material may have
+// a decoder with R RGB terms per latent row and coefficients per texel; every texel's value
+// is then sum_r e_tr x term r of its cluster. evaluate() and decodeImage() apply it;
+// decodeRows() refuses such materials (their texels are not copies of rows).
+//
 // PCA files (the classic baseline, `nbtf compress --method pca`) are evaluated through the
 // same API: per (light, view) the mean and basis rows are combined once (interpolated over
 // neighbouring measured pairs when the pair was not measured, codec/pca_model.h), then each
@@ -107,6 +112,11 @@ class NbtfDecoder {
   // Decoder evaluations per image: k (clustered) or texels (per-texel, PCA).
   int latentRows() const { return material_.latentRows; }
   int latentRowOfTexel(int texel) const { return material_.latentRowOfTexel(texel); }
+  // Per-texel modulation: R terms per latent row (1 without), the effective coefficients
+  // (texels x R, orthonormal per cluster; empty without modulation).
+  bool modulated() const { return !coefficients_.empty(); }
+  int modulationTerms() const { return terms_; }
+  const std::vector<float>& texelCoefficients() const { return coefficients_; }
   DecoderIsa isa() const { return isa_; }
   // FLOPs of one full decoder evaluation (every layer, multiply-add = 2), the unit
   // throughput figures are quoted in. The split first layer actually does less.
@@ -129,7 +139,8 @@ class NbtfDecoder {
                 OutputScale scale = OutputScale::Linear) const;
 
   // ---- Whole images at any (light, view), measured or not.
-  // One value per latent row: rgb receives 3 x latentRows() floats.
+  // One value per latent row: rgb receives 3 x latentRows() floats. Not for modulated
+  // materials (an nbtf::Error): their texels are not copies of rows; use decodeImage.
   void decodeRows(const Direction& light, const Direction& view, float* rgb,
                   OutputScale scale = OutputScale::Linear, bool parallel = false) const;
   // An image of outWidth x outHeight texels (0 = the material's size; larger sizes tile
@@ -144,9 +155,12 @@ class NbtfDecoder {
 
  private:
   void build(const DecoderOptions& options);
-  // The inner evaluation: n samples (latent row + 4 stereographic coordinates each).
-  void evaluateSamples(const std::int32_t* rows, const float* dirs, std::size_t n, float* rgb,
-                       OutputScale scale) const;
+  // Modulated materials: the R terms of `count` latent rows at one (light, view), 3R each.
+  void decodeRowTerms(const std::array<float, 4>& dirs, float* terms, bool parallel) const;
+  // The inner evaluation: n samples (latent row, its texel, 4 stereographic coordinates each).
+  void evaluateSamples(const std::int32_t* rows, const std::int32_t* texels, const float* dirs, std::size_t n,
+                       float* rgb, OutputScale scale) const;
+
   // PCA: the mean (3) and basis (3 x C) at a pair of unit vectors, into meanBasis.
   void pcaBasisAt(const std::array<double, 3>& light, const std::array<double, 3>& view, float* meanBasis) const;
   // PCA: `count` queries; query(i, texel, light, view) gives query i (unit vectors).
@@ -158,6 +172,8 @@ class NbtfDecoder {
   DecoderIsa isa_ = DecoderIsa::Portable;
   std::unique_ptr<detail::PackedDecoder> packed_;  // neural methods
   std::unique_ptr<detail::PcaState> pca_;          // PCA baseline
+  std::vector<float> coefficients_;                // texels x terms_ effective coefficients; empty = none
+  int terms_ = 1;
 };
 
 // The decoder's direction input for a (light, view) pair: stereographic (x, y) of each,

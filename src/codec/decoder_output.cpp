@@ -227,6 +227,24 @@ void decodeCheckedRows(const NbtfDecoder& decoder, const DirectionChoice& l, con
   }
 }
 
+// A modulated material's image (linear, tiled over width x height), checked and clamped as
+// decodeCheckedRows does: its texels are not copies of rows.
+void decodeCheckedImage(const NbtfDecoder& decoder, const DirectionChoice& l, const DirectionChoice& v, int width,
+                        int height, std::vector<float>& image, std::uint64_t& clamped, float maxValue) {
+  image.resize(3 * static_cast<std::size_t>(width) * height);
+  decoder.decodeImage(l.direction, v.direction, image.data(), OutputScale::Linear, width, height);
+  for (float& x : image) {
+    if (!std::isfinite(x) || x > maxValue) {
+      std::ostringstream s;
+      s << "decoder output " << x << " for " << describePair(l, v)
+        << (std::isfinite(x) ? " exceeds the largest half float (65504)" : " is not finite")
+        << "; the material's decoder is unusable at these angles";
+      throw fileError(decoder.name(), s.str());
+    }
+    if (x < 0) x = 0, ++clamped;
+  }
+}
+
 // Texel values from per-row values, tiling the material over width x height.
 template <class T>
 void scatterRows(const NbtfDecoder& decoder, const T* rows, int width, int height, T* out) {
@@ -362,9 +380,31 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
     const DirectionChoice& v = views[i % r.views];
     std::vector<float> rows;
     std::uint64_t neg = 0;
+    std::string path = pathOf(static_cast<int>(i));
+    if (decoder.modulated()) {
+      // Every texel has its own value: decode the image, then encode texel by texel.
+      std::vector<float> linear;
+      decodeCheckedImage(decoder, l, v, r.width, r.height, linear, neg, exr ? kHalfMax : INFINITY);
+      clamped += neg;
+      if (exr) {
+        writers.submit([&, path = std::move(path), image = std::move(linear)] {
+          writeExr(path, r.width, r.height, image.data(), true, space);
+          progress.advance();
+        });
+      } else {
+        Image8 image;
+        image.width = r.width, image.height = r.height;
+        image.rgb.resize(values);
+        for (std::size_t j = 0; j < values; ++j) image.rgb[j] = encode(linear[j]);
+        writers.submit([&, path = std::move(path), image = std::move(image)] {
+          writeImage8(path, r.format, image, options.jpegQuality);
+          progress.advance();
+        });
+      }
+      return;
+    }
     decodeCheckedRows(decoder, l, v, rows, neg, exr ? kHalfMax : INFINITY);
     clamped += neg;
-    std::string path = pathOf(static_cast<int>(i));
     if (exr) {
       std::vector<float> image(values);
       scatterRows(decoder, rows.data(), r.width, r.height, image.data());
@@ -453,6 +493,19 @@ BtfStack decodeStack(const NbtfDecoder& decoder, SampleType type, const std::vec
     std::uint64_t clamped = 0;
     const auto& l = lights[i / views.size()];
     const auto& v = views[i % views.size()];
+    if (decoder.modulated()) {
+      std::vector<float> image;
+      decodeCheckedImage(decoder, l, v, decoder.width(), decoder.height(), image, clamped,
+                         type == SampleType::Half ? kHalfMax : INFINITY);
+      if (type == SampleType::Srgb8) {
+        std::uint8_t* out = stack.imageBytes(static_cast<int>(i));
+        for (std::size_t j = 0; j < image.size(); ++j) out[j] = encode(image[j]);
+      } else {
+        stack.setImageLinear(static_cast<int>(i), image.data());
+      }
+      progress.advance();
+      return;
+    }
     decodeCheckedRows(decoder, l, v, rows, clamped, type == SampleType::Half ? kHalfMax : INFINITY);
     if (type == SampleType::Srgb8) {
       std::vector<std::uint8_t> rowBytes(rows.size());

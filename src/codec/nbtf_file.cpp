@@ -10,6 +10,8 @@
 
 #include "codec/byte_io.h"
 #include "codec/crc32.h"
+#include "codec/zstd_codec.h"
+#include "util/half.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 
@@ -31,6 +33,7 @@ constexpr std::uint32_t kMaxPcaComponents = 1u << 16;
 constexpr std::uint32_t kMaxLayers = 256;
 constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
 constexpr int kMaxJsonDepth = 64;
+constexpr float kMaxModulationMagnitude = 1e6f;  // coefficient ranges: no overflow in products
 
 constexpr std::uint32_t tag(const char (&s)[5]) {
   return std::uint32_t(std::uint8_t(s[0])) | std::uint32_t(std::uint8_t(s[1])) << 8 |
@@ -38,7 +41,9 @@ constexpr std::uint32_t tag(const char (&s)[5]) {
 }
 constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag("DECD"), kLatents = tag("LATN"),
                         kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
-                        kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC");
+                        kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC"),
+                        kDecoderHalf = tag("DECH"), kLatentsHalf = tag("LATH"), kIdsZstd = tag("TXIZ"),
+                        kModulation = tag("TXSC");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -67,6 +72,10 @@ std::string sectionLabel(std::uint32_t t) {
                      : t == kPcaMean ? "PCA mean"
                      : t == kPcaBasis ? "PCA basis"
                      : t == kPcaCoefficients ? "PCA coefficients"
+                     : t == kDecoderHalf ? "decoder, half precision"
+                     : t == kLatentsHalf ? "latents, half precision"
+                     : t == kIdsZstd ? "id list, zstd-coded"
+                     : t == kModulation ? "per-texel modulation"
                                      : nullptr;
   return "section '" + tagText(t) + "'" + (what ? std::string(" (") + what + ")" : std::string());
 }
@@ -117,7 +126,53 @@ void checkMetadata(const std::string& json, const std::string& name) {
     throw fileError(name, "metadata is not a valid JSON object");
 }
 
+// ---- Coded parts (format 1.2), shared by the writer and computeSizes
+
+// The id list as byte planes (all low bytes, then the next...): neighbouring texels share
+// clusters, and the planes put the repetitive bytes together for zstd.
+std::vector<std::uint8_t> idPlanes(const std::vector<std::int32_t>& ids, int width) {
+  const std::size_t n = ids.size();
+  std::vector<std::uint8_t> planes(n * width);
+  for (int b = 0; b < width; ++b)
+    for (std::size_t t = 0; t < n; ++t) planes[b * n + t] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(ids[t]) >> (8 * b));
+  return planes;
+}
+
+int modulationCodeBytes(int bits) { return bits <= 8 ? 1 : 2; }
+
+// Modulation codes term-planar, then byte planes (as the ids).
+std::vector<std::uint8_t> modulationPlanes(const TexelModulation& m) {
+  const std::size_t texels = m.codes.size() / std::max(m.terms, 1);
+  const int width = modulationCodeBytes(m.bits);
+  std::vector<std::uint8_t> planes(m.codes.size() * width);
+  std::size_t i = 0;
+  for (int b = 0; b < width; ++b)
+    for (int r = 0; r < m.terms; ++r)
+      for (std::size_t t = 0; t < texels; ++t) planes[i++] = static_cast<std::uint8_t>(m.codes[t * m.terms + r] >> (8 * b));
+  return planes;
+}
+
+std::vector<std::uint8_t> codedIds(const CompressedBtf& btf) {
+  auto planes = idPlanes(btf.ids, idWidthForClusters(btf.latentRows));
+  return zstdCompress(planes.data(), planes.size());
+}
+
+std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
+  auto planes = modulationPlanes(m);
+  return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
+}
+
 }  // namespace
+
+void roundToStorage(CompressedBtf& btf) {
+  if (btf.storage.decoderHalf)
+    for (DenseLayer& l : btf.decoder.layers) {
+      for (float& w : l.weight) w = roundToHalf(w);
+      for (float& b : l.bias) b = roundToHalf(b);
+    }
+  if (btf.storage.latentsHalf && !btf.isPca())
+    for (float& z : btf.latents) z = roundToHalf(z);
+}
 
 // ---- Names, sizes
 
@@ -139,10 +194,13 @@ int idWidthForClusters(std::int64_t k) {
 NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   NbtfSizes s;
   for (const auto& layer : btf.decoder.layers) s.decoderParameters += layer.parameterCount();
-  s.decoder = s.decoderParameters * 4;
+  s.decoderBytesPerValue = btf.storage.decoderHalf ? 2 : 4;
+  s.latentBytesPerValue = btf.storage.latentsHalf ? 2 : 4;
+  s.decoder = s.decoderParameters * s.decoderBytesPerValue;
   s.latentRows = static_cast<std::uint64_t>(std::max(btf.latentRows, 0));
   s.latentDim = btf.latentDim;
-  s.latents = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0)) * 4;
+  const std::uint64_t latentValues = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0));
+  s.latents = latentValues * s.latentBytesPerValue;
   s.texels = static_cast<std::uint64_t>(std::max(btf.numTexels(), 0));
   s.images = static_cast<std::uint64_t>(btf.numImages());
   if (btf.isPca()) {
@@ -158,9 +216,20 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.idWidth = idWidthForClusters(btf.latentRows);
     s.ids = s.texels * static_cast<std::uint64_t>(s.idWidth);
     s.idsPaper = s.texels * 4;
+    if (btf.storage.idsZstd && btf.ids.size() == s.texels) {
+      s.idsZstd = true;
+      s.ids = codedIds(btf).size();
+    }
   }
-  s.total = s.decoder + s.latents + s.ids + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
-  s.totalPaper = s.total - s.ids + s.idsPaper;
+  if (!btf.modulation.empty()) {
+    s.modulationTerms = btf.modulation.terms;
+    s.modulationBits = btf.modulation.bits;
+    s.modulation = codedModulation(btf.modulation, btf.storage.modulationZstd).size();
+  }
+  s.total = s.decoder + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
+  // The same model stored the paper's way: float32 decoder and latents, 4-byte ids.
+  s.totalPaper = btf.isPca() ? s.total
+                             : s.decoderParameters * 4 + latentValues * 4 + s.idsPaper + s.modulation;
   s.rawFloat32 = s.texels * s.images * 3 * 4;
   s.fileBytes = fileBytes;
   s.ratio = s.total ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.total) : 0;
@@ -211,22 +280,37 @@ std::string formatSizeTable(const NbtfSizes& s) {
     if (s.fileBytes) out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
     return out;
   }
-  std::string out = "sizes (as in the paper's Table 1; KiB = 1024 bytes, the paper's KB)\n";
-  out += row("decoder", s.decoder, withCommas(s.decoderParameters) + " parameters x 4 bytes (float32)");
+  std::string out = "sizes (as in the paper's Table 1, as stored; KiB = 1024 bytes, the paper's KB)\n";
+  auto precision = [](int bytes) { return bytes == 2 ? std::string(" x 2 bytes (half)") : std::string(" x 4 bytes (float32)"); };
+  out += row("decoder", s.decoder, withCommas(s.decoderParameters) + " parameters" + precision(s.decoderBytesPerValue));
   out += row("latents", s.latents,
-             withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + " x 4 bytes (float32)");
-  if (s.idWidth)
+             withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
+  if (s.idWidth && s.idsZstd) {
+    char note[160];
+    std::snprintf(note, sizeof note, "%s texels x %d byte%s, zstd-coded (%.2f bits per texel)",
+                  withCommas(s.texels).c_str(), s.idWidth, s.idWidth > 1 ? "s" : "",
+                  s.texels ? 8.0 * s.ids / s.texels : 0.0);
+    out += row("id list", s.ids, note);
+  } else if (s.idWidth) {
     out += row("id list", s.ids,
                withCommas(s.texels) + " texels x " + std::to_string(s.idWidth) + " byte" +
                    (s.idWidth > 1 ? "s" : "") + " (smallest width that fits k; the paper used 4)");
-  else
+  } else {
     out += row("id list", 0, "none (per-texel: one latent per texel)");
-  out += row("total", s.total, "decoder + latents + id list");
+  }
+  if (s.modulationTerms) {
+    char note[160];
+    std::snprintf(note, sizeof note, "%s texels x %d coefficient%s x %d-bit codes, %.2f bits per texel as stored",
+                  withCommas(s.texels).c_str(), s.modulationTerms, s.modulationTerms > 1 ? "s" : "", s.modulationBits,
+                  s.texels ? 8.0 * s.modulation / s.texels : 0.0);
+    out += row("per-texel", s.modulation, note);
+  }
+  out += row("total", s.total, s.modulationTerms ? "decoder + latents + id list + per-texel" : "decoder + latents + id list");
   out += rawAndRatio();
   char ratio[160];
-  if (s.idWidth && s.idWidth != 4) {
-    std::snprintf(ratio, sizeof ratio, "  %-12s total %s, 1 : %.1f (with the paper's 4-byte ids)\n", "paper-style",
-                  kib(s.totalPaper).c_str(), s.ratioPaper);
+  if (s.idWidth && s.totalPaper != s.total) {
+    std::snprintf(ratio, sizeof ratio, "  %-12s total %s, 1 : %.1f (stored the paper's way: float32, 4-byte ids)\n",
+                  "paper-style", kib(s.totalPaper).c_str(), s.ratioPaper);
     out += ratio;
   }
   if (s.fileBytes)
@@ -344,8 +428,11 @@ void CompressedBtf::validateNeural(const std::string& name) const {
       throw fail(which + " has unknown activation code " + std::to_string(static_cast<int>(l.activation)));
     if (!allFinite(l.weight) || !allFinite(l.bias)) throw fail(which + " has non-finite parameters (NaN or Inf)");
   }
-  if (decoder.layers.back().out != 3)
-    throw fail("decoder outputs " + std::to_string(decoder.layers.back().out) + " values, expected 3 (RGB)");
+  const int terms = modulation.empty() ? 1 : modulation.terms;
+  if (decoder.layers.back().out != 3 * terms)
+    throw fail("decoder outputs " + std::to_string(decoder.layers.back().out) + " values, expected " +
+               (terms == 1 ? std::string("3 (RGB)") : std::to_string(3 * terms) + " (RGB x " + std::to_string(terms) +
+                                                          " per-texel modulation terms)"));
 
   // Latents and ids
   if (latentRows < 1) throw fail("no latents");
@@ -369,6 +456,45 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                  " texels");
   }
   if (!pcaMean.empty() || !pcaBasis.empty()) throw fail(codecMethodName(method) + " file has a PCA mean or basis");
+
+  // Half-precision storage holds exactly the values in memory (roundToStorage).
+  auto halfExact = [](const std::vector<float>& v) {
+    return std::all_of(v.begin(), v.end(), [](float x) { return roundToHalf(x) == x; });
+  };
+  if (storage.decoderHalf)
+    for (const DenseLayer& l : decoder.layers)
+      if (!halfExact(l.weight) || !halfExact(l.bias))
+        throw fail("decoder is to be stored in half precision but holds values that half cannot represent "
+                   "(round them with roundToStorage first)");
+  if (storage.latentsHalf && !halfExact(latents))
+    throw fail("latents are to be stored in half precision but hold values that half cannot represent");
+
+  // Per-texel modulation
+  if (modulation.empty()) {
+    if (!modulation.codes.empty()) throw fail("modulation codes without modulation terms");
+    return;
+  }
+  if (method != CodecMethod::ClusteredNeural) throw fail("per-texel modulation is only defined for the clustered method");
+  if (modulation.terms < 1 || modulation.terms > kMaxModulationTerms)
+    throw fail("modulation has " + std::to_string(modulation.terms) + " terms, expected 1 to " +
+               std::to_string(kMaxModulationTerms));
+  if (modulation.bits < 1 || modulation.bits > 16)
+    throw fail("modulation codes have " + std::to_string(modulation.bits) + " bits, expected 1 to 16");
+  if (modulation.codes.size() != static_cast<std::size_t>(texels) * modulation.terms)
+    throw fail("modulation holds " + std::to_string(modulation.codes.size()) + " codes, expected " +
+               std::to_string(texels) + " texels x " + std::to_string(modulation.terms));
+  for (int r = 0; r < modulation.terms; ++r) {
+    const float lo = modulation.minimum[r], hi = modulation.maximum[r];
+    if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi || lo < -kMaxModulationMagnitude ||
+        hi > kMaxModulationMagnitude)
+      throw fail("modulation range of term " + std::to_string(r) + " is invalid (" + std::to_string(lo) + " .. " +
+                 std::to_string(hi) + ")");
+  }
+  const std::uint32_t maxCode = (1u << modulation.bits) - 1;
+  for (std::size_t i = 0; i < modulation.codes.size(); ++i)
+    if (modulation.codes[i] > maxCode)
+      throw fail("modulation code " + std::to_string(modulation.codes[i]) + " of texel " +
+                 std::to_string(i / modulation.terms) + " exceeds " + std::to_string(modulation.bits) + " bits");
 }
 
 // ---- Writing
@@ -389,6 +515,17 @@ void addSection(ByteWriter& file, std::uint32_t t, bool required, ByteWriter& pa
 void writeFloats(ByteWriter& w, const std::vector<float>& v) {
   for (float x : v) w.f32(x);
 }
+void writeValues(ByteWriter& w, const std::vector<float>& v, bool half) {
+  if (!half) return writeFloats(w, v);
+  for (float x : v) w.u16(floatToHalf(x));
+}
+
+// Files stored as in 1.0 (or 1.1 for PCA) are written as such, so older readers open them.
+bool usesFormat12(const CompressedBtf& b) {
+  if (b.isPca()) return false;
+  return b.storage.decoderHalf || b.storage.latentsHalf || !b.modulation.empty() ||
+         (b.storage.idsZstd && b.method == CodecMethod::ClusteredNeural);
+}
 
 }  // namespace
 
@@ -397,8 +534,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   ByteWriter file;
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
-  // The lowest version that describes the file: neural files are unchanged since 1.0.
-  file.u16(btf.isPca() ? std::uint16_t(1) : std::uint16_t(0));
+  // The lowest version that describes the file.
+  file.u16(usesFormat12(btf) ? std::uint16_t(2) : btf.isPca() ? std::uint16_t(1) : std::uint16_t(0));
   file.u32(0);  // header flags (none defined)
   file.u64(0);  // file size, patched below
   file.u32(0);  // body CRC, patched below
@@ -463,19 +600,29 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
       w.u32(static_cast<std::uint32_t>(l.out));
       w.u8(static_cast<std::uint8_t>(l.activation));
       w.zeros(3);
-      writeFloats(w, l.weight);
-      writeFloats(w, l.bias);
+      writeValues(w, l.weight, btf.storage.decoderHalf);
+      writeValues(w, l.bias, btf.storage.decoderHalf);
     }
-    addSection(file, kDecoder, true, w);
+    addSection(file, btf.storage.decoderHalf ? kDecoderHalf : kDecoder, true, w);
   }
   if (!btf.isPca()) {
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.latentRows));
     w.u32(static_cast<std::uint32_t>(btf.latentDim));
-    writeFloats(w, btf.latents);
-    addSection(file, kLatents, true, w);
+    writeValues(w, btf.latents, btf.storage.latentsHalf);
+    addSection(file, btf.storage.latentsHalf ? kLatentsHalf : kLatents, true, w);
   }
-  if (btf.method == CodecMethod::ClusteredNeural) {
+  if (btf.method == CodecMethod::ClusteredNeural && btf.storage.idsZstd) {
+    // u32 count, u8 width, u8 coding (1 = zstd over byte planes), 2 reserved, the frame.
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.ids.size()));
+    w.u8(static_cast<std::uint8_t>(idWidthForClusters(btf.latentRows)));
+    w.u8(1);
+    w.zeros(2);
+    auto coded = codedIds(btf);
+    w.raw(coded.data(), coded.size());
+    addSection(file, kIdsZstd, true, w);
+  } else if (btf.method == CodecMethod::ClusteredNeural) {
     ByteWriter w;
     int width = idWidthForClusters(btf.latentRows);
     w.u32(static_cast<std::uint32_t>(btf.ids.size()));
@@ -488,6 +635,24 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
       else w.u32(v);
     }
     addSection(file, kIds, true, w);
+  }
+  if (!btf.modulation.empty()) {
+    // u32 texels, u8 terms, u8 bits, u8 coding (0 raw, 1 zstd), 1 reserved,
+    // terms x (f32 min, f32 max), then the codes (byte planes of the term planes).
+    const TexelModulation& m = btf.modulation;
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(m.codes.size() / m.terms));
+    w.u8(static_cast<std::uint8_t>(m.terms));
+    w.u8(static_cast<std::uint8_t>(m.bits));
+    w.u8(btf.storage.modulationZstd ? 1 : 0);
+    w.zeros(1);
+    for (int r = 0; r < m.terms; ++r) {
+      w.f32(m.minimum[r]);
+      w.f32(m.maximum[r]);
+    }
+    auto coded = codedModulation(m, btf.storage.modulationZstd);
+    w.raw(coded.data(), coded.size());
+    addSection(file, kModulation, true, w);
   }
   if (!btf.holdoutImages.empty()) {
     ByteWriter w;
@@ -635,7 +800,17 @@ void parseDirections(const SectionRef& s, CompressedBtf& btf, const std::string&
     }
 }
 
+std::vector<float> readValues(ByteReader& r, std::uint64_t count, bool half, const char* field) {
+  if (!half) return readFloats(r, count, field);
+  r.needItems(count, 2, field);
+  std::vector<float> v(static_cast<std::size_t>(count));
+  for (float& x : v) x = halfToFloat(r.u16());
+  return v;
+}
+
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  const bool half = s.tag == kDecoderHalf;
+  btf.storage.decoderHalf = half;
   ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
   std::uint32_t count = r.u32();
   if (count < 1 || count > kMaxLayers) throw r.fail("layer count " + std::to_string(count) + " is out of range");
@@ -649,8 +824,8 @@ void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& na
     if (act > 2) throw r.fail("layer " + std::to_string(i) + " has unknown activation code " + std::to_string(act));
     l.activation = static_cast<Activation>(act);
     r.take(3, "reserved");
-    l.weight = readFloats(r, static_cast<std::uint64_t>(l.in) * static_cast<std::uint64_t>(l.out), "layer weights");
-    l.bias = readFloats(r, static_cast<std::uint64_t>(l.out), "layer biases");
+    l.weight = readValues(r, static_cast<std::uint64_t>(l.in) * static_cast<std::uint64_t>(l.out), half, "layer weights");
+    l.bias = readValues(r, static_cast<std::uint64_t>(l.out), half, "layer biases");
   }
   if (r.remaining()) throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after the last layer");
 }
@@ -662,10 +837,78 @@ void parseLatents(const SectionRef& s, CompressedBtf& btf, const std::string& na
   if (rows != btf.latentRows || dim != btf.latentDim)
     throw r.fail("shape " + std::to_string(rows) + " x " + std::to_string(dim) + " disagrees with the material info (" +
                  std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim) + ")");
+  const bool half = s.tag == kLatentsHalf;
+  btf.storage.latentsHalf = half;
+  const std::uint64_t bytes = half ? 2 : 4;
   std::uint64_t count = static_cast<std::uint64_t>(rows) * static_cast<std::uint64_t>(dim);
-  if (count * 4 != r.remaining())
-    throw r.fail("holds " + std::to_string(r.remaining()) + " bytes of values, expected " + std::to_string(count * 4));
-  btf.latents = readFloats(r, count, "latents");
+  if (count * bytes != r.remaining())
+    throw r.fail("holds " + std::to_string(r.remaining()) + " bytes of values, expected " + std::to_string(count * bytes));
+  btf.latents = readValues(r, count, half, "latents");
+}
+
+// TXIZ: u32 count, u8 width, u8 coding (1), 2 reserved, a zstd frame of width byte planes.
+void parseIdsZstd(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t count = r.u32();
+  std::uint8_t width = r.u8(), coding = r.u8();
+  r.take(2, "reserved");
+  if (width != 1 && width != 2 && width != 4) throw r.fail("id width " + std::to_string(width) + " is not 1, 2 or 4");
+  if (coding != 1) throw r.fail("unknown id coding " + std::to_string(coding) + " (1 = zstd)");
+  // The count is bounded by the texels of INFO before anything is allocated.
+  if (static_cast<std::int64_t>(count) != static_cast<std::int64_t>(btf.width) * btf.height)
+    throw r.fail(std::to_string(count) + " ids for " + std::to_string(btf.width) + " x " + std::to_string(btf.height) +
+                 " texels");
+  const std::size_t rest = r.remaining();
+  auto planes = zstdDecompress(r.take(rest, "id data"), rest, static_cast<std::size_t>(count) * width, name,
+                               sectionLabel(s.tag));
+  btf.ids.resize(count);
+  for (std::size_t t = 0; t < count; ++t) {
+    std::uint32_t v = 0;
+    for (int b = 0; b < width; ++b) v |= static_cast<std::uint32_t>(planes[b * static_cast<std::size_t>(count) + t]) << (8 * b);
+    if (v > static_cast<std::uint32_t>(INT_MAX)) throw r.fail("id " + std::to_string(v) + " is out of range");
+    btf.ids[t] = static_cast<std::int32_t>(v);
+  }
+  btf.storage.idsZstd = true;
+}
+
+// TXSC: see the writer.
+void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t texels = r.u32();
+  int terms = r.u8(), bits = r.u8(), coding = r.u8();
+  r.take(1, "reserved");
+  if (terms < 1 || terms > kMaxModulationTerms)
+    throw r.fail(std::to_string(terms) + " terms, expected 1 to " + std::to_string(kMaxModulationTerms));
+  if (bits < 1 || bits > 16) throw r.fail(std::to_string(bits) + " bits per code, expected 1 to 16");
+  if (coding > 1) throw r.fail("unknown coding " + std::to_string(coding) + " (0 raw, 1 zstd)");
+  if (static_cast<std::int64_t>(texels) != static_cast<std::int64_t>(btf.width) * btf.height)
+    throw r.fail(std::to_string(texels) + " texels, the material has " + std::to_string(btf.width) + " x " +
+                 std::to_string(btf.height));
+  TexelModulation& m = btf.modulation;
+  m.terms = terms;
+  m.bits = bits;
+  for (int t = 0; t < terms; ++t) {
+    m.minimum[t] = r.f32();
+    m.maximum[t] = r.f32();
+  }
+  const int width = modulationCodeBytes(bits);
+  const std::size_t values = static_cast<std::size_t>(texels) * terms, expected = values * width;
+  const std::size_t rest = r.remaining();
+  const std::uint8_t* data = r.take(rest, "codes");
+  std::vector<std::uint8_t> planes;
+  if (coding == 1) {
+    planes = zstdDecompress(data, rest, expected, name, sectionLabel(s.tag));
+  } else {
+    if (rest != expected)
+      throw r.fail("holds " + std::to_string(rest) + " bytes of codes, expected " + std::to_string(expected));
+    planes.assign(data, data + rest);
+  }
+  m.codes.assign(values, 0);
+  std::size_t i = 0;
+  for (int b = 0; b < width; ++b)
+    for (int q = 0; q < terms; ++q)
+      for (std::size_t t = 0; t < texels; ++t) m.codes[t * terms + q] |= static_cast<std::uint16_t>(planes[i++] << (8 * b));
+  btf.storage.modulationZstd = coding == 1;
 }
 
 void parseIds(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -780,9 +1023,11 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
                                 std::to_string(s.offset));
     if (s.tag == kInfo) parseInfo(s, btf, name);
     else if (s.tag == kDirs) parseDirections(s, btf, name);
-    else if (s.tag == kDecoder) parseDecoder(s, btf, name);
-    else if (s.tag == kLatents) parseLatents(s, btf, name);
+    else if (s.tag == kDecoder || s.tag == kDecoderHalf) parseDecoder(s, btf, name);
+    else if (s.tag == kLatents || s.tag == kLatentsHalf) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
+    else if (s.tag == kIdsZstd) parseIdsZstd(s, btf, name);
+    else if (s.tag == kModulation) parseModulation(s, btf, name);
     else if (s.tag == kHoldout) parseHoldout(s, btf, name);
     else if (s.tag == kPcaMean) parsePcaMean(s, btf, name);
     else if (s.tag == kPcaBasis) {
@@ -805,18 +1050,29 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
   }
   auto has = [&](std::uint32_t t) { return std::find(seen.begin(), seen.end(), t) != seen.end(); };
   if (!has(kDirs)) throw fileError(name, "missing " + sectionLabel(kDirs));
+  // Alternative encodings of one part (float32 or half, raw or zstd): exactly one of a pair.
+  for (auto pair : {std::make_pair(kDecoder, kDecoderHalf), std::make_pair(kLatents, kLatentsHalf),
+                    std::make_pair(kIds, kIdsZstd)})
+    if (has(pair.first) && has(pair.second))
+      throw fileError(name, "both " + sectionLabel(pair.first) + " and " + sectionLabel(pair.second) + " present");
+  auto hasPart = [&](std::uint32_t t) {
+    return has(t) || (t == kDecoder && has(kDecoderHalf)) || (t == kLatents && has(kLatentsHalf)) ||
+           (t == kIds && has(kIdsZstd));
+  };
   const bool pca = btf.method == CodecMethod::Pca;
   for (std::uint32_t t : {kDecoder, kLatents, kPcaMean, kPcaBasis, kPcaCoefficients}) {
     const bool pcaPart = t == kPcaMean || t == kPcaBasis || t == kPcaCoefficients;
-    if (pcaPart == pca && !has(t))
+    if (pcaPart == pca && !hasPart(t))
       throw fileError(name, "missing " + sectionLabel(t) + (pca ? " (required by the PCA method)" : ""));
-    if (pcaPart != pca && has(t))
+    if (pcaPart != pca && hasPart(t))
       throw fileError(name, sectionLabel(t) + " present, but the method is " + codecMethodName(btf.method));
   }
-  if (btf.method == CodecMethod::ClusteredNeural && !has(kIds))
+  if (btf.method == CodecMethod::ClusteredNeural && !hasPart(kIds))
     throw fileError(name, "missing " + sectionLabel(kIds) + " (required by the clustered method)");
-  if (btf.method != CodecMethod::ClusteredNeural && has(kIds))
+  if (btf.method != CodecMethod::ClusteredNeural && hasPart(kIds))
     throw fileError(name, sectionLabel(kIds) + " present, but the method is " + codecMethodName(btf.method));
+  if (btf.method != CodecMethod::ClusteredNeural && has(kModulation))
+    throw fileError(name, sectionLabel(kModulation) + " present, but the method is " + codecMethodName(btf.method));
   if (!has(kMeta)) btf.metadataJson = "{}";
   btf.validate(name);
   return btf;

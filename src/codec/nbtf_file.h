@@ -8,6 +8,7 @@
 // each kind of damage (truncated, corrupted, wrong magic, newer version, inconsistent
 // content) as an nbtf::Error naming the file and what is wrong.
 #pragma once
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -22,10 +23,11 @@ namespace nbtf {
 // Format version read by this build. A reader accepts any minor version of its major
 // (minor versions only add optional sections, append fields, or add methods whose files
 // carry required sections an older reader refuses); a newer major is refused. The writer
-// writes the lowest version that describes the file: 1.0 for the neural methods (their
-// files are unchanged since 1.0), 1.1 for the PCA baseline (method 3, added in 1.1).
+// writes the lowest version that describes the file: 1.0 for the neural methods stored as in
+// 1.0 (float32 parts, raw ids), 1.1 for the PCA baseline (method 3, added in 1.1), 1.2 for
+// files with per-texel modulation or compact parts (half floats, zstd-coded ids).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 1;
+constexpr std::uint16_t kNbtfFormatMinor = 2;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -45,6 +47,29 @@ enum class DirectionEncoding : std::uint8_t {
 
 // What the decoder outputs: linear sRGB-primaries RGB divided by alpha (eq. 5).
 enum class ValueSpace : std::uint8_t { LinearOverAlpha = 1 };
+
+// Per-texel modulation (format 1.2, codec/texel_modulation.h): the decoder outputs `terms`
+// RGB terms per latent row and every texel mixes them with coefficients of its own, stored as
+// `bits`-bit linear codes over [minimum, maximum] of their term: a = minimum + code / (2^bits
+// - 1) x (maximum - minimum). Decoders orthonormalize the coefficients per cluster; empty
+// (terms 0) = no modulation (the decoder outputs one RGB term).
+constexpr int kMaxModulationTerms = 8;
+struct TexelModulation {
+  int terms = 0;  // 0 = none, else 1..kMaxModulationTerms
+  int bits = 0;   // 1..16
+  std::array<float, kMaxModulationTerms> minimum{}, maximum{};
+  std::vector<std::uint16_t> codes;  // texels x terms, texel-major
+  bool empty() const { return terms == 0; }
+};
+
+// How the decoding parts are stored (format 1.2). Half floats are IEEE binary16: the values
+// in memory are then exactly the stored ones (roundToStorage rounds them before writing).
+struct PartStorage {
+  bool decoderHalf = false;     // DECH instead of DECD
+  bool latentsHalf = false;     // LATH instead of LATN
+  bool idsZstd = false;         // TXIZ (zstd over byte planes) instead of TXID
+  bool modulationZstd = true;   // TXSC codes zstd-coded
+};
 
 struct CompressedBtf {
   CodecMethod method = CodecMethod::ClusteredNeural;
@@ -70,6 +95,8 @@ struct CompressedBtf {
   // latents(t) . basis row 3 image + c, in linear RGB / alpha.
   std::vector<float> pcaMean;             // 3 x images (image-major, RGB)
   std::vector<float> pcaBasis;            // (3 x images) rows x C, row-major (one row per image channel)
+  TexelModulation modulation;             // clustered only; empty = every texel of a cluster decodes alike
+  PartStorage storage;                    // how the parts above are written
 
   // ---- Provenance (not needed to decode)
   std::vector<int> holdoutImages;         // ascending image indices kept out of training
@@ -101,20 +128,28 @@ struct CompressedBtf {
   void validatePca(const std::string& name) const;     // mean, basis, coefficients
 };
 
+// Rounds the decoder and latents to half precision where `storage` says so, so that what is
+// in memory (and measured) is exactly what the file will hold.
+void roundToStorage(CompressedBtf& btf);
+
 // Smallest unsigned integer width (1, 2 or 4 bytes) that holds every id in [0, k).
 int idWidthForClusters(std::int64_t k);
 
-// Sizes in bytes as in Table 1 of the paper: decoder = parameters x 4 (float32),
-// latents = rows x latentDim x 4, ids = texels x id width (the paper used 4-byte ids; we
-// store the smallest width that fits k), total = decoder + latents + ids (the paper's
-// definition: headers, directions and metadata are not counted; fileBytes is the actual
-// file size), raw = texels x images x 3 x 4 (float32 RGB), ratio = raw / total.
+// Sizes in bytes as in Table 1 of the paper, as stored: decoder = parameters x 4 (float32)
+// or x 2 (half), latents = rows x latentDim x 4 or 2, ids = texels x id width (the paper used
+// 4-byte ids; we store the smallest width that fits k) or the zstd-coded bytes, modulation =
+// the per-texel factors' stored bytes, total = decoder + latents + ids + modulation (the
+// paper's definition: headers, directions and metadata are not counted; fileBytes is the
+// actual file size), raw = texels x images x 3 x 4 (float32 RGB), ratio = raw / total.
 // PCA: decoder, latents and ids are 0; total = mean + basis + coefficients (float32 each).
 struct NbtfSizes {
   std::uint64_t decoderParameters = 0;
   std::uint64_t latentRows = 0, texels = 0, images = 0;
   int latentDim = 0;
-  std::uint64_t decoder = 0, latents = 0, ids = 0, total = 0;
+  std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
+  int decoderBytesPerValue = 4, latentBytesPerValue = 4;
+  bool idsZstd = false;
+  int modulationTerms = 0, modulationBits = 0;
   std::uint64_t rawFloat32 = 0;
   std::uint64_t fileBytes = 0;  // 0 when not known (not written yet)
   int idWidth = 0;              // bytes per id; 0 in per-texel mode

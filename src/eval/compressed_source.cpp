@@ -69,6 +69,7 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
   NbtfSizes s = computeSizes(btf, fileBytes);
   SizeTable t;
   t.rawFloat32 = s.rawFloat32, t.decoder = s.decoder, t.latents = s.latents, t.ids = s.ids, t.total = s.total;
+  t.perTexel = s.modulation;
   t.fileBytes = s.fileBytes;
   t.idsPaper = s.idsPaper, t.totalPaper = s.totalPaper;
   t.pca = s.pca, t.pcaComponents = s.pcaComponents;
@@ -77,6 +78,9 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
 }
 
 std::string methodDescription(const CompressedBtf& btf) {
+  if (btf.method == CodecMethod::ClusteredNeural && !btf.modulation.empty())
+    return "clustered neural + per-texel modulation (" + std::to_string(btf.modulation.terms) + " term" +
+           (btf.modulation.terms > 1 ? "s" : "") + "), k = " + std::to_string(btf.latentRows);
   if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
   if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
   if (btf.isPca()) return "PCA, C = " + std::to_string(btf.latentDim);
@@ -93,8 +97,15 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.holdoutImages = btf.holdoutImages;
   in.sizes = sizeTableOf(btf, fileBytes);
   in.method = methodDescription(btf);
-  in.methodFamily = codecMethodName(btf.method);
-  if (btf.method == CodecMethod::ClusteredNeural) in.methodParameter = btf.latentRows;
+  // Modulated files are a curve of their own in sweeps (they are not the paper's model).
+  in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated");
+  if (btf.method == CodecMethod::ClusteredNeural) {
+    in.methodParameter = btf.latentRows;
+    in.clusterIds = btf.ids;
+    in.clusters = btf.latentRows;
+    in.texelCoefficients = reconstruction.decoder().texelCoefficients();
+    in.coefficientTerms = btf.modulation.terms;
+  }
   if (btf.isPca()) in.methodParameter = btf.latentDim;
   in.referenceName = referenceName;
   in.compressedName = fileName;
@@ -116,6 +127,15 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
                 {"decoder", shape + " (" + std::to_string(btf.decoder.parameterCount()) + " parameters)"},
                 {"decoder evaluations per image", std::to_string(reconstruction.evaluationsPerImage())},
                 {"held-out images", std::to_string(btf.holdoutImages.size())}};
+  if (!btf.modulation.empty())
+    in.details.push_back({"per-texel modulation", std::to_string(btf.modulation.terms) + " RGB term" +
+                                                      (btf.modulation.terms > 1 ? "s" : "") +
+                                                      " per cluster, mixed by per-texel coefficients (" +
+                                                      std::to_string(btf.modulation.bits) + "-bit codes)"});
+  if (btf.storage.decoderHalf || btf.storage.latentsHalf || btf.storage.idsZstd)
+    in.details.push_back({"storage", std::string("decoder ") + (btf.storage.decoderHalf ? "half" : "float32") +
+                                         ", latents " + (btf.storage.latentsHalf ? "half" : "float32") + ", ids " +
+                                         (btf.storage.idsZstd ? "zstd" : "raw")});
   return in;
 }
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <set>
 
+#include "cluster/cluster_values.h"
 #include "eval/figures.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -111,6 +112,10 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   for (int i : keep) kept[i];              // create the slots before the threads run
   const int workers = threadCount();
   std::vector<std::vector<float>> refBuf(workers), recBuf(workers);
+  // Per-texel sums over images for the mean brightness maps, in fixed point (2^-32 of alpha):
+  // integer sums do not depend on the order the workers add them in.
+  constexpr double kFixed = 4294967296.0;
+  std::vector<std::vector<std::int64_t>> refSum(workers), recSum(workers);
   Progress progress("eval: reconstruct + compare", static_cast<std::size_t>(numImages), options.progress);
   parallelForDynamic(static_cast<std::size_t>(numImages), [&](std::size_t index, int worker) {
     int image = static_cast<int>(index);
@@ -121,6 +126,14 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
       ref.imageLinear(image, rb.data());
       in.reconstruct(image, cb.data());
       r.table.set(image, errorSums(rb.data(), cb.data(), n, r.alpha));
+      auto& rs = refSum[worker];
+      auto& cs = recSum[worker];
+      if (rs.empty()) rs.assign(n, 0), cs.assign(n, 0);
+      const double scale = kFixed / r.alpha;
+      for (std::size_t j = 0; j < n; ++j) {
+        rs[j] += std::llround(rb[j] * scale);
+        cs[j] += std::llround(cb[j] * scale);
+      }
     } catch (const std::exception& e) {
       throw Error(imageName(r, image) + ": " + e.what());
     }
@@ -129,6 +142,45 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
     progress.advance();
   });
   progress.finish();
+
+  // ---- Mean brightness maps (linear, on the reference's scale) and their RMSE / alpha.
+  {
+    std::vector<float> refMean(n, 0.0f), recMean(n, 0.0f);
+    const double toLinear = r.alpha / (kFixed * numImages);
+    double sse = 0, brightest = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      std::int64_t a = 0, b = 0;
+      for (int w = 0; w < workers; ++w)
+        if (!refSum[w].empty()) a += refSum[w][j], b += recSum[w][j];
+      refMean[j] = static_cast<float>(a * toLinear);
+      recMean[j] = static_cast<float>(b * toLinear);
+      const double d = (static_cast<double>(b) - static_cast<double>(a)) / (kFixed * numImages);
+      sse += d * d;
+      brightest = std::max(brightest, static_cast<double>(refMean[j]));
+    }
+    r.meanMapRmse = std::sqrt(sse / static_cast<double>(n));
+    // Brighten both maps alike for display; alpha scales with them so the error panel's units stay.
+    r.meanMapGain = brightest > 0 ? r.alpha / brightest : 1.0;
+    for (std::size_t j = 0; j < n; ++j) refMean[j] *= r.meanMapGain, recMean[j] *= r.meanMapGain;
+    const float shownAlpha = static_cast<float>(r.alpha * r.meanMapGain);
+    r.meanMapMagnification = chooseErrorMagnification(refMean.data(), recMean.data(), ref.numTexels(), shownAlpha);
+    char title[96];
+    std::snprintf(title, sizeof title, "Mean brightness over all images (shown x %.3g)", r.meanMapGain);
+    r.meanMapFigure = renderComparison(refMean.data(), recMean.data(), r.width, r.height, shownAlpha,
+                                       r.meanMapMagnification, title);
+  }
+
+  // ---- The cluster-mean floor of this reference, with and without the per-texel factors.
+  if (in.clusters > 0) {
+    std::vector<int> everyImage(numImages);
+    for (int i = 0; i < numImages; ++i) everyImage[i] = i;
+    r.floorRmse = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, nullptr, 1, false, false)
+                      .floorRmse(everyImage, ref.numTexels());
+    if (!in.texelCoefficients.empty())
+      r.floorRmseModulated = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, in.texelCoefficients.data(),
+                                           in.coefficientTerms, false, false)
+                                 .floorRmse(everyImage, ref.numTexels());
+  }
 
   r.all = r.table.all();
   r.training = r.hasHoldout() ? r.table.subset(r.holdoutImages, true) : r.all;

@@ -24,6 +24,7 @@ namespace nbtf {
 // headers and metadata not counted); fileBytes = the file's actual size (0 = unknown).
 struct SizeTable {
   std::uint64_t rawFloat32 = 0, decoder = 0, latents = 0, ids = 0, total = 0, fileBytes = 0;
+  std::uint64_t perTexel = 0;  // per-texel modulation codes as stored (0 = none)
   // The same with the paper's 4-byte ids (0 = not given, or equal to the above).
   std::uint64_t idsPaper = 0, totalPaper = 0;
   // The PCA baseline's parts instead (decoder, latents, ids 0): total = mean + basis + coefficients.
@@ -62,6 +63,12 @@ struct EvalInputs {
   std::string referenceName;       // where the reference came from
   std::string compressedName;      // the compressed file, if any
   std::vector<std::pair<std::string, std::string>> details;  // extra facts for the header
+  // Clustered materials: texel -> cluster ids (clusters > 0) and the per-texel modulation's
+  // effective coefficients (texels x terms, empty = none), so the report can show the floors.
+  std::vector<std::int32_t> clusterIds;
+  int clusters = 0;
+  std::vector<float> texelCoefficients;
+  int coefficientTerms = 0;
 };
 
 struct EvalOptions {
@@ -108,6 +115,15 @@ struct EvalResult {
   std::vector<BlurSample> blurSamples;  // unique images, ascending
   double blurSigmaMedian = 0;
   BlurOptions blurOptions;
+  // Graininess: RMSE (linear RGB / alpha) between the reference's and the reconstruction's
+  // mean brightness maps (each texel's value averaged over all images), and the two maps
+  // side by side (displayed brightened by meanMapGain so the reference's brightest is white).
+  double meanMapRmse = 0;
+  double meanMapGain = 1, meanMapMagnification = 1;
+  Image8 meanMapFigure;
+  // Clustered: the cluster-mean floor over all images (the best any one-value-per-cluster
+  // model can do) and, with per-texel modulation, the floor of the modulated model; -1 = none.
+  double floorRmse = -1, floorRmseModulated = -1;
   double seconds = 0;
 
   bool hasHoldout() const { return !holdoutImages.empty(); }

@@ -78,6 +78,9 @@ json reportJson(const EvalResult& r) {
       {"psnr", "dB, peak 1 in linear RGB divided by alpha"},
       {"psnr_srgb8", "dB, peak 255 in 8-bit sRGB code values"},
       {"blur_sigma", "texels (Gaussian standard deviation)"},
+      {"mean_brightness_rmse", "linear RGB divided by alpha, between per-texel means over all images"},
+      {"floor_rmse", "linear RGB divided by alpha, all images: the cluster means (with the per-texel factors: "
+                     "floor_rmse_modulated) against the reference"},
       {"bytes", "bytes"},
       {"ratio", "raw float32 bytes / total bytes"},
   };
@@ -95,6 +98,11 @@ json reportJson(const EvalResult& r) {
   j["rmse_holdout"] = r.hasHoldout() ? json(r.holdout.rmse) : json(nullptr);
   j["rmse_srgb8_holdout"] = r.hasHoldout() ? json(r.holdout.rmseSrgb8) : json(nullptr);
   j["psnr_holdout"] = r.hasHoldout() ? finiteOrNull(r.holdout.psnr) : json(nullptr);
+  j["mean_brightness_rmse"] = r.meanMapRmse;
+  j["mean_brightness_display_gain"] = r.meanMapGain;
+  j["mean_brightness_error_magnification"] = r.meanMapMagnification;
+  j["floor_rmse"] = r.floorRmse >= 0 ? json(r.floorRmse) : json(nullptr);
+  j["floor_rmse_modulated"] = r.floorRmseModulated >= 0 ? json(r.floorRmseModulated) : json(nullptr);
 
   // ---- Sizes (Table 1)
   if (r.sizes.known()) {
@@ -108,7 +116,7 @@ json reportJson(const EvalResult& r) {
                     {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
     else
       j["bytes"] = {{"raw_float32", r.sizes.rawFloat32}, {"decoder", r.sizes.decoder}, {"latents", r.sizes.latents},
-                    {"ids", r.sizes.ids},                 {"total", r.sizes.total},
+                    {"ids", r.sizes.ids},                 {"per_texel", r.sizes.perTexel}, {"total", r.sizes.total},
                     {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
     j["ratio"] = r.sizes.ratio();
     if (r.sizes.totalPaper && r.sizes.totalPaper != r.sizes.total) {
@@ -183,7 +191,7 @@ json reportJson(const EvalResult& r) {
                {"learning_rate", r.blurOptions.learningRate},
                {"max_iterations", r.blurOptions.maxIterations}};
 
-  j["figures"] = {{"heat_map", kHeatMapFile}, {"elevation", kElevationFile}};
+  j["figures"] = {{"heat_map", kHeatMapFile}, {"elevation", kElevationFile}, {"mean_brightness", kMeanMapFile}};
   j["seconds"] = r.seconds;
   return j;
 }
@@ -266,6 +274,14 @@ Doc reportDoc(const json& j) {
     rows.push_back({"Compression ratio", "1 : " + fmt("%.0f", j["ratio"].get<double>()), "raw float32 / total"});
   rows.push_back({"Effective blur sigma (median of " + integerText(j["blur"]["image_count"]) + " images)",
                   sigmaText(j["blur_sigma"]), "texels"});
+  rows.push_back({"Mean brightness map RMSE (graininess; per-texel means over all images)",
+                  rmseText(j["mean_brightness_rmse"]), kLinear});
+  if (!j["floor_rmse"].is_null())
+    rows.push_back({"Cluster-mean floor, all images (the best any one-value-per-cluster model can do)",
+                    rmseText(j["floor_rmse"]), kLinear});
+  if (!j["floor_rmse_modulated"].is_null())
+    rows.push_back({"Floor with the file's per-texel factors (clusters x factors, best cluster values)",
+                    rmseText(j["floor_rmse_modulated"]), kLinear});
   const json& w = j["worst_pair"];
   rows.push_back({"Worst pair: light " + dirText(w["light"]) + ", view " + dirText(w["view"]), rmseText(w["rmse"]),
                   kLinear});
@@ -299,11 +315,13 @@ Doc reportDoc(const json& j) {
     const json& b = j["bytes"];
     std::vector<std::vector<std::string>> srows = {
         {"Raw data (float32 RGB)", bytesText(b["raw_float32"]), humanBytes(b["raw_float32"])},
-        {"Decoder (float32 weights)", bytesText(b["decoder"]), humanBytes(b["decoder"])},
+        {"Decoder (weights as stored)", bytesText(b["decoder"]), humanBytes(b["decoder"])},
         {"Latents", bytesText(b["latents"]), humanBytes(b["latents"])},
         {"Id list (texel -> cluster)", bytesText(b["ids"]), humanBytes(b["ids"])},
-        {"**Total**", bytesText(b["total"]), humanBytes(b["total"])},
     };
+    if (b.contains("per_texel") && b["per_texel"].get<std::uint64_t>() > 0)
+      srows.push_back({"Per-texel factors (modulation codes)", bytesText(b["per_texel"]), humanBytes(b["per_texel"])});
+    srows.push_back({"**Total**", bytesText(b["total"]), humanBytes(b["total"])});
     if (!b["file"].is_null()) srows.push_back({"File on disk", bytesText(b["file"]), humanBytes(b["file"])});
     srows.push_back({"**Compression ratio** (raw : total)", "1 : " + fmt("%.0f", j["ratio"].get<double>()), ""});
     if (b.contains("total_paper")) {
@@ -313,10 +331,23 @@ Doc reportDoc(const json& j) {
                        "1 : " + fmt("%.0f", j["ratio_paper"].get<double>()), ""});
     }
     doc.table({"Part", "Bytes", "Size"}, srows,
-              "Total = decoder + latents + id list, the paper's definition (headers, directions and metadata are "
-              "not counted; the file on disk is the honest upper bound). KiB = 1024 bytes.",
+              "Total = decoder + latents + id list (+ per-texel factors), the paper's definition (headers, "
+              "directions and metadata are not counted; the file on disk is the honest upper bound). KiB = 1024 "
+              "bytes.",
               {false, true, true});
   }
+
+  // ---- Graininess
+  doc.heading("Mean brightness (graininess)");
+  doc.paragraph("Each texel's value averaged over all images, for the reference and the reconstruction. A model with "
+                "one latent per cluster gives every texel of a cluster the same values, so its map shows the "
+                "clusters as flat patches (grain); per-texel factors restore each texel's own brightness. RMSE "
+                "between the maps: " + rmseText(j["mean_brightness_rmse"]) + " (linear RGB / alpha).");
+  doc.figure(j["figures"]["mean_brightness"].get<std::string>(),
+             "Mean brightness: reference | reconstruction | error x " +
+                 fmt("%g", j["mean_brightness_error_magnification"].get<double>()) + " (both maps shown brightened x " +
+                 fmt("%.3g", j["mean_brightness_display_gain"].get<double>()) + ").",
+             "Mean brightness maps");
 
   // ---- Error by direction
   doc.heading("Error by direction");
@@ -456,6 +487,7 @@ ReportPaths writeReport(const EvalResult& r, const std::string& dir) {
   Image8 chart = renderLineChart({byLight, byView}, "RMSE by elevation", "elevation theta (degrees)",
                                  "RMSE (linear RGB / alpha)", ticks.size() > 1 ? ticks : std::vector<double>{});
   images[kElevationFile] = writePng(path(kElevationFile), chart);
+  images[kMeanMapFile] = writePng(path(kMeanMapFile), r.meanMapFigure);
 
   for (std::size_t i = 0; i < r.comparisons.size(); ++i)
     images[comparisonFile(i)] = writePng(path(comparisonFile(i)), r.comparisons[i].figure);

@@ -17,6 +17,7 @@ namespace nbtf {
 // Figure file names inside the report folder.
 constexpr const char* kHeatMapFile = "rmse_heatmap.png";
 constexpr const char* kElevationFile = "rmse_by_elevation.png";
+constexpr const char* kMeanMapFile = "mean_brightness.png";
 std::string comparisonFile(std::size_t index);  // "comparison_1.png", ...
 
 // Keys keep the order they are written in (a person reads report.json too).

@@ -25,7 +25,7 @@ Mlp decoderShape(const ModelConfig& model) {
     bool last = l + 1 == model.decoderLayers;
     DenseLayer layer;
     layer.in = in;
-    layer.out = last ? 3 : model.decoderWidth;
+    layer.out = last ? 3 * model.outputTerms : model.decoderWidth;
     layer.weight.assign(static_cast<std::size_t>(layer.in) * layer.out, 0.0f);
     layer.bias.assign(layer.out, 0.0f);
     layer.activation = last ? Activation::None : Activation::Relu;

@@ -30,6 +30,7 @@ std::uint64_t checkpointFingerprint(const TrainConfig& c, const TrainingSet& set
   h = hashCombine(h, static_cast<std::uint64_t>(set.texels()));
   for (int g = 0; g < set.groups(); ++g) h = hashCombine(h, set.groupSize(g));
   for (int i : set.holdoutImages()) h = hashCombine(h, i);
+  if (set.texelCoefficientHash()) h = hashCombine(h, set.texelCoefficientHash());  // absent before modulation: old checkpoints still match
   return h;
 }
 

@@ -115,10 +115,10 @@ TrainConfig loadTrainConfig(const std::string& path) {
     throw fileError(path, std::string("not valid JSON: ") + e.what());
   }
   if (!root.is_object()) throw fileError(path, "must be a JSON object with \"model\", \"optimizer\", \"training\"");
-  static const std::set<std::string> kSections = {"model", "optimizer", "training"};
+  static const std::set<std::string> kSections = {"model", "optimizer", "training", "modulation", "storage"};
   for (auto it = root.begin(); it != root.end(); ++it)
     if (!kSections.count(it.key()))
-      throw fileError(path, "'" + it.key() + "' unknown key (expected model, optimizer, training)");
+      throw fileError(path, "'" + it.key() + "' unknown key (expected model, optimizer, training, modulation, storage)");
 
   TrainConfig c;
   Section model(root, "model", path);
@@ -150,6 +150,18 @@ TrainConfig loadTrainConfig(const std::string& path) {
   tr.read("resume", c.resume);
   tr.read("progress", c.progress);
   tr.rejectUnknown();
+
+  Section mod(root, "modulation", path);
+  mod.read("mode", c.modulation.mode);
+  mod.read("terms", c.modulation.terms);
+  mod.read("bits", c.modulation.bits);
+  mod.rejectUnknown();
+
+  Section st(root, "storage", path);
+  st.read("decoder", c.storage.decoder);
+  st.read("latents", c.storage.latents);
+  st.read("ids", c.storage.ids);
+  st.rejectUnknown();
 
   validateTrainConfig(c, path);
   return c;
@@ -188,6 +200,17 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (!finite(c.checkpointSeconds) || c.checkpointSeconds < 0)
     bad(source, "training.checkpoint_seconds", "must be >= 0 (0 = only when stopped)");
   if (c.resume && c.checkpointPath.empty()) bad(source, "training.resume", "needs training.checkpoint_path");
+  const ModulationConfig& m = c.modulation;
+  if (m.mode != "none" && m.mode != "svd")
+    bad(source, "modulation.mode", "must be \"none\" or \"svd\", got \"" + m.mode + "\"");
+  if (m.terms < 1 || m.terms > 8) bad(source, "modulation.terms", "must be in 1..8");
+  if (m.bits < 1 || m.bits > 16) bad(source, "modulation.bits", "must be in 1..16");
+  for (auto [key, value] : {std::make_pair("storage.decoder", &c.storage.decoder),
+                            std::make_pair("storage.latents", &c.storage.latents)})
+    if (*value != "float32" && *value != "half")
+      bad(source, key, "must be \"float32\" or \"half\", got \"" + *value + "\"");
+  if (c.storage.ids != "raw" && c.storage.ids != "zstd")
+    bad(source, "storage.ids", "must be \"raw\" or \"zstd\", got \"" + c.storage.ids + "\"");
 }
 
 }  // namespace nbtf

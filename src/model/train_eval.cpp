@@ -14,7 +14,8 @@ RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const to
   torch::Tensor dirsOne = torch::from_blob(const_cast<float*>(set.directions().data()), {images, 4}).clone();
   std::vector<int> all(images);
   for (int i = 0; i < images; ++i) all[i] = i;
-  std::vector<float> target(static_cast<std::size_t>(images) * 3);
+  const int outputs = set.outputs();
+  std::vector<float> target(static_cast<std::size_t>(images) * outputs);
   double sse[2] = {0, 0};  // [train, holdout]
   Progress bar("evaluate", groups, progress);
   for (int g0 = 0; g0 < groups; g0 += chunk) {
@@ -26,11 +27,13 @@ RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const to
       if (set.groupSize(g) == 0) continue;
       set.targets(g, all.data(), images, target.data());
       double part[2] = {0, 0};
-      const float* fg = f + static_cast<std::size_t>(j) * images * 3;
+      // With modulation the coefficients are orthonormal per cluster, so the per-texel error
+      // of the terms is n_c |f - T|^2 over all outputs (model/training_set.h).
+      const float* fg = f + static_cast<std::size_t>(j) * images * outputs;
       for (int i = 0; i < images; ++i) {
         double e = 0;
-        for (int c = 0; c < 3; ++c) {
-          double r = static_cast<double>(fg[3 * i + c]) - target[3 * i + c];
+        for (int c = 0; c < outputs; ++c) {
+          double r = static_cast<double>(fg[outputs * i + c]) - target[outputs * i + c];
           e += r * r;
         }
         part[set.isHoldout(i)] += e;

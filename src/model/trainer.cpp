@@ -202,7 +202,13 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
 
   // ---- Per-step buffers.
   StepPlan plan;
-  torch::Tensor dirs = torch::empty({batch, 4}), targets = torch::empty({batch, 3}), dz;
+  if (3 * config.model.outputTerms != set.outputs())
+    throw Error("training: the decoder gives " + std::to_string(3 * config.model.outputTerms) + " outputs but the " +
+                "targets have " + std::to_string(set.outputs()) + " (model.outputTerms must equal the modulation terms)");
+  const int outputs = set.outputs();
+  // The loss is a mean over the decoder's outputs; per texel and channel it counts terms times.
+  const double lossToTexelMse = outputs / 3.0;
+  torch::Tensor dirs = torch::empty({batch, 4}), targets = torch::empty({batch, outputs}), dz;
   torch::Tensor tileSlot = torch::empty({tiles}, torch::kLong), tileGroup = torch::empty({tiles}, torch::kLong);
   torch::Tensor polishLatents;  // [groups, latent] once the encoder is frozen
   double withinTrain = 0;
@@ -269,7 +275,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       at::parallel_for(0, tiles, 1, [&](std::int64_t begin, std::int64_t end) {
         for (std::int64_t t = begin; t < end; ++t) {
           const int* img = &plan.images[t * perTile];
-          set.targets(plan.tileGroup[t], img, perTile, y + t * perTile * 3);
+          set.targets(plan.tileGroup[t], img, perTile, y + t * perTile * outputs);
           for (int s = 0; s < perTile; ++s)
             std::memcpy(d + (t * perTile + s) * 4, &allDirs[static_cast<std::size_t>(img[s]) * 4], 4 * sizeof(float));
         }
@@ -320,12 +326,12 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     if (config.monitor) {
       TrainStatus st;
       st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
-      st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss + withinTrain), st.samplesPerSecond = sps;
+      st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss * lossToTexelMse + withinTrain), st.samplesPerSecond = sps;
       st.learningRate = config.learningRate * scheduleFactor(config, p), st.polish = polish;
       config.monitor(st);
     }
     if (since(lastStatus) > 0.5) {
-      bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
+      bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss * lossToTexelMse + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
                                  static_cast<int>(step / stepsPerEpoch), config.epochs, polish));
       lastStatus = Clock::now();
     }
@@ -357,6 +363,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     detail::RmsError rmse = detail::evaluateRmse(set, backprop, latents, config.progress);
     result.rmseTrain = rmse.train;
     result.rmseHoldout = rmse.holdout;
+    if (!set.perTexel()) result.rmseFloor = std::sqrt(withinTrain);
   }
   result.seconds = since(callStart);
   return result;

@@ -22,6 +22,9 @@ struct ModelConfig {
   std::vector<int> encoderChannels = {4, 8, 16};
   int decoderWidth = 106;
   int decoderLayers = 4;  // linear layers, ReLU between, linear RGB output
+  // RGB terms the decoder outputs: 1, or R with per-texel modulation of R terms (set by the
+  // compress pipeline from the "modulation" object, not a config key of its own).
+  int outputTerms = 1;
 };
 
 // Conv blocks actually used for N images: as many of `configured` as keep the pooled
@@ -30,6 +33,21 @@ int encoderBlockCount(int imageCount, int configured);
 // The decoder as an Mlp shape (input latent + 4, RGB out), weights zero; 24,383 parameters
 // for the defaults.
 Mlp decoderShape(const ModelConfig& model);
+
+// Per-texel modulation (beyond the paper; codec/texel_modulation.h, cluster/cluster_values.h):
+// the "modulation" object of a config. Clustered mode only.
+struct ModulationConfig {
+  std::string mode = "none";  // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
+  int terms = 1;              // RGB terms per cluster, each texel mixing them with its own coefficients (1..8)
+  int bits = 8;               // linear code bits per coefficient (1..16)
+};
+
+// How the decoding parts are stored in the .nbtf (the "storage" object of a config).
+struct StorageConfig {
+  std::string decoder = "float32";  // "float32" | "half"
+  std::string latents = "float32";  // "float32" | "half"
+  std::string ids = "raw";          // "raw" (smallest integer width) | "zstd"
+};
 
 // A snapshot of a running training, for callers that log or plot its course.
 struct TrainStatus {
@@ -47,6 +65,8 @@ struct TrainStatus {
 // "training"; see docs/model.md).
 struct TrainConfig {
   ModelConfig model;
+  ModulationConfig modulation;  // used by the compress pipeline, not by the trainer
+  StorageConfig storage;        // likewise
   // ---- optimizer
   std::string optimizer = "adam";  // "sgd" | "adam"
   double learningRate = 2e-3;
@@ -85,6 +105,12 @@ struct TrainInputs {
   float alpha = 1;                      // eq. (5)
   const MatrixXfCol* encoderInputs = nullptr;  // rows: representatives (k x D) or texels (M x D), standardized
   std::vector<std::int32_t> ids;        // M: texel -> row of encoderInputs; empty = identity (per-texel)
+  // Per-texel modulation (clustered only): M x terms coefficients, orthonormal per cluster
+  // (codec/texel_modulation.h); texel t's model value is sum_r e_tr f_r(z_c, l, v), the
+  // decoder giving 3 x terms outputs (model.outputTerms = terms). Empty = none (every texel of
+  // a cluster has the same value).
+  std::vector<float> texelCoefficients;
+  int coefficientTerms = 0;
 };
 
 struct TrainResult {
@@ -95,6 +121,9 @@ struct TrainResult {
   std::vector<int> holdoutImages;       // image indices kept out of training
   double rmseTrain = 0;                 // eq. (10) on linear values / alpha, training images
   double rmseHoldout = -1;              // same on held-out images; -1 when none
+  // Clustered: the floor, the RMSE of the best one-latent-per-cluster model (the cluster
+  // means, with the per-texel factors when given) on the training images; -1 per-texel.
+  double rmseFloor = -1;
   double seconds = 0;                   // whole call: setup, training, evaluation
   double trainSeconds = 0;              // the optimization loop only
   int epochsRun = 0;                    // completed epochs

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
+#include "cluster/cluster_values.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -56,15 +58,7 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
   for (int g = 0; g < groups_; ++g) cumulative_[g + 1] = cumulative_[g] + sizes_[g];
 
   // ---- Hold-out images: a deterministic random subset, at least one image stays for training.
-  holdout_.assign(images_, 0);
-  int held = holdoutFraction > 0 ? static_cast<int>(std::lround(holdoutFraction * images_)) : 0;
-  if (holdoutFraction > 0) held = std::max(held, 1);
-  held = std::min(held, images_ - 1);
-  std::vector<int> order(images_);
-  for (int i = 0; i < images_; ++i) order[i] = i;
-  SplitMix64 rng(SplitMix64::mix(seed, kHoldoutStream));
-  for (int i = 0; i < held; ++i) std::swap(order[i], order[i + rng.below(images_ - i)]);
-  for (int i = 0; i < held; ++i) holdout_[order[i]] = 1;
+  holdout_ = holdoutImageMask(images_, holdoutFraction, seed);
   for (int i = 0; i < images_; ++i) (holdout_[i] ? holdoutImages_ : trainImages_).push_back(i);
 
   // ---- Decoder direction inputs (eq. 7-9).
@@ -76,51 +70,56 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
     d[0] = l[0], d[1] = l[1], d[2] = v[0], d[3] = v[1];
   }
 
-  if (!perTexel_) computeClusterMeans(in.ids, progress);
+  if (!perTexel_) {
+    const float* coefficients = nullptr;
+    if (!in.texelCoefficients.empty()) {
+      terms_ = in.coefficientTerms;
+      if (terms_ < 1 || static_cast<std::int64_t>(in.texelCoefficients.size()) != texels_ * terms_)
+        throw Error("training: " + std::to_string(in.texelCoefficients.size()) + " per-texel coefficients for " +
+                    std::to_string(texels_) + " texels x " + std::to_string(in.coefficientTerms) + " terms");
+      for (float f : in.texelCoefficients)
+        if (!std::isfinite(f)) throw Error("training: per-texel coefficients must be finite");
+      coefficients = in.texelCoefficients.data();
+      std::uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a over the coefficients' bits
+      for (float f : in.texelCoefficients) {
+        std::uint32_t bits;
+        std::memcpy(&bits, &f, 4);
+        h = (h ^ bits) * 0x100000001b3ull;
+      }
+      coefficientHash_ = h;
+    }
+    ClusterValues values = clusterValues(stack, alpha_, in.ids, groups_, coefficients, terms_, true, progress);
+    means_ = std::move(values.means);
+    withinSse_ = std::move(values.withinSse);
+  } else if (!in.texelCoefficients.empty()) {
+    throw Error("training: per-texel modulation needs the clustered mode");
+  }
 }
 
-// Per-cluster mean of every image, and the within-cluster sum of squares per image.
-// Parallel over images (the stack is image-major): each image is independent, so the
-// result does not depend on the thread count.
-void TrainingSet::computeClusterMeans(const std::vector<std::int32_t>& ids, bool progress) {
-  means_.assign(static_cast<std::size_t>(groups_) * images_ * 3, 0.0f);
-  withinSse_.assign(images_, 0.0);
-  Progress bar("cluster means", images_, progress);
-  const float invAlpha = 1.0f / alpha_;
-  parallelFor(images_, [&](std::size_t begin, std::size_t end) {
-    std::vector<float> rgb(static_cast<std::size_t>(texels_) * 3);
-    std::vector<double> sums(static_cast<std::size_t>(groups_) * 3);
-    std::vector<float> mean(static_cast<std::size_t>(groups_) * 3);
-    for (std::size_t i = begin; i < end; ++i) {
-      stack_->imageLinear(static_cast<int>(i), rgb.data());
-      std::fill(sums.begin(), sums.end(), 0.0);
-      for (std::int64_t t = 0; t < texels_; ++t)
-        for (int c = 0; c < 3; ++c) sums[3 * ids[t] + c] += rgb[3 * t + c] * invAlpha;
-      for (int g = 0; g < groups_; ++g)
-        for (int c = 0; c < 3; ++c) {
-          float m = sizes_[g] ? static_cast<float>(sums[3 * g + c] / sizes_[g]) : 0.0f;
-          mean[3 * g + c] = m;
-          means_[(static_cast<std::size_t>(g) * images_ + i) * 3 + c] = m;
-        }
-      double sse = 0;
-      for (std::int64_t t = 0; t < texels_; ++t)
-        for (int c = 0; c < 3; ++c) {
-          double r = static_cast<double>(rgb[3 * t + c] * invAlpha) - mean[3 * ids[t] + c];
-          sse += r * r;
-        }
-      withinSse_[i] = sse;
-      bar.advance();
-    }
-  });
-  bar.finish();
+std::vector<std::uint8_t> holdoutImageMask(int images, double fraction, std::uint64_t seed) {
+  std::vector<std::uint8_t> mask(images, 0);
+  int held = fraction > 0 ? static_cast<int>(std::lround(fraction * images)) : 0;
+  if (fraction > 0) held = std::max(held, 1);
+  held = std::min(held, images - 1);
+  std::vector<int> order(images);
+  for (int i = 0; i < images; ++i) order[i] = i;
+  SplitMix64 rng(SplitMix64::mix(seed, kHoldoutStream));
+  for (int i = 0; i < held; ++i) std::swap(order[i], order[i + rng.below(images - i)]);
+  for (int i = 0; i < held; ++i) mask[order[i]] = 1;
+  return mask;
 }
 
 void TrainingSet::targets(int group, const int* images, int count, float* out) const {
   if (!perTexel_) {
-    const float* m = &means_[static_cast<std::size_t>(group) * images_ * 3];
-    for (int s = 0; s < count; ++s) {
-      const float* p = m + 3 * static_cast<std::size_t>(images[s]);
-      out[3 * s] = p[0], out[3 * s + 1] = p[1], out[3 * s + 2] = p[2];
+    const int o = outputs();
+    const float* m = &means_[static_cast<std::size_t>(group) * images_ * o];
+    if (o == 3) {
+      for (int s = 0; s < count; ++s) {
+        const float* p = m + 3 * static_cast<std::size_t>(images[s]);
+        out[3 * s] = p[0], out[3 * s + 1] = p[1], out[3 * s + 2] = p[2];
+      }
+    } else {
+      for (int s = 0; s < count; ++s) std::memcpy(out + static_cast<std::size_t>(o) * s, m + static_cast<std::size_t>(o) * images[s], o * sizeof(float));
     }
     return;
   }

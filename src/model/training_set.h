@@ -7,6 +7,10 @@
 // i.e. training on the per-cluster mean targets ybar_c sampled in proportion to n_c
 // optimizes exactly the per-texel loss, and its cost per epoch depends on k, not on the
 // number of texels. The second term is a constant, kept per image for the exact RMSE.
+// With per-texel modulation (coefficients e_t of R terms, orthonormal per cluster:
+// sum_{t in c} e_tr e_tr' = n_c delta_rr') the same holds for the R RGB terms f_r the decoder
+// outputs: the targets are T_r = sum_t e_tr y_t / n_c, the constant sum_t |y_t - sum_r e_tr
+// T_r|^2 (cluster/cluster_values.h), and texel t's model value is sum_r e_tr f_r(z_c, l, v).
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -14,6 +18,10 @@
 #include "model/trainer.h"
 
 namespace nbtf {
+
+// The hold-out split of `images` images: a deterministic random subset of round(fraction x
+// images) (at least 1 when fraction > 0, at most images - 1); 1 = held out.
+std::vector<std::uint8_t> holdoutImageMask(int images, double fraction, std::uint64_t seed);
 
 // SplitMix64: tiny, fast, and fully specified (unlike std:: distributions), so a seed
 // gives the same samples on every platform. Streams are derived by hashing.
@@ -48,6 +56,7 @@ class TrainingSet {
   bool perTexel() const { return perTexel_; }
   int groups() const { return groups_; }        // encoder inputs (rows of encoderInputs)
   int images() const { return images_; }        // N
+  int outputs() const { return 3 * terms_; }    // targets per sample: RGB x modulation terms
   std::int64_t texels() const { return texels_; }  // M
   int groupSize(int g) const { return sizes_[g]; }
   const std::vector<int>& trainImages() const { return trainImages_; }
@@ -57,15 +66,16 @@ class TrainingSet {
   double withinSse(int image) const { return withinSse_.empty() ? 0.0 : withinSse_[image]; }
   // Stereographic (light x, y, view x, y) of every image: the decoder's direction input.
   const std::vector<float>& directions() const { return directions_; }
+  // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.
+  std::uint64_t texelCoefficientHash() const { return coefficientHash_; }
 
-  // Mean target (linear / alpha) of group g for `count` images: out[3 * i + channel].
+  // Target (linear / alpha) of group g for `count` images: out[outputs() x i + 3 x term + channel].
   void targets(int group, const int* images, int count, float* out) const;
 
   // Picks a group with probability n_g / M (uniform in the per-texel mode).
   int sampleGroup(SplitMix64& rng) const;
 
  private:
-  void computeClusterMeans(const std::vector<std::int32_t>& ids, bool progress);
 
   const BtfStack* stack_;
   float alpha_;
@@ -76,9 +86,11 @@ class TrainingSet {
   std::vector<std::int64_t> cumulative_;  // cumulative_[g] = sum of sizes before g, plus the total
   std::vector<int> trainImages_, holdoutImages_;
   std::vector<std::uint8_t> holdout_;
-  std::vector<float> means_;      // groups x images x 3 (clustered only)
+  std::vector<float> means_;      // groups x images x outputs() (clustered only)
   std::vector<double> withinSse_; // images (clustered only)
   std::vector<float> directions_; // images x 4
+  std::uint64_t coefficientHash_ = 0;
+  int terms_ = 1;
 };
 
 // The samples of one optimizer step: `tiles` groups (drawn in proportion to their size),

@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# Quality per byte (issue 14): on each synthetic preset (100 x 100 texels, UBO2003 layout), side
+# by side with the same training recipe and work: the per-texel neural BTF, the paper-style clustered model
+# (k = 500, float32 parts, configs/paper-clustered.json), nbtf's default (per-texel modulation,
+# half-precision parts, zstd ids; configs/default.json) and the PCA baseline at its smallest
+# sizes. Every file is evaluated with `nbtf eval` against its stack; the table (bytes by part,
+# ratio, RMSE, held-out RMSE, PSNR, mean-brightness-map RMSE, blur sigma, cluster-mean floor,
+# training seconds) goes to quality.md, the rate-distortion plot to rd_<preset>.png.
+# Targets, each a PASS/FAIL line: (1) nbtf's ratio >= 1:10,000 and its RMSE >= 25% below the
+# paper-style model's, file within 10% of the counted bytes; (2) its RMSE below the k = 500
+# cluster-mean floor; (3) its mean-brightness-map RMSE >= 3x below the paper-style model's.
+#
+# Every neural row runs the same recipe for the same number of optimizer steps (16,384 decoder
+# samples each): E epochs of the clustered models (k = 500: 181 steps an epoch with the 10%
+# hold-out), and as many epochs of the per-texel model as give the same steps (1 for E = 20).
+# So the figures do not depend on how busy the machine is; the seconds are reported.
+#
+# usage: scripts/bench_quality.sh [--presets "fabric wool"] [--epochs E] [--k K]
+#                                 [--config FILE] [--pca "1 2 4"] [-o DIR]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+presets="fabric wool"
+epochs=20
+k=500
+config=$root/configs/default.json
+pcas="1 2 4"
+out=${NBTF_BENCH_DATA:-$root/build/bench_data}/quality
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --presets) presets=$2; shift;;
+    --epochs) epochs=$2; shift;;
+    --k) k=$2; shift;;
+    --config) config=$2; shift;;
+    --pca) pcas=$2; shift;;
+    -o) out=$2; shift;;
+    *) echo "bench_quality: unknown option '$1' (see the header of $0)" >&2; exit 2;;
+  esac
+  shift
+done
+"$root/scripts/setup.sh"
+"$root/scripts/build.sh" "$root/build"
+nbtf=$root/build/bin/nbtf
+mkdir -p "$out"
+echo "== $(nproc) cores, $(date -u +%Y-%m-%dT%H:%MZ), commit $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+# Per-texel epochs with the steps of E clustered epochs at k = 500 (100 x 100 texels).
+per_texel_epochs=$(( (epochs * 500 + 9999) / 10000 ))
+echo "== clustered runs: $epochs epochs; per-texel: $per_texel_epochs (same optimizer steps); work folder $out"
+
+reports=()
+for preset in $presets; do
+  data=$out/${preset}100
+  if [[ ! -f "$data/synth.json" ]]; then
+    "$root/build/bin/nbtf-synth" --preset "$preset" --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
+  fi
+  runs=("per_texel|--clusters 0 --epochs $per_texel_epochs"
+        "paper_k500|--clusters 500 --config $root/configs/paper-clustered.json --epochs $epochs"
+        "nbtf_k$k|--clusters $k --config $config --epochs $epochs")
+  for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
+  for run in "${runs[@]}"; do
+    label=${run%%|*}
+    read -r -a opts <<<"${run#*|}"
+    file=$out/$preset-$label.nbtf
+    echo "== $preset: $label"
+    "$nbtf" compress "$data" -o "$file" "${opts[@]}" --holdout 0.1 --seed 1 -q --stats-json "$out/$preset-$label.stats.json" \
+      | grep -E "^  (training|held-out|floor|modulated|total|ratio|file)" || true
+    "$nbtf" eval "$file" --reference "$data" -o "$out/$preset-$label" -q > /dev/null
+    reports+=("$out/$preset-$label/report.json")
+  done
+done
+
+# ---- Rate-distortion plot and sweep tables from the same reports.
+"$nbtf" eval --summarize -o "$out/summary" "${reports[@]}" > /dev/null
+if ls "$out"/summary/rd_*.gp > /dev/null 2>&1; then
+  command -v gnuplot > /dev/null 2>&1 || "$root/scripts/setup.sh" --with gnuplot-nox || true
+  if command -v gnuplot > /dev/null 2>&1; then (cd "$out/summary" && for gp in rd_*.gp; do gnuplot "$gp"; done); fi
+fi
+
+# ---- The table and the targets.
+python3 - "$out" "$k" $presets <<'PY'
+import json, os, sys
+out, k, presets = sys.argv[1], sys.argv[2], sys.argv[3:]
+rows, verdicts = [], []
+def load(p):
+    with open(p) as f: return json.load(f)
+for preset in presets:
+    runs = {}
+    for name in sorted(os.listdir(out)):
+        if name.startswith(preset + "-") and name.endswith(".stats.json"):
+            label = name[len(preset) + 1:-len(".stats.json")]
+            report = os.path.join(out, f"{preset}-{label}", "report.json")
+            if os.path.exists(report): runs[label] = (load(os.path.join(out, name)), load(report))
+    for label, (st, rep) in runs.items():
+        b = st["bytes"]
+        parts = (f'{b.get("decoder",0)}/{b.get("latents",0)}/{b.get("ids",0)}/{b.get("per_texel",0)}'
+                 if "decoder" in b else f'{b["pca_mean"]}/{b["pca_basis"]}/{b["pca_coefficients"]}')
+        rows.append([preset, label, parts, b["total"], b["file"], f'1:{st["ratio"]:.0f}', f'{rep["rmse"]:.5f}',
+                     f'{rep["rmse_holdout"]:.5f}' if rep["rmse_holdout"] is not None else "-",
+                     f'{rep["psnr"]:.2f}', f'{rep["mean_brightness_rmse"]:.5f}', f'{rep["blur_sigma"]:.2f}',
+                     f'{rep["floor_rmse"]:.5f}' if rep.get("floor_rmse") is not None else "-",
+                     f'{st["seconds"]["train"]:.0f}' if st["seconds"]["train"] else f'{st["seconds"]["pca"]:.0f} (fit)'])
+    best, paper = runs.get(f"nbtf_k{k}"), runs.get("paper_k500")
+    if not best or not paper: continue
+    bs, br = best; ps, pr = paper
+    ok1 = bs["ratio"] >= 10000 and br["rmse"] <= 0.75 * pr["rmse"] and bs["bytes"]["file"] <= 1.1 * bs["bytes"]["total"]
+    verdicts.append(f'bench quality_{preset}_ratio_and_rmse: ratio 1:{bs["ratio"]:.0f}, RMSE {br["rmse"]:.5f} vs paper-style '
+                    f'{pr["rmse"]:.5f} ({100 * (1 - br["rmse"] / pr["rmse"]):.1f}% lower), file {bs["bytes"]["file"]} B for '
+                    f'{bs["bytes"]["total"]} B counted (target ratio >= 1:10000, >= 25% lower, file within 10%) '
+                    f'{"PASS" if ok1 else "FAIL"}')
+    floor = pr["floor_rmse"]
+    ok2 = br["rmse"] < floor
+    verdicts.append(f'bench quality_{preset}_below_floor: RMSE {br["rmse"]:.5f} vs k = 500 cluster-mean floor {floor:.5f} '
+                    f'(target below) {"PASS" if ok2 else "FAIL"}')
+    ratio3 = pr["mean_brightness_rmse"] / max(br["mean_brightness_rmse"], 1e-12)
+    verdicts.append(f'bench quality_{preset}_graininess: mean-brightness-map RMSE {br["mean_brightness_rmse"]:.5f} vs '
+                    f'paper-style {pr["mean_brightness_rmse"]:.5f} ({ratio3:.1f}x lower) (target >= 3x) '
+                    f'{"PASS" if ratio3 >= 3 else "FAIL"}')
+head = ["preset", "run", "bytes decoder/latents/ids/per-texel (PCA: mean/basis/coef.)", "total B", "file B", "ratio",
+        "RMSE", "held-out RMSE", "PSNR dB", "mean-map RMSE", "blur sigma", "k-means floor", "train s"]
+lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+text = "\n".join(lines) + ("\n\nRMSE, held-out RMSE, mean-map RMSE and the floor: linear RGB / alpha (eq. 10), all images "
+                           "(held-out: the 10% kept out of training); PSNR: peak 1 in that space.\n")
+with open(os.path.join(out, "quality.md"), "w") as f: f.write(text + "\n" + "\n".join(verdicts) + "\n")
+print(text)
+print("\n".join(verdicts))
+PY
+echo "bench_quality: table $out/quality.md, reports $out/<preset>-<run>/report.html, plots $out/summary/"

@@ -1,0 +1,137 @@
+#include "cluster/cluster_values.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+double ClusterValues::floorRmse(const std::vector<int>& images, std::int64_t texels) const {
+  double sse = 0;
+  for (int i : images) sse += withinSse.at(static_cast<std::size_t>(i));
+  const double count = static_cast<double>(images.size()) * static_cast<double>(texels) * 3.0;
+  return count > 0 ? std::sqrt(sse / count) : 0.0;
+}
+
+ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
+                            const float* coef, int terms, bool keepMeans, bool progress) {
+  const int images = stack.numImages();
+  const std::int64_t texels = stack.numTexels();
+  if (static_cast<std::int64_t>(ids.size()) != texels)
+    throw Error("cluster values: " + std::to_string(ids.size()) + " ids for " + std::to_string(texels) + " texels");
+  if (terms < 1 || (!coef && terms != 1)) throw Error("cluster values: " + std::to_string(terms) + " terms");
+  std::vector<int> sizes(clusters, 0);
+  for (std::int32_t id : ids) {
+    if (id < 0 || id >= clusters) throw Error("cluster values: cluster id " + std::to_string(id) + " out of range");
+    ++sizes[id];
+  }
+  const int outputs = 3 * terms;
+  ClusterValues out;
+  out.terms = terms;
+  if (keepMeans) out.means.assign(static_cast<std::size_t>(clusters) * images * outputs, 0.0f);
+  out.withinSse.assign(images, 0.0);
+  Progress bar("cluster means", images, progress);
+  const float invAlpha = 1.0f / alpha;
+  parallelFor(images, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
+    std::vector<double> sums(static_cast<std::size_t>(clusters) * outputs);
+    std::vector<float> mean(static_cast<std::size_t>(clusters) * outputs);
+    for (std::size_t i = begin; i < end; ++i) {
+      stack.imageLinear(static_cast<int>(i), rgb.data());
+      std::fill(sums.begin(), sums.end(), 0.0);
+      if (coef) {
+        for (std::int64_t t = 0; t < texels; ++t) {
+          double* s = &sums[static_cast<std::size_t>(ids[t]) * outputs];
+          for (int r = 0; r < terms; ++r)
+            for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coef[t * terms + r];
+        }
+      } else {  // the plain means, summed exactly as before modulation existed
+        for (std::int64_t t = 0; t < texels; ++t)
+          for (int c = 0; c < 3; ++c) sums[3 * ids[t] + c] += rgb[3 * t + c] * invAlpha;
+      }
+      for (int g = 0; g < clusters; ++g)
+        for (int o = 0; o < outputs; ++o) {
+          float m = sizes[g] ? static_cast<float>(sums[static_cast<std::size_t>(g) * outputs + o] / sizes[g]) : 0.0f;
+          mean[static_cast<std::size_t>(g) * outputs + o] = m;
+          if (keepMeans) out.means[(static_cast<std::size_t>(g) * images + i) * outputs + o] = m;
+        }
+      double sse = 0;
+      if (coef) {
+        for (std::int64_t t = 0; t < texels; ++t) {
+          const float* m = &mean[static_cast<std::size_t>(ids[t]) * outputs];
+          for (int c = 0; c < 3; ++c) {
+            double model = 0;
+            for (int r = 0; r < terms; ++r) model += static_cast<double>(coef[t * terms + r]) * m[3 * r + c];
+            double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
+            sse += d * d;
+          }
+        }
+      } else {
+        for (std::int64_t t = 0; t < texels; ++t)
+          for (int c = 0; c < 3; ++c) {
+            double r = static_cast<double>(rgb[3 * t + c] * invAlpha) - mean[3 * ids[t] + c];
+            sse += r * r;
+          }
+      }
+      out.withinSse[i] = sse;
+      bar.advance();
+    }
+  });
+  bar.finish();
+  return out;
+}
+
+std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress) {
+  const int images = stack.numImages();
+  const std::int64_t texels = stack.numTexels();
+  if (terms < 1) throw Error("texel coefficients: terms must be >= 1");
+  if (static_cast<int>(useImage.size()) != images) throw Error("texel coefficients: image mask has the wrong size");
+  if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("texel coefficients: one id per texel needed");
+  std::vector<int> used;
+  for (int i = 0; i < images; ++i)
+    if (useImage[i]) used.push_back(i);
+  if (used.empty()) throw Error("texel coefficients: no images to derive them from");
+  std::vector<std::vector<int>> members(clusters);
+  for (std::int64_t t = 0; t < texels; ++t) {
+    if (ids[t] < 0 || ids[t] >= clusters) throw Error("texel coefficients: cluster id out of range");
+    members[ids[t]].push_back(static_cast<int>(t));
+  }
+  const float invAlpha = 1.0f / alpha;
+  const Eigen::Index dims = 3 * static_cast<Eigen::Index>(used.size());
+  std::vector<float> out(static_cast<std::size_t>(texels) * terms, 0.0f);
+  Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
+  parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
+    Eigen::MatrixXf y;
+    for (std::size_t g = begin; g < end; ++g) {
+      const std::vector<int>& texelsOf = members[g];
+      const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
+      if (n == 0) continue;
+      // The cluster's ABRDFs as rows (linear / alpha), then its Gram matrix in double.
+      y.resize(n, dims);
+      for (std::size_t j = 0; j < used.size(); ++j)
+        for (Eigen::Index k = 0; k < n; ++k)
+          for (int c = 0; c < 3; ++c) y(k, 3 * j + c) = stack.sample(used[j], texelsOf[k], c) * invAlpha;
+      Eigen::MatrixXd gram = (y * y.transpose()).cast<double>();
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+      const double scale = std::sqrt(static_cast<double>(n));
+      for (int r = 0; r < terms && r < n; ++r) {
+        Eigen::VectorXd u = eig.eigenvectors().col(n - 1 - r);  // eigenvalues ascend
+        if (eig.eigenvalues()(n - 1 - r) <= 1e-12 * std::max(1.0, eig.eigenvalues()(n - 1))) break;
+        if (u.sum() < 0) u = -u;
+        for (Eigen::Index k = 0; k < n; ++k)
+          out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * u(k));
+      }
+      bar.advance(static_cast<std::size_t>(n));
+    }
+  });
+  bar.finish();
+  return out;
+}
+
+}  // namespace nbtf

@@ -1,0 +1,41 @@
+// What a one-latent-per-cluster model can best do, measured on the data (linear RGB / alpha):
+// per cluster and image its best values, and what is left over, the floor. Without per-texel
+// modulation the best value is the cluster mean and the floor is the within-cluster spread.
+// With modulation (codec/texel_modulation.h) texel t's value is sum_r e_tr f_r, the
+// coefficients orthonormal per cluster (sum_{t in c} e_tr e_tr' = n_c delta_rr'); the best
+// terms are then T_r = sum_t e_tr y_t / n_c and the leftover sum_t |y_t - sum_r e_tr T_r|^2:
+// a per-cluster projection, whose floor lies below the plain one.
+// Also the coefficients themselves, derived from the data (a rank-R model per cluster).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "io/btf_stack.h"
+
+namespace nbtf {
+
+struct ClusterValues {
+  int terms = 1;
+  std::vector<float> means;       // clusters x images x (3 terms): term r, channel c at 3 r + c (when kept)
+  std::vector<double> withinSse;  // per image: sum over texels and channels of the leftover squared
+  // RMSE of the leftover over the given images (eq. 10: texels x images x 3), the floor.
+  double floorRmse(const std::vector<int>& images, std::int64_t texels) const;
+};
+
+// Parallel over images; each image's sums run in texel order, so the result does not depend
+// on the thread count. `coefficients`: texels x terms orthonormalized coefficients, or nullptr
+// (terms must be 1: plain cluster means).
+ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
+                            const float* coefficients, int terms, bool keepMeans, bool progress);
+
+// Per-texel coefficients of the best rank-`terms` model of each cluster, from the images in
+// `useImage`: the cluster's texels (ABRDFs of 3 x images values, linear / alpha) are
+// factored by an SVD (eigenvectors of their Gram matrix); texel t's coefficients are
+// sqrt(n_c) x its entries of the top `terms` left singular vectors, the first oriented to a
+// positive sum (with terms = 1: a brightness factor of mean square 1). Texels x terms.
+// Parallel over clusters, each computed alone: the same on any thread count. Costs
+// sum_c n_c^2 x 3 x images multiply-adds and n_c x 3 x images floats per cluster in flight.
+std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress);
+
+}  // namespace nbtf

@@ -1,0 +1,104 @@
+#include "codec/texel_modulation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "util/error.h"
+
+namespace nbtf {
+
+TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits) {
+  if (terms < 1 || terms > kMaxModulationTerms)
+    throw Error("modulation terms must be in 1.." + std::to_string(kMaxModulationTerms) + ", got " +
+                std::to_string(terms));
+  if (bits < 1 || bits > 16) throw Error("modulation bits must be in 1..16, got " + std::to_string(bits));
+  if (coefficients.empty() || coefficients.size() % terms)
+    throw Error("modulation: " + std::to_string(coefficients.size()) + " coefficients for " + std::to_string(terms) +
+                " terms");
+  const std::size_t texels = coefficients.size() / terms;
+  TexelModulation m;
+  m.terms = terms;
+  m.bits = bits;
+  m.codes.resize(coefficients.size());
+  const double levels = static_cast<double>((1u << bits) - 1);
+  for (int r = 0; r < terms; ++r) {
+    float lo = INFINITY, hi = -INFINITY;
+    for (std::size_t t = 0; t < texels; ++t) {
+      const float v = coefficients[t * terms + r];
+      if (!std::isfinite(v))
+        throw Error("modulation: texel " + std::to_string(t) + " has a non-finite coefficient in term " +
+                    std::to_string(r));
+      lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+    m.minimum[r] = lo;
+    m.maximum[r] = hi;
+    const double span = static_cast<double>(hi) - lo;
+    for (std::size_t t = 0; t < texels; ++t) {
+      double q = span > 0 ? std::round((coefficients[t * terms + r] - static_cast<double>(lo)) / span * levels) : 0.0;
+      m.codes[t * terms + r] = static_cast<std::uint16_t>(std::clamp(q, 0.0, levels));
+    }
+  }
+  return m;
+}
+
+float dequantizeTexelCoefficient(const TexelModulation& m, int term, std::uint32_t code) {
+  const double levels = static_cast<double>((1u << m.bits) - 1);
+  const double lo = m.minimum[term], span = static_cast<double>(m.maximum[term]) - lo;
+  return static_cast<float>(lo + span * (code / levels));
+}
+
+std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> a, int terms,
+                                                   const std::vector<std::int32_t>& ids, int clusters) {
+  const std::size_t texels = ids.size();
+  if (terms < 1 || a.size() != texels * terms)
+    throw Error("modulation: " + std::to_string(a.size()) + " coefficients for " + std::to_string(texels) +
+                " texels x " + std::to_string(terms) + " terms");
+  // Texels of each cluster, in texel order.
+  std::vector<std::vector<std::size_t>> members(clusters);
+  for (std::size_t t = 0; t < texels; ++t) {
+    const std::int32_t id = ids[t];
+    if (id < 0 || id >= clusters) throw Error("modulation: texel " + std::to_string(t) + " has an invalid cluster id");
+    members[id].push_back(t);
+  }
+  std::vector<double> column, original;
+  for (const auto& texelsOf : members) {
+    const std::size_t n = texelsOf.size();
+    if (!n) continue;
+    std::vector<std::vector<double>> basis;  // orthonormal columns so far (unit norm)
+    for (int r = 0; r < terms; ++r) {
+      column.resize(n);
+      for (std::size_t j = 0; j < n; ++j) column[j] = a[texelsOf[j] * terms + r];
+      double before = 0;
+      for (double v : column) before += v * v;
+      for (const auto& q : basis) {  // modified Gram-Schmidt
+        double dot = 0;
+        for (std::size_t j = 0; j < n; ++j) dot += q[j] * column[j];
+        for (std::size_t j = 0; j < n; ++j) column[j] -= dot * q[j];
+      }
+      double norm = 0;
+      for (double v : column) norm += v * v;
+      // A column (nearly) inside the span of the earlier ones carries nothing new: drop it.
+      const bool degenerate = !(norm > 1e-10 * std::max(before, 1e-30)) || !(norm > 0);
+      const double unit = degenerate ? 0.0 : 1.0 / std::sqrt(norm);
+      for (double& v : column) v *= unit;
+      for (std::size_t j = 0; j < n; ++j)
+        a[texelsOf[j] * terms + r] = static_cast<float>(column[j] * std::sqrt(static_cast<double>(n)));
+      if (!degenerate) basis.push_back(column);
+    }
+  }
+  return a;
+}
+
+std::vector<float> effectiveTexelCoefficients(const TexelModulation& m, const std::vector<std::int32_t>& ids,
+                                              int clusters) {
+  if (m.empty()) return {};
+  if (m.codes.size() != ids.size() * m.terms)
+    throw Error("modulation holds " + std::to_string(m.codes.size()) + " codes for " + std::to_string(ids.size()) +
+                " texels x " + std::to_string(m.terms) + " terms");
+  std::vector<float> a(m.codes.size());
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] = dequantizeTexelCoefficient(m, static_cast<int>(i % m.terms), m.codes[i]);
+  return orthonormalizeTexelCoefficients(std::move(a), m.terms, ids, clusters);
+}
+
+}  // namespace nbtf

@@ -1,0 +1,36 @@
+// Per-texel modulation (beyond the paper): the decoder outputs R RGB terms per cluster,
+// f_1..f_R(z_c, light, view), and each texel mixes them with coefficients of its own:
+//   value(t, image) = sum_r e_tr f_r(z_c, light, view).
+// With R = 1 that is a per-texel brightness factor; larger R is a per-cluster rank-R model
+// whose texel coefficients come from the data (cluster/cluster_values.h). The coefficients
+// are stored as `bits`-bit linear codes per term (TexelModulation in nbtf_file.h); decoding
+// dequantizes them and makes each cluster's coefficient columns orthogonal with mean square 1
+// (sum_{t in c} e_tr e_tr' = n_c delta_rr'). That normalization makes the trainer's
+// per-cluster targets exact (model/training_set.h); it is computed the same way here for
+// training and for every decoder, so they agree bit for bit.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "codec/nbtf_file.h"
+
+namespace nbtf {
+
+// Quantizes coefficients (texels x terms, texel-major) to `bits`-bit linear codes over each
+// term's own range. Throws on non-finite input or out-of-range terms / bits.
+TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits);
+
+// The dequantized coefficient of `code` in term `term`: min + code / (2^bits - 1) x (max - min).
+float dequantizeTexelCoefficient(const TexelModulation& modulation, int term, std::uint32_t code);
+
+// Per cluster, Gram-Schmidt on the coefficient columns in term order (sums in double, texels
+// in order), each column scaled to mean square 1 over the cluster; a column that is (nearly)
+// a combination of the earlier ones becomes 0. `ids` maps texels to clusters in [0, clusters).
+std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> coefficients, int terms,
+                                                   const std::vector<std::int32_t>& ids, int clusters);
+
+// What decoding multiplies the terms by: orthonormalize(dequantize(codes)), texels x terms.
+std::vector<float> effectiveTexelCoefficients(const TexelModulation& modulation, const std::vector<std::int32_t>& ids,
+                                              int clusters);
+
+}  // namespace nbtf
