@@ -86,6 +86,7 @@ int renderMain(int argc, char** argv) {
         "no-shadow-corners", "Adaptive: skip the corner shadow rule")(
         "no-derivative-tests", "Adaptive: skip the silhouette/terminator/shadow tests from derivatives")(
         "no-texture-test", "Adaptive: skip the texture test")(
+        "no-footprint-filter", "Adaptive: an unsplit sample keeps its centre value (not the footprint mean of the texels)")(
         "sun", "Light strength", cxxopts::value<double>()->default_value("1"))(
         "env", "Constant environment (and background) radiance", cxxopts::value<double>()->default_value("0.25"))(
         "show-refined", "Write the refined pixels (white: 1 ray, grey: 3x3, black: 9x9) to this PNG",
@@ -130,6 +131,7 @@ int renderMain(int argc, char** argv) {
     ro.shadowCorners = !args.count("no-shadow-corners");
     ro.derivativeTests = !args.count("no-derivative-tests");
     ro.textureTest = !args.count("no-texture-test");
+    ro.footprintFilter = !args.count("no-footprint-filter");
     ro.progress = !quiet;
     checkRenderOptions(ro);
 

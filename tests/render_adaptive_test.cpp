@@ -136,6 +136,37 @@ TEST(RenderAdaptive, TextureThresholdIgnoresSmallChanges) {
   EXPECT_GT(renderImage(scene, cam, faint, o).stats.reasons[4], 0u);
 }
 
+TEST(RenderAdaptive, FootprintFilterAveragesTexelsOfUnsplitPixels) {
+  // Texel contrast below the threshold: nothing is split for texture; with the filter the
+  // unsplit pixels take the mean of the texels their footprint covers, which is closer to
+  // uniform 9 x 9 than the centre's value.
+  const Scene scene = squareOnly(1);
+  RenderOptions o = adaptiveOptions(48, 36);
+  o.threshold = 0.05;
+  const Camera cam(scene.camera, o.width, o.height);
+  const CheckerMaterial checker(8, 0.40f, 0.43f);
+  RenderOptions u = o;
+  u.mode = SamplingMode::Uniform;
+  u.uniform = 9;
+  const RenderResult ref = renderImage(scene, cam, checker, u);
+  const RenderResult filtered = renderImage(scene, cam, checker, o);
+  o.footprintFilter = false;
+  const RenderResult centre = renderImage(scene, cam, checker, o);
+  EXPECT_EQ(filtered.stats.reasons[4], 0u);
+  EXPECT_EQ(filtered.refined, centre.refined);  // the same decisions
+  double ef = 0, ec = 0;  // over the unsplit pixels (split ones are equal in both)
+  for (std::size_t i = 0; i < ref.rgb.size(); ++i) {
+    if (filtered.refined[i / 3]) {
+      EXPECT_EQ(filtered.rgb[i], centre.rgb[i]);
+      continue;
+    }
+    ef += (filtered.rgb[i] - ref.rgb[i]) * (filtered.rgb[i] - ref.rgb[i]);
+    ec += (centre.rgb[i] - ref.rgb[i]) * (centre.rgb[i] - ref.rgb[i]);
+  }
+  EXPECT_GT(ec, 0.01);
+  EXPECT_LT(ef, 0.2 * ec);
+}
+
 // Pixels on the shadow edge cast by the occluder onto the square.
 struct ShadowPixels {
   std::vector<std::size_t> edge, lit;

@@ -40,13 +40,15 @@ struct LocalStats {
 };
 
 // One camera sample between tracing and shading: its radiance is base + sunW * material at
-// query qSun + envW * material at query qEnv; the texture test compares the corner queries
-// [cornerBegin, cornerBegin + cornerCount) with query qRef, scaled by cornerW.
+// query qSun + envW * material at query qEnv; the texture test predicts the footprint's mean
+// from those (the centre's texel, share centreShare) and the other texels' queries from
+// cornerBegin on (perTexel per texel, shares share[k]).
 struct SampleRecord {
   float base[3] = {0, 0, 0};
-  float sunW = 0, envW = 0, cornerW = 0;
-  int qSun = -1, qEnv = -1, qRef = -1;
-  int cornerBegin = 0, cornerCount = 0;
+  float sunW = 0, envW = 0;
+  int qSun = -1, qEnv = -1;
+  int cornerBegin = 0, cornerCount = 0, perTexel = 1;  // other texels' queries: (sun,) env each
+  float centreShare = 1, share[3] = {0, 0, 0};  // footprint shares of the centre's and the other texels
   std::uint8_t reasons = 0;
   bool onBtf = false;
 };
@@ -167,47 +169,74 @@ class SampleTracer {
       const T U = bestHit.u * double(texW_), V = bestHit.v * double(texH_);
       const double u0 = std::floor(val(U)), v0 = std::floor(val(V));
       const double su = spread(U, half), sv = spread(V, half);
-      if (std::floor(val(U) + su) - std::floor(val(U) - su) > 2 || std::floor(val(V) + sv) - std::floor(val(V) - sv) > 2) {
-        rec.reasons |= kRefineTexture;  // minified: the footprint averages many texels
+      if (std::floor(val(U) + su) - std::floor(val(U) - su) > 1 || std::floor(val(V) + sv) - std::floor(val(V) - sv) > 1) {
+        rec.reasons |= kRefineTexture;  // minified: the footprint covers 3 or more texels along u or v
       } else {
-        const UvQuery& ref = direct ? queries[rec.qSun] : queries[rec.qEnv];
-        rec.qRef = direct ? rec.qSun : rec.qEnv;
-        rec.cornerW = direct ? rec.sunW : rec.envW;
+        // The footprint, mapped to texel space to first order, covers at most a 2 x 2 block
+        // of texels: those its corners reach, or points of a 6 x 6 grid inside it. The share
+        // of each (from the grid) weights the material decoded there (both terms, in the
+        // central ray's directions) in the footprint's predicted mean.
         rec.cornerBegin = static_cast<int>(queries.size());
-        double seen[4][2];
-        int nSeen = 0;
+        rec.perTexel = direct ? 2 : 1;
+        const double ub = std::floor(val(U) - su), vb = std::floor(val(V) - sv);
+        int counts[4] = {0, 0, 0, 0};  // texels (ub + i, vb + j) at index 2 j + i
+        constexpr int kGrid = 6;
+        for (int b = 0; b < kGrid; ++b)
+          for (int a = 0; a < kGrid; ++a) {
+            const double ox = half * (2.0 * (a + 0.5) / kGrid - 1), oy = half * (2.0 * (b + 0.5) / kGrid - 1);
+            const int i = std::clamp(static_cast<int>(std::floor(extrapolate(U, ox, oy)) - ub), 0, 1);
+            const int j = std::clamp(static_cast<int>(std::floor(extrapolate(V, ox, oy)) - vb), 0, 1);
+            ++counts[2 * j + i];
+          }
+        bool reached[4] = {false, false, false, false};  // by a footprint corner (share may be ~0)
         for (int k = 0; k < 4; ++k) {
           const double ox = (k & 1) ? half : -half, oy = (k & 2) ? half : -half;
-          const double uc = std::floor(extrapolate(U, ox, oy)), vc = std::floor(extrapolate(V, ox, oy));
-          if (uc == u0 && vc == v0) continue;
-          bool dup = false;
-          for (int j = 0; j < nSeen; ++j) dup |= seen[j][0] == uc && seen[j][1] == vc;
-          if (dup) continue;
-          seen[nSeen][0] = uc, seen[nSeen][1] = vc, ++nSeen;
-          UvQuery c = ref;
-          c.u = static_cast<float>((uc + 0.5) / texW_);
-          c.v = static_cast<float>((vc + 0.5) / texH_);
-          queries.push_back(c);
+          const int i = std::clamp(static_cast<int>(std::floor(extrapolate(U, ox, oy)) - ub), 0, 1);
+          const int j = std::clamp(static_cast<int>(std::floor(extrapolate(V, ox, oy)) - vb), 0, 1);
+          reached[2 * j + i] = true;
         }
-        rec.cornerCount = nSeen;
+        const int centre = 2 * std::clamp(static_cast<int>(v0 - vb), 0, 1) + std::clamp(static_cast<int>(u0 - ub), 0, 1);
+        rec.centreShare = static_cast<float>(counts[centre]) / (kGrid * kGrid);
+        int nOther = 0;
+        for (int k = 0; k < 4; ++k) {
+          if (k == centre || (counts[k] == 0 && !reached[k])) continue;
+          const float cu = static_cast<float>((ub + (k & 1) + 0.5) / texW_), cv = static_cast<float>((vb + (k >> 1) + 0.5) / texH_);
+          if (direct) {
+            UvQuery c = queries[rec.qSun];
+            c.u = cu, c.v = cv;
+            queries.push_back(c);
+          }
+          UvQuery c = queries[rec.qEnv];
+          c.u = cu, c.v = cv;
+          queries.push_back(c);
+          rec.share[nOther++] = static_cast<float>(counts[k]) / (kGrid * kGrid);
+        }
+        rec.cornerCount = nOther;
       }
     }
   }
 
-  // Radiance and the texture decision once the queries are evaluated.
+  // Radiance and the texture decision once the queries are evaluated. Material values are
+  // clamped at 0 (radiance is not negative; a network may undershoot slightly).
   void finish(SampleRecord& rec, const float* rgb, float* out) const {
+    auto at = [&](int q, int c) { return std::max(0.0f, rgb[3 * q + c]); };
     for (int c = 0; c < 3; ++c) {
-      float v = rec.base[c];
-      // Radiance is not negative: a network's slight undershoot is clamped here.
-      if (rec.qSun >= 0) v += rec.sunW * std::max(0.0f, rgb[3 * rec.qSun + c]);
-      if (rec.qEnv >= 0) v += rec.envW * std::max(0.0f, rgb[3 * rec.qEnv + c]);
-      out[c] = v;
-    }
-    for (int k = 0; k < rec.cornerCount; ++k) {
-      const float* a = rgb + 3 * (rec.cornerBegin + k);
-      const float* b = rgb + 3 * rec.qRef;
-      for (int c = 0; c < 3; ++c)
-        if (rec.cornerW * std::fabs(a[c] - b[c]) > options_.threshold) rec.reasons |= kRefineTexture;
+      const float sun = rec.qSun >= 0 ? at(rec.qSun, c) : 0.0f, env = rec.qEnv >= 0 ? at(rec.qEnv, c) : 0.0f;
+      const float centre = rec.base[c] + rec.sunW * sun + rec.envW * env;
+      out[c] = centre;
+      if (rec.cornerCount == 0) continue;
+      // Split when any other texel the footprint covers differs from the centre's by more
+      // than the threshold; otherwise the footprint's mean predicted from the texels it
+      // covers (first order) is the sample's value.
+      float mean = rec.centreShare * centre;
+      for (int k = 0; k < rec.cornerCount; ++k) {
+        const int q = rec.cornerBegin + k * rec.perTexel;
+        const float other = rec.base[c] + (rec.perTexel == 2 ? rec.sunW * at(q, c) : 0.0f) +
+                            rec.envW * at(q + rec.perTexel - 1, c);
+        if (std::fabs(other - centre) > options_.threshold) rec.reasons |= kRefineTexture;
+        mean += rec.share[k] * other;
+      }
+      if (options_.footprintFilter) out[c] = mean;
     }
   }
 

@@ -48,6 +48,10 @@ struct RenderOptions {
   bool derivativeTests = true;  // silhouette, terminator and shadow tests from derivatives
   bool shadowCorners = true;    // the corner shadow rule
   bool textureTest = true;
+  // Adaptive: a sample that is not split takes the footprint's mean predicted by the texture
+  // test (the texels its first-order footprint covers, weighted by their shares) instead of
+  // its centre's value: a box filter of the texture from the derivatives.
+  bool footprintFilter = true;
   bool progress = true;
   int tile = 16;            // pixels per tile side (the unit of work and of batching)
 };
