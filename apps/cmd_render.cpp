@@ -82,7 +82,7 @@ int renderMain(int argc, char** argv) {
         "uniform", "N x N samples in every pixel instead", cxxopts::value<int>())(
         "spp", "Samples per pixel for uniform sampling (a square: 1, 4, 9, ...)", cxxopts::value<int>())(
         "levels", "Adaptive: levels of 3x3 refinement (1 or 2; 3 allowed)", cxxopts::value<int>()->default_value("2"))(
-        "threshold", "Adaptive: texture test threshold (linear radiance)", cxxopts::value<double>()->default_value("0.01"))(
+        "threshold", "Adaptive: split when a covered texel differs from the centre's by more (linear radiance)", cxxopts::value<double>()->default_value("0.08"))(
         "no-shadow-corners", "Adaptive: skip the corner shadow rule")(
         "no-derivative-tests", "Adaptive: skip the silhouette/terminator/shadow tests from derivatives")(
         "no-texture-test", "Adaptive: skip the texture test")(

@@ -8,10 +8,12 @@
 # fraction of pixels refined, side by side in one run.
 # Target: the adaptive method reaches the RMSE of uniform 9 x 9 (within 10%) with at least
 # 10x fewer ray-equivalents, on both scenes.
-# Options: --size WxH (default 200x150), --threads T (default all cores).
+# adaptive2_centre is the ablation without the footprint filter (unsplit pixels keep their
+# centre's value, as in the seed), at a threshold of 0.01.
+# Options: --size WxH (default 320x240, the render default), --threads T (default all cores).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-size=200x150
+size=320x240
 threads=0
 while [[ $# -gt 0 ]]; do
   case $1 in
@@ -47,7 +49,8 @@ for scene in sphere cloth; do
   "$nbtf" render "$nbtf_file" --scene "$scene" -o "$work/${scene}_ref16.png" --exr "$ref" --uniform 16 \
     --stats-json "$work/${scene}_ref16.json" "${common[@]}"
   for method in "uniform1|--uniform 1" "uniform3|--uniform 3" "uniform9|--uniform 9" \
-                "adaptive1|--adaptive --levels 1" "adaptive2|--adaptive --levels 2"; do
+                "adaptive1|--adaptive --levels 1" "adaptive2|--adaptive --levels 2" \
+                "adaptive2_centre|--adaptive --levels 2 --no-footprint-filter --threshold 0.01"; do
     name=${method%%|*}
     echo "== $scene: $name"
     # shellcheck disable=SC2086
@@ -69,7 +72,8 @@ for scene, methods in data.items():
     for name, j in methods.items():
         px = j["pixels"]
         refined = f'{100 * j["refined_fraction"]:.1f}% ({100 * j["refined_twice"] / px:.1f}% twice)' if name.startswith("adaptive") else "-"
-        print(f'| {scene} | {j["sampling"]} | {j["rmse_vs_reference"]:.5f} | {j["derivative_rays"] / px:.2f}/px | '
+        label = j["sampling"] + (", centre values, threshold 0.01" if name == "adaptive2_centre" else "")
+        print(f'| {scene} | {label} | {j["rmse_vs_reference"]:.5f} | {j["derivative_rays"] / px:.2f}/px | '
               f'{j["plain_rays"] / px:.2f}/px | {j["ray_cost"]["derivative_over_plain"]:.2f} | '
               f'{j["ray_equivalents_per_pixel"]:.2f} | {j["seconds"]:.2f} | {refined} |')
 print()

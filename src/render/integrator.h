@@ -44,7 +44,7 @@ struct RenderOptions {
   SamplingMode mode = SamplingMode::Adaptive;
   int uniform = 1;          // Uniform: N x N samples per pixel
   int levels = 2;           // Adaptive: levels of 3 x 3 refinement (1 or 2)
-  double threshold = 0.01;  // Adaptive: texture test, linear radiance
+  double threshold = 0.08;  // Adaptive: texture test, linear radiance
   bool derivativeTests = true;  // silhouette, terminator and shadow tests from derivatives
   bool shadowCorners = true;    // the corner shadow rule
   bool textureTest = true;

@@ -240,8 +240,13 @@ bool intersectCloth(const Shape& s, const Ray<T>& ray, double tmin, double tmax,
         probe->flag(tPrev);
     }
     if ((fPrev > 0) != (fi > 0)) {
+      if (!hit && !probe) {  // any-hit query (a plain shadow ray): both ends on the sheet suffice
+        const Vec3d a = r.origin + r.dir * tPrev, b = r.origin + r.dir * ti;
+        if (std::fabs(a.x) <= A && std::fabs(a.z) <= A && std::fabs(b.x) <= A && std::fabs(b.z) <= A && tPrev > tmin)
+          return true;
+      }
       double lo = tPrev, hi = ti, flo = fPrev;
-      for (int k = 0; k < 40; ++k) {
+      for (int k = 0; k < 32; ++k) {
         const double mid = 0.5 * (lo + hi), fm = clothGap(r, mid);
         if ((fm > 0) == (flo > 0)) lo = mid, flo = fm;
         else hi = mid;
