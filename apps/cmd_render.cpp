@@ -3,12 +3,14 @@
 // original stack and its .nbtf with the same scene and reports the difference.
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "cli_common.h"
 #include "codec/decoder_output.h"
+#include "codec/nbtf_file.h"
 #include "commands.h"
 #include "io/image_io.h"
 #include "render/compare.h"
@@ -155,6 +157,11 @@ int renderMain(int argc, char** argv) {
         if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
       std::filesystem::create_directories(output);
       const std::string stackPath = args["compare"].as<std::string>();
+      if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
+        throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
+                    "nbtf render --compare STACK FILE.nbtf -o DIR)");
+      if (std::filesystem::is_directory(material))
+        throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
       std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
       std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
       if (reference->width() != compressed->width() || reference->height() != compressed->height())

@@ -87,6 +87,10 @@ TEST_F(RenderCli, CompareWithItsDecodedStack) {
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* f : {"reference.png", "compressed.png", "error.png", "reference.exr", "compare.md", "compare.json"})
     EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
+  // Swapped arguments are a clear error.
+  const CliRun swapped = runNbtf("render --compare '" + file + "' '" + stack + "' -o '" + out + "' -q", dir);
+  EXPECT_EQ(swapped.status, 1);
+  EXPECT_NE(swapped.err.find("expected the original image stack folder"), std::string::npos) << swapped.err;
   const nlohmann::json j = nlohmann::json::parse(slurp((fs::path(out) / "compare.json").string()));
   EXPECT_LT(j["rmse"]["all"]["rmse"].get<double>(), 0.02);
   EXPECT_GT(j["rmse"]["dark10"]["pixels"].get<int>(), 0);

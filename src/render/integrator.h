@@ -16,11 +16,13 @@
 //                             rays from the hit point extrapolated to the 4 footprint corners
 //                             (P + dP/dx ox + dP/dy oy); any answer different from the
 //                             central ray's refines;
-//                 texture     the footprint covers more than one texel (u, v extrapolated to
-//                             the corners) and the material decoded at the corner texels, in
-//                             the central ray's directions, differs from the centre's by more
-//                             than `threshold` (linear radiance, any channel), or the
-//                             footprint spans more than 2 texels along u or v (minified).
+//                 texture     the footprint, mapped to texel space to first order, covers
+//                             other texels than the centre's and the radiance with one of
+//                             them (decoded in the central ray's directions) differs from
+//                             the centre's by more than `threshold` (any channel), or it
+//                             covers 3 or more texels along u or v (minified).
+//               A sample that is not split takes the footprint's mean over the texels it
+//               covers, weighted by their shares (footprintFilter; else its centre value).
 //               Sub-pixels are traced the same way with a third of the footprint, down to
 //               `levels` levels (1: 3 x 3, 2: 9 x 9 at most); the last level's sub-pixels are
 //               plain rays. A pixel is the mean of its sub-pixels.
