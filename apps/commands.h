@@ -19,5 +19,6 @@ int queryMain(int argc, char** argv);
 int evalMain(int argc, char** argv);
 int clusterMain(int argc, char** argv);
 int compressMain(int argc, char** argv);
+int renderMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

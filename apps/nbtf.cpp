@@ -13,6 +13,7 @@ const Command kCommands[] = {
     {"query", queryMain, "Decoded RGB at texels and directions (single or CSV batch)"},
     {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
+    {"render", renderMain, "Ray trace a material on an object; --compare a stack with its .nbtf"},
 };
 
 void printUsage() {

@@ -1,0 +1,243 @@
+// nbtf render <material>: the material on an object, ray traced on the CPU, anti-aliased
+// adaptively with automatic differentiation (seed 003) or uniformly; --compare renders an
+// original stack and its .nbtf with the same scene and reports the difference.
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli_common.h"
+#include "codec/decoder_output.h"
+#include "codec/nbtf_file.h"
+#include "commands.h"
+#include "io/image_io.h"
+#include "render/compare.h"
+#include "render/integrator.h"
+#include "render/material_source.h"
+#include "render/scene.h"
+#include "util/atomic_file.h"
+#include "util/progress.h"
+
+namespace nbtf::cli {
+namespace {
+
+void writeRender(const std::string& png, const std::string& exr, const RenderResult& r) {
+  if (!png.empty()) writeImageSrgb8(png, imageFormatFromName(png), r.width, r.height, r.rgb.data());
+  if (!exr.empty()) writeExr(exr, r.width, r.height, r.rgb.data(), false);
+}
+
+// White: one ray; grey: split once into 3 x 3; black: some sub-pixel split again.
+void writeRefinedMask(const std::string& path, const RenderResult& r) {
+  Image8 img;
+  img.width = r.width, img.height = r.height;
+  img.rgb.resize(static_cast<std::size_t>(r.width) * r.height * 3);
+  for (std::size_t p = 0; p < r.refined.size(); ++p) {
+    const std::uint8_t v = r.refined[p] == 0 ? 255 : r.refined[p] == 1 ? 128 : 0;
+    img.rgb[3 * p] = img.rgb[3 * p + 1] = img.rgb[3 * p + 2] = v;
+  }
+  writeImage8(path, imageFormatFromName(path), img);
+}
+
+std::string samplingName(const RenderOptions& o) {
+  if (o.mode == SamplingMode::Uniform) return "uniform " + std::to_string(o.uniform) + "x" + std::to_string(o.uniform);
+  return "adaptive, " + std::to_string(o.levels) + " level" + (o.levels == 1 ? "" : "s");
+}
+
+nlohmann::json statsJson(const RenderResult& r, const RenderOptions& o) {
+  const RenderStats& s = r.stats;
+  nlohmann::json j;
+  j["sampling"] = samplingName(o);
+  j["width"] = r.width;
+  j["height"] = r.height;
+  j["seconds"] = s.seconds;
+  j["derivative_rays"] = s.derivativeRays;
+  j["plain_rays"] = s.plainRays;
+  j["shadow_rays"] = s.shadowRays;
+  j["corner_shadow_rays"] = s.cornerShadowRays;
+  j["material_queries"] = s.materialQueries;
+  j["pixels"] = s.pixels;
+  j["refined_pixels"] = s.refinedPixels;
+  j["refined_twice"] = s.refinedTwice;
+  j["refined_fraction"] = s.pixels ? double(s.refinedPixels) / s.pixels : 0.0;
+  for (int b = 0; b < kRefineReasons; ++b) j["refine_reasons"][refineReasonName(b)] = s.reasons[b];
+  return j;
+}
+
+}  // namespace
+
+int renderMain(int argc, char** argv) {
+  return runGuarded("render", [&] {
+    cxxopts::Options options("nbtf render", "Ray trace a BTF material on an object (adaptive anti-aliasing by automatic differentiation)");
+    options.positional_help("<material: file.nbtf or image stack folder> -o image.png");
+    options.add_options()("material", "A .nbtf file or an original image stack folder", cxxopts::value<std::string>())(
+        "o,output", "Output image (PNG/JPG, sRGB); with --compare an output folder", cxxopts::value<std::string>())(
+        "exr", "Also write the linear radiance as a float EXR", cxxopts::value<std::string>())(
+        "scene", "plane, sphere, cylinder or cloth", cxxopts::value<std::string>()->default_value("sphere"))(
+        "light", "Direction towards the light THETA,PHI in degrees (theta from +y up, phi from +x towards +z)",
+        cxxopts::value<std::string>()->default_value("45,300"))(
+        "camera", "EX,EY,EZ[,TX,TY,TZ[,FOV]]: eye, target, vertical field of view (default: the scene's)",
+        cxxopts::value<std::string>())("size", "Image size WxH", cxxopts::value<std::string>()->default_value("320x240"))(
+        "tiling", "Copies of the texture across the object's parametrization", cxxopts::value<double>()->default_value("1"))(
+        "adaptive", "Adaptive oversampling by automatic differentiation (the default)")(
+        "uniform", "N x N samples in every pixel instead", cxxopts::value<int>())(
+        "spp", "Samples per pixel for uniform sampling (a square: 1, 4, 9, ...)", cxxopts::value<int>())(
+        "levels", "Adaptive: levels of 3x3 refinement (1 or 2; 3 allowed)", cxxopts::value<int>()->default_value("2"))(
+        "threshold", "Adaptive: split when a covered texel differs from the centre's by more (linear radiance)", cxxopts::value<double>()->default_value("0.08"))(
+        "no-shadow-corners", "Adaptive: skip the corner shadow rule")(
+        "no-derivative-tests", "Adaptive: skip the silhouette/terminator/shadow tests from derivatives")(
+        "no-texture-test", "Adaptive: skip the texture test")(
+        "no-footprint-filter", "Adaptive: an unsplit sample keeps its centre value (not the footprint mean of the texels)")(
+        "sun", "Light strength", cxxopts::value<double>()->default_value("1"))(
+        "env", "Constant environment (and background) radiance", cxxopts::value<double>()->default_value("0.25"))(
+        "show-refined", "Write the refined pixels (white: 1 ray, grey: 3x3, black: 9x9) to this PNG",
+        cxxopts::value<std::string>())("crop", "X,Y,W,H crop of an image stack", cxxopts::value<std::string>())(
+        "compare", "Original stack to compare with the .nbtf <material>: writes reference/compressed/error images, "
+                   "compare.md and compare.json into the -o folder",
+        cxxopts::value<std::string>())("magnify", "--compare: error image magnification",
+                                       cxxopts::value<double>()->default_value("8"))(
+        "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
+        cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
+        "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>())(
+        "q,quiet", "No progress bar");
+    addCommonOptions(options);
+    options.parse_positional({"material"});
+    cxxopts::ParseResult args;
+    if (!parseOptions(options, argc, argv, args)) return 0;
+    applyCommonOptions(args);
+    const bool quiet = args.count("quiet") > 0;
+    if (quiet) Progress::setQuiet(true);
+    if (!args.count("material")) throw Error("missing <material> (a .nbtf file or an image stack folder; see 'nbtf render --help')");
+    if (!args.count("output")) throw Error("missing -o (the output image; with --compare the output folder)");
+    const std::string material = args["material"].as<std::string>(), output = args["output"].as<std::string>();
+    const bool compare = args.count("compare") > 0;
+
+    RenderOptions ro;
+    auto [w, h] = parseImageSize(args["size"].as<std::string>(), "--size");
+    ro.width = w, ro.height = h;
+    if (args.count("uniform") + args.count("spp") + args.count("adaptive") > 1)
+      throw Error("give one of --adaptive, --uniform N and --spp N");
+    if (args.count("uniform")) {
+      ro.mode = SamplingMode::Uniform;
+      ro.uniform = args["uniform"].as<int>();
+    } else if (args.count("spp")) {
+      const int spp = args["spp"].as<int>();
+      const int n = static_cast<int>(std::lround(std::sqrt(std::max(0, spp))));
+      if (spp < 1 || n * n != spp) throw Error("--spp must be a square number (1, 4, 9, 16, ...), got " + std::to_string(spp));
+      ro.mode = SamplingMode::Uniform;
+      ro.uniform = n;
+    }
+    ro.levels = args["levels"].as<int>();
+    ro.threshold = args["threshold"].as<double>();
+    ro.shadowCorners = !args.count("no-shadow-corners");
+    ro.derivativeTests = !args.count("no-derivative-tests");
+    ro.textureTest = !args.count("no-texture-test");
+    ro.footprintFilter = !args.count("no-footprint-filter");
+    ro.progress = !quiet;
+    checkRenderOptions(ro);
+
+    Scene scene = makeScene(args["scene"].as<std::string>(), args["tiling"].as<double>());
+    setLight(scene, parseDirection(args["light"].as<std::string>(), "--light"));
+    scene.sun = args["sun"].as<double>();
+    scene.env = args["env"].as<double>();
+    if (!(scene.sun >= 0) || !(scene.env >= 0) || !std::isfinite(scene.sun) || !std::isfinite(scene.env))
+      throw Error("--sun and --env must be numbers >= 0");
+    CameraSpec cam = scene.camera;
+    if (args.count("camera")) cam = parseCamera(args["camera"].as<std::string>(), scene.camera, "--camera");
+    const Camera camera(cam, ro.width, ro.height);
+    const Crop crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : Crop{};
+
+    const std::string exr = args.count("exr") ? args["exr"].as<std::string>() : "";
+    const std::string mask = args.count("show-refined") ? args["show-refined"].as<std::string>() : "";
+    const std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
+
+    if (compare) {
+      for (const char* o : {"exr", "show-refined", "reference", "ray-cost"})
+        if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
+      std::filesystem::create_directories(output);
+      const std::string stackPath = args["compare"].as<std::string>();
+      if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
+        throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
+                    "nbtf render --compare STACK FILE.nbtf -o DIR)");
+      if (std::filesystem::is_directory(material))
+        throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
+      std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
+      std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
+      if (reference->width() != compressed->width() || reference->height() != compressed->height())
+        std::cerr << "nbtf render: warning: " << stackPath << " is " << reference->width() << "x" << reference->height()
+                  << " texels, " << material << " is " << compressed->width() << "x" << compressed->height()
+                  << " (use --crop for the crop the .nbtf was made from)" << std::endl;
+      const RenderResult ref = renderImage(scene, camera, *reference, ro);
+      const RenderResult cmp = renderImage(scene, camera, *compressed, ro);
+      const RenderComparison c = compareImages(ref.rgb, cmp.rgb, ref.coverage, ro.width, ro.height);
+      CompareReportInfo info;
+      info.reference = stackPath, info.compressed = material, info.scene = scene.name;
+      info.width = ro.width, info.height = ro.height, info.sampling = samplingName(ro);
+      info.magnify = args["magnify"].as<double>();
+      info.referenceSeconds = ref.stats.seconds, info.compressedSeconds = cmp.stats.seconds;
+      const std::filesystem::path dir(output);
+      writeRender((dir / "reference.png").string(), (dir / "reference.exr").string(), ref);
+      writeRender((dir / "compressed.png").string(), (dir / "compressed.exr").string(), cmp);
+      const std::vector<float> err = errorImage(ref.rgb, cmp.rgb, info.magnify);
+      writeImageSrgb8((dir / "error.png").string(), ImageFormat::Png, ro.width, ro.height, err.data());
+      writeFileAtomic((dir / "compare.md").string(), compareMarkdown(c, info));
+      writeFileAtomic((dir / "compare.json").string(), compareJson(c, info));
+      if (!statsPath.empty()) {
+        nlohmann::json j;
+        j["reference"] = statsJson(ref, ro);
+        j["compressed"] = statsJson(cmp, ro);
+        writeFileAtomic(statsPath, j.dump(2) + "\n");
+      }
+      std::cout << "render --compare: " << scene.name << " " << ro.width << "x" << ro.height << ", RMSE (linear) all "
+                << c.all.rmse << ", darkest 10% " << c.dark.rmse << ", brightest 10% " << c.bright.rmse << " -> "
+                << (dir / "compare.md").string() << std::endl;
+      return 0;
+    }
+
+    for (const char* o : {"magnify"})
+      if (args.count(o)) throw Error(std::string("--") + o + " is for --compare");
+    imageFormatFromName(output);  // a clear error for an unknown extension, before rendering
+    checkWritable(output);
+    if (!exr.empty()) checkWritable(exr);
+    if (!mask.empty()) checkWritable(mask), imageFormatFromName(mask);
+    if (!statsPath.empty()) checkWritable(statsPath);
+    ImageF referenceImage;
+    if (args.count("reference")) {
+      referenceImage = readExr(args["reference"].as<std::string>());
+      if (referenceImage.width != ro.width || referenceImage.height != ro.height)
+        throw fileError(args["reference"].as<std::string>(),
+                        "is " + std::to_string(referenceImage.width) + "x" + std::to_string(referenceImage.height) +
+                            ", the render is " + std::to_string(ro.width) + "x" + std::to_string(ro.height));
+    }
+    std::unique_ptr<MaterialSource> source = openMaterial(material, crop, !quiet);
+    const RenderResult r = renderImage(scene, camera, *source, ro);
+    writeRender(output, exr, r);
+    if (!mask.empty()) writeRefinedMask(mask, r);
+    nlohmann::json j = statsJson(r, ro);
+    j["material"] = material;
+    j["scene"] = scene.name;
+    if (args.count("ray-cost")) {
+      const RayCost cost = measureRayCost(scene, camera, *source, ro);
+      j["ray_cost"] = {{"samples", cost.samples}, {"plain_seconds", cost.plainSeconds},
+                       {"derivative_seconds", cost.derivativeSeconds}, {"derivative_over_plain", cost.ratio}};
+      j["ray_equivalents"] = double(r.stats.plainRays) + cost.ratio * double(r.stats.derivativeRays);
+      j["ray_equivalents_per_pixel"] = j["ray_equivalents"].get<double>() / double(r.stats.pixels);
+    }
+    if (args.count("reference")) j["rmse_vs_reference"] = rmseOf(r.rgb.data(), referenceImage.rgb.data(), r.rgb.size());
+    if (!statsPath.empty()) writeFileAtomic(statsPath, j.dump(2) + "\n");
+    const RenderStats& s = r.stats;
+    std::ostringstream o;
+    o << "render: " << scene.name << " " << ro.width << "x" << ro.height << ", " << samplingName(ro) << ": ";
+    if (ro.mode == SamplingMode::Adaptive)
+      o << std::fixed << std::setprecision(1) << 100.0 * s.refinedPixels / s.pixels << "% of pixels refined ("
+        << 100.0 * s.refinedTwice / s.pixels << "% twice), ";
+    o << s.derivativeRays << " derivative + " << s.plainRays << " plain rays, " << std::fixed << std::setprecision(2)
+      << s.seconds << " s -> " << output;
+    if (j.contains("rmse_vs_reference")) o << "; RMSE vs reference " << std::setprecision(5) << j["rmse_vs_reference"].get<double>();
+    if (!quiet) std::cout << o.str() << std::endl;
+    return 0;
+  });
+}
+
+}  // namespace nbtf::cli
