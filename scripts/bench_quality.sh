@@ -37,9 +37,14 @@ while [[ $# -gt 0 ]]; do
   esac
   shift
 done
-"$root/scripts/setup.sh"
-"$root/scripts/build.sh" "$root/build"
-nbtf=$root/build/bin/nbtf
+# NBTF_BIN_DIR: binaries to measure (default: build them into build/).
+bin=${NBTF_BIN_DIR:-}
+if [[ -z "$bin" ]]; then
+  "$root/scripts/setup.sh"
+  "$root/scripts/build.sh" "$root/build"
+  bin=$root/build/bin
+fi
+nbtf=$bin/nbtf
 mkdir -p "$out"
 echo "== $(nproc) cores, $(date -u +%Y-%m-%dT%H:%MZ), commit $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
 # Per-texel epochs with the steps of E clustered epochs at k = 500 (100 x 100 texels).
@@ -50,7 +55,7 @@ reports=()
 for preset in $presets; do
   data=$out/${preset}100
   if [[ ! -f "$data/synth.json" ]]; then
-    "$root/build/bin/nbtf-synth" --preset "$preset" --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
+    "$bin/nbtf-synth" --preset "$preset" --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
   fi
   runs=("per_texel|--clusters 0 --epochs $per_texel_epochs"
         "paper_k500|--clusters 500 --config $root/configs/paper-clustered.json --epochs $epochs"

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "codec/texel_modulation.h"
+#include "util/error.h"
 #include "util/parallel.h"
 #include "model_test_material.h"
 
@@ -96,6 +97,43 @@ TEST(ClusterValues, CoefficientsFromTheDataRemoveThePerTexelBrightness) {
       }
     EXPECT_NEAR(sq / n, 1.0, 1e-4);
   }
+}
+
+// The refit after training: when every texel is exactly a mix of its cluster's terms, the
+// least-squares fit gives back the mix.
+TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
+  const int width = 6, height = 5, texels = 30, clusters = 3, terms = 2;
+  const auto& h81 = hemisphere81();
+  std::vector<Direction> dirs(h81.begin(), h81.begin() + 4);
+  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  const int images = stack.numImages();
+  std::vector<std::int32_t> ids(texels);
+  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(0.1f, 1.0f), w(-0.5f, 1.5f);
+  std::vector<float> f(static_cast<std::size_t>(clusters) * images * 3 * terms), mix(texels * terms);
+  for (float& x : f) x = u(rng);
+  for (float& x : mix) x = w(rng);
+  std::vector<float> rgb(3 * texels);
+  for (int i = 0; i < images; ++i) {
+    for (int t = 0; t < texels; ++t)
+      for (int c = 0; c < 3; ++c) {
+        float v = 0;
+        for (int r = 0; r < terms; ++r) v += mix[t * terms + r] * f[(static_cast<std::size_t>(ids[t]) * images + i) * 6 + 3 * r + c];
+        rgb[3 * t + c] = v;
+      }
+    stack.setImageLinear(i, rgb.data());
+  }
+  // Every image, in order; alpha 2 (terms are in linear / alpha: scale them).
+  std::vector<int> all(images);
+  for (int i = 0; i < images; ++i) all[i] = i;
+  std::vector<float> scaled(f);
+  for (float& x : scaled) x /= 2.0f;
+  std::vector<float> fit = fitTexelCoefficients(stack, 2.0f, ids, clusters, all, scaled, terms, false);
+  ASSERT_EQ(fit.size(), mix.size());
+  // Half-float storage of the stack limits the precision of the values, not the method.
+  for (std::size_t j = 0; j < mix.size(); ++j) EXPECT_NEAR(fit[j], mix[j], 2e-3) << j;
+  EXPECT_THROW(fitTexelCoefficients(stack, 2.0f, ids, clusters, all, std::vector<float>(5), terms, false), Error);
 }
 
 TEST(ClusterValues, CoefficientsUseOnlyTheGivenImagesAndAnyThreadCount) {

@@ -159,7 +159,7 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
   for (float& w : last.weight) w = normal(rng);
   for (float& x : last.bias) x = normal(rng);
   std::vector<float> raw(54 * terms);
-  for (std::size_t i = 0; i < raw.size(); ++i) raw[i] = 0.4f + 0.05f * static_cast<float>((i * 7) % 23);
+  for (std::size_t i = 0; i < raw.size(); ++i) raw[i] = 0.4f - 0.05f * static_cast<float>((i * 7) % 23);
   b.modulation = quantizeTexelCoefficients(raw, terms, 8);
   NbtfDecoder dec(b);
   ASSERT_TRUE(dec.modulated());

@@ -46,13 +46,13 @@ TEST(TexelModulation, BadInputIsRefused) {
   EXPECT_EQ(dequantizeTexelCoefficient(m, 0, m.codes[1]), 2.5f);
 }
 
-TEST(TexelModulation, EffectiveCoefficientsAreOrthonormalPerCluster) {
+TEST(TexelModulation, OrthonormalizedCoefficientsAreOrthonormalPerCluster) {
   const int texels = 240, clusters = 7;
   std::vector<std::int32_t> ids(texels);
   for (int t = 0; t < texels; ++t) ids[t] = (t * 5 + t / 13) % clusters;
   for (int terms : {1, 2, 3}) {
-    TexelModulation m = quantizeTexelCoefficients(randomCoefficients(texels * terms, 9), terms, 8);
-    std::vector<float> e = effectiveTexelCoefficients(m, ids, clusters);
+    std::vector<float> a = randomCoefficients(texels * terms, 9);
+    std::vector<float> e = orthonormalizeTexelCoefficients(a, terms, ids, clusters);
     ASSERT_EQ(e.size(), static_cast<std::size_t>(texels) * terms);
     for (int g = 0; g < clusters; ++g)
       for (int r = 0; r < terms; ++r)
@@ -62,13 +62,22 @@ TEST(TexelModulation, EffectiveCoefficientsAreOrthonormalPerCluster) {
             if (ids[t] == g) dot += double(e[t * terms + r]) * e[t * terms + q], n += 1;
           EXPECT_NEAR(dot / n, r == q ? 1.0 : 0.0, 1e-5) << "cluster " << g << " terms " << r << "," << q;
         }
-    // One term: the ratios within a cluster are the dequantized ratios (a brightness factor).
+    // One term: the ratios within a cluster are kept (a brightness factor).
     if (terms == 1)
       for (int t = 1; t < texels; ++t)
-        if (ids[t] == ids[0]) {
-          double expected = dequantizeTexelCoefficient(m, 0, m.codes[t]) / dequantizeTexelCoefficient(m, 0, m.codes[0]);
-          EXPECT_NEAR(e[t] / e[0], expected, 1e-5);
-        }
+        if (ids[t] == ids[0]) EXPECT_NEAR(e[t] / e[0], a[t] / a[0], 1e-5);
+  }
+}
+
+TEST(TexelModulation, DecodingUsesTheDequantizedCodesAsTheyAre) {
+  std::vector<std::int32_t> ids = {0, 0, 1, 1, 1};
+  std::vector<float> a = {0.5f, -1.0f, 2.0f, 0.25f, 1.5f, 0.0f, 3.0f, 1.0f, 2.5f, -0.5f};
+  TexelModulation m = quantizeTexelCoefficients(a, 2, 12);
+  std::vector<float> e = effectiveTexelCoefficients(m, ids, 2);
+  ASSERT_EQ(e.size(), a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(e[i], dequantizeTexelCoefficient(m, static_cast<int>(i % 2), m.codes[i]));
+    EXPECT_NEAR(e[i], a[i], 1e-3);
   }
 }
 

@@ -134,4 +134,57 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   return out;
 }
 
+std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                        int clusters, const std::vector<int>& images, const std::vector<float>& terms,
+                                        int r, bool progress) {
+  const std::int64_t texels = stack.numTexels();
+  const std::size_t n = images.size(), o = 3 * static_cast<std::size_t>(r);
+  if (r < 1 || terms.size() != static_cast<std::size_t>(clusters) * n * o)
+    throw Error("fit texel coefficients: " + std::to_string(terms.size()) + " term values for " +
+                std::to_string(clusters) + " clusters x " + std::to_string(n) + " images x " + std::to_string(o));
+  if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("fit texel coefficients: one id per texel needed");
+  // Per cluster: the Gram matrix of its terms over images and channels, regularized a little so
+  // that a term that is (nearly) zero everywhere gets coefficient 0 instead of noise.
+  std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(clusters);
+  parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t g = begin; g < end; ++g) {
+      Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
+      const float* f = &terms[g * n * o];
+      for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c)
+          for (int a = 0; a < r; ++a)
+            for (int b = 0; b <= a; ++b) gram(a, b) += double(f[i * o + 3 * a + c]) * f[i * o + 3 * b + c];
+      for (int a = 0; a < r; ++a)
+        for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
+      const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
+      gram.diagonal().array() += ridge;
+      solvers[g].compute(gram);
+    }
+  });
+  const float invAlpha = 1.0f / alpha;
+  std::vector<float> out(static_cast<std::size_t>(texels) * r, 0.0f);
+  Progress bar("refit texel coefficients", static_cast<std::size_t>(texels), progress);
+  constexpr std::size_t kChunk = 256;
+  parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
+    Eigen::VectorXd rhs(r);
+    for (std::size_t t = begin; t < end; ++t) {
+      const std::int32_t g = ids[t];
+      if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
+      const float* f = &terms[static_cast<std::size_t>(g) * n * o];
+      rhs.setZero();
+      for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+          const double y = stack.sample(images[i], static_cast<int>(t), c) * invAlpha;
+          for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
+        }
+      Eigen::VectorXd e = solvers[g].solve(rhs);
+      for (int a = 0; a < r; ++a) out[t * r + a] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
+      if ((t + 1 - begin) % kChunk == 0) bar.advance(kChunk);
+    }
+    bar.advance((end - begin) % kChunk);
+  }, kChunk);
+  bar.finish();
+  return out;
+}
+
 }  // namespace nbtf

@@ -38,4 +38,13 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                      int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress);
 
+// Refit after training: every texel's coefficients that best mix its cluster's trained terms,
+// least squares over `images` (linear / alpha): per cluster the R x R Gram matrix of its terms,
+// per texel their dot products with its own values, one small solve. `terms` holds, for each
+// cluster and each of `images` in order, its 3 x terms values (term r, channel c at 3 r + c):
+// clusters x images.size() x 3 terms. Texels x terms; deterministic for any thread count.
+std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                        int clusters, const std::vector<int>& images, const std::vector<float>& terms,
+                                        int termCount, bool progress);
+
 }  // namespace nbtf

@@ -75,10 +75,7 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
     c["kmeans_inertia"] = clustering->inertia;
     c["representative"] = "median";
     c["floor_rmse"] = nullable(stats.rmseFloor);
-    if (stats.rmseFloorModulated >= 0) {
-      c["floor_rmse_modulated"] = stats.rmseFloorModulated;
-      c["floor_rmse_modulated_unquantized"] = stats.rmseFloorModulatedExact;
-    }
+    if (stats.rmseFloorModulated >= 0) c["floor_rmse_modulated"] = stats.rmseFloorModulated;
     meta["clustering"] = c;
   }
   return meta.dump();
@@ -220,22 +217,20 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   std::vector<int> trainImages;
   for (int i = 0; i < stack.numImages(); ++i)
     if (!holdout[i]) trainImages.push_back(i);
-  TexelModulation modulation;
   const ModulationConfig& mc = o.train.modulation;
+  const bool modulated = o.clusters > 0 && mc.mode != "none";
   stats.modulationMode = o.clusters > 0 ? mc.mode : "none";
-  if (o.clusters > 0 && mc.mode != "none") {
+  if (modulated) {
+    // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
+    // the stored ones are refit to the trained terms afterwards.
     std::vector<std::uint8_t> useImage(holdout.size());
     for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
     std::vector<float> coefficients =
         texelCoefficients(stack, alpha, inputs.ids, o.clusters, useImage, mc.terms, o.progress);
-    modulation = quantizeTexelCoefficients(coefficients, mc.terms, mc.bits);
-    inputs.texelCoefficients = effectiveTexelCoefficients(modulation, inputs.ids, o.clusters);
+    inputs.texelCoefficients = orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, inputs.ids, o.clusters);
     inputs.coefficientTerms = mc.terms;
     stats.modulationTerms = mc.terms;
     stats.modulationBits = mc.bits;
-    std::vector<float> exact = orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, inputs.ids, o.clusters);
-    stats.rmseFloorModulatedExact = clusterValues(stack, alpha, inputs.ids, o.clusters, exact.data(), mc.terms, false, false)
-                                        .floorRmse(trainImages, texels);
     stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
                           .floorRmse(trainImages, texels);
   }
@@ -247,7 +242,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
 
   // ---- Train
   TrainConfig config = o.train;
-  config.model.outputTerms = modulation.empty() ? 1 : modulation.terms;
+  config.model.outputTerms = modulated ? mc.terms : 1;
   config.progress = config.progress && o.progress;
   config.stopFlag = o.stopFlag;
   config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
@@ -266,7 +261,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.rmseTrain = train.rmseTrain;
   stats.rmseHoldout = train.rmseHoldout;
   if (o.clusters > 0) {
-    if (modulation.empty()) stats.rmseFloor = train.rmseFloor;
+    if (!modulated) stats.rmseFloor = train.rmseFloor;
     else stats.rmseFloorModulated = train.rmseFloor;
   }
 
@@ -282,12 +277,32 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
   stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
   b.encoderState = std::move(train.encoderState);
-  b.modulation = std::move(modulation);
   b.storage.decoderHalf = config.storage.decoder == "half";
   b.storage.latentsHalf = config.storage.latents == "half";
   b.storage.idsZstd = config.storage.ids == "zstd";
   roundToStorage(b);
-  if (b.storage.decoderHalf || b.storage.latentsHalf) {
+  if (modulated) {
+    // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
+    // terms over the training images, then quantized as stored.
+    b.modulation = quantizeTexelCoefficients(inputs.texelCoefficients, mc.terms, mc.bits);  // any valid codes
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    const std::size_t k = static_cast<std::size_t>(o.clusters), n = trainImages.size(), outs = 3 * mc.terms;
+    std::vector<float> terms(k * n * outs);
+    const int views = stack.numViews();
+    parallelFor(n, [&](std::size_t begin, std::size_t end) {
+      std::vector<float> rows(k * outs);
+      for (std::size_t i = begin; i < end; ++i) {
+        const int image = trainImages[i];
+        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], rows.data());
+        for (std::size_t g = 0; g < k; ++g)
+          std::copy(&rows[g * outs], &rows[g * outs] + outs, &terms[(g * n + i) * outs]);
+      }
+    });
+    std::vector<float> fitted =
+        fitTexelCoefficients(stack, alpha, b.ids, o.clusters, trainImages, terms, mc.terms, o.progress);
+    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
+  }
+  if (b.storage.decoderHalf || b.storage.latentsHalf || modulated) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
@@ -392,9 +407,10 @@ std::string formatCompressSummary(const CompressStats& s) {
   }
   if (s.rmseFloorModulated >= 0) {
     std::snprintf(line, sizeof line,
-                  "  %-16s %.6f  (with the per-texel coefficients as stored; %.6f unquantized: %s, %d term%s, %d-bit)\n",
-                  "modulated floor", s.rmseFloorModulated, s.rmseFloorModulatedExact, s.modulationMode.c_str(),
-                  s.modulationTerms, s.modulationTerms > 1 ? "s" : "", s.modulationBits);
+                  "  %-16s %.6f  (clusters x per-texel modulation, %s, %d term%s: the floor the terms were trained "
+                  "for; stored: %d-bit refit coefficients)\n",
+                  "modulated floor", s.rmseFloorModulated, s.modulationMode.c_str(), s.modulationTerms,
+                  s.modulationTerms > 1 ? "s" : "", s.modulationBits);
     out += line;
   }
   if (s.rmseTrain >= 0 && s.rmseFloor > 0) {
@@ -445,7 +461,6 @@ std::string compressStatsJson(const CompressStats& s) {
   j["rmse_space"] = "linear RGB / alpha (eq. 10)";
   j["rmse_floor"] = nullable(s.rmseFloor);
   j["rmse_floor_modulated"] = nullable(s.rmseFloorModulated);
-  j["rmse_floor_modulated_unquantized"] = nullable(s.rmseFloorModulatedExact);
   j["modulation"] = {{"mode", s.modulationMode}, {"terms", s.modulationTerms}, {"bits", s.modulationBits}};
   j["ratio"] = s.sizes.ratio;
   if (s.method == CodecMethod::Pca)

@@ -49,8 +49,8 @@ struct CompressStats {
   double rmseHoldout = -1;    // on the held-out images; -1 when there are none
   // Clustered: the floors on the training images (same space): the RMSE of the best model with
   // one value per cluster and image (the cluster means), and with the per-texel modulation too
-  // (coefficients as stored, and unquantized: their difference is what quantizing costs).
-  double rmseFloor = -1, rmseFloorModulated = -1, rmseFloorModulatedExact = -1;
+  // (the coefficients the terms were trained with).
+  double rmseFloor = -1, rmseFloorModulated = -1;
   std::string modulationMode = "none";  // modulation.mode of the config
   int modulationTerms = 0, modulationBits = 0;
   NbtfSizes sizes;            // fileBytes filled once written

@@ -402,6 +402,13 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
     for (std::size_t i = 0, n = 3 * static_cast<std::size_t>(latentRows()); i < n; ++i) rgb[i] *= material_.alpha;
 }
 
+void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, float* terms, bool parallel) const {
+  if (pca_) throw Error(name_ + ": decodeRowTerms: a PCA file has no decoder terms");
+  checkHemisphere(light, "light");
+  checkHemisphere(view, "view");
+  decodeRowTerms(decoderDirectionInput(light, view), terms, parallel);
+}
+
 void NbtfDecoder::decodeRowTerms(const std::array<float, 4>& dirs, float* out, bool parallel) const {
   const std::size_t count = static_cast<std::size_t>(latentRows());
   const std::size_t outputs = static_cast<std::size_t>(packed_->outputs);

@@ -149,13 +149,17 @@ class NbtfDecoder {
                    OutputScale scale = OutputScale::Linear, int outWidth = 0, int outHeight = 0,
                    bool parallel = false) const;
 
+  // The decoder's R RGB terms of every latent row at (light, view), before any per-texel
+  // mixing: 3 x modulationTerms() floats per row (R = 1 without modulation), normalized
+  // (linear / alpha). What the compressor refits per-texel coefficients to.
+  void decodeRowTerms(const Direction& light, const Direction& view, float* terms, bool parallel = false) const;
+
   // ---- Checks and mappings used by the above (exposed for front ends)
   void checkTexel(int x, int y) const;  // throws unless 0 <= x < width, 0 <= y < height
   int texelOfUv(float u, float v) const;  // wraps; throws on non-finite coordinates
 
  private:
   void build(const DecoderOptions& options);
-  // Modulated materials: the R terms of `count` latent rows at one (light, view), 3R each.
   void decodeRowTerms(const std::array<float, 4>& dirs, float* terms, bool parallel) const;
   // The inner evaluation: n samples (latent row, its texel, 4 stereographic coordinates each).
   void evaluateSamples(const std::int32_t* rows, const std::int32_t* texels, const float* dirs, std::size_t n,

@@ -85,6 +85,15 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
       grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
     field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
     field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
+    if (!btf.modulation.empty())
+      field("modulation", std::to_string(btf.modulation.terms) + " RGB term" + (btf.modulation.terms > 1 ? "s" : "") +
+                              " per cluster, mixed by per-texel coefficients (" + std::to_string(btf.modulation.bits) +
+                              "-bit codes, orthonormalized per cluster)");
+    field("storage", std::string("decoder ") + (btf.storage.decoderHalf ? "half" : "float32") + ", latents " +
+                         (btf.storage.latentsHalf ? "half" : "float32") +
+                         (btf.method == CodecMethod::ClusteredNeural
+                              ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
+                              : std::string()));
   }
   if (btf.holdoutImages.empty()) {
     field("hold-out", btf.isPca() ? "none (every image was used in the PCA fit)"

@@ -96,9 +96,10 @@ std::vector<float> effectiveTexelCoefficients(const TexelModulation& m, const st
   if (m.codes.size() != ids.size() * m.terms)
     throw Error("modulation holds " + std::to_string(m.codes.size()) + " codes for " + std::to_string(ids.size()) +
                 " texels x " + std::to_string(m.terms) + " terms");
+  (void)clusters;
   std::vector<float> a(m.codes.size());
   for (std::size_t i = 0; i < a.size(); ++i) a[i] = dequantizeTexelCoefficient(m, static_cast<int>(i % m.terms), m.codes[i]);
-  return orthonormalizeTexelCoefficients(std::move(a), m.terms, ids, clusters);
+  return a;
 }
 
 }  // namespace nbtf

@@ -1,13 +1,13 @@
 // Per-texel modulation (beyond the paper): the decoder outputs R RGB terms per cluster,
 // f_1..f_R(z_c, light, view), and each texel mixes them with coefficients of its own:
 //   value(t, image) = sum_r e_tr f_r(z_c, light, view).
-// With R = 1 that is a per-texel brightness factor; larger R is a per-cluster rank-R model
-// whose texel coefficients come from the data (cluster/cluster_values.h). The coefficients
-// are stored as `bits`-bit linear codes per term (TexelModulation in nbtf_file.h); decoding
-// dequantizes them and makes each cluster's coefficient columns orthogonal with mean square 1
-// (sum_{t in c} e_tr e_tr' = n_c delta_rr'). That normalization makes the trainer's
-// per-cluster targets exact (model/training_set.h); it is computed the same way here for
-// training and for every decoder, so they agree bit for bit.
+// With R = 1 that is a per-texel brightness factor; larger R is a per-cluster rank-R model.
+// Training uses coefficients from the data (an SVD per cluster, cluster/cluster_values.h)
+// made orthonormal per cluster (sum_{t in c} e_tr e_tr' = n_c delta_rr'), which makes the
+// trainer's per-cluster targets exact (model/training_set.h). After training the pipeline
+// refits every texel's coefficients to the trained terms by least squares and stores those
+// as `bits`-bit linear codes per term (TexelModulation in nbtf_file.h); decoding uses the
+// dequantized codes as they are.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -29,7 +29,7 @@ float dequantizeTexelCoefficient(const TexelModulation& modulation, int term, st
 std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> coefficients, int terms,
                                                    const std::vector<std::int32_t>& ids, int clusters);
 
-// What decoding multiplies the terms by: orthonormalize(dequantize(codes)), texels x terms.
+// What decoding multiplies the terms by: the dequantized codes, texels x terms.
 std::vector<float> effectiveTexelCoefficients(const TexelModulation& modulation, const std::vector<std::int32_t>& ids,
                                               int clusters);
 

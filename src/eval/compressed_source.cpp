@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "codec/texel_modulation.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -30,10 +31,12 @@ void checkDirections(const std::vector<Direction>& ref, const std::vector<Direct
 namespace {
 const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
   if (btf.isPca()) return btf;  // no network: the decoder checks the PCA parts
-  if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != 3)
+  const int outputs = 3 * (btf.modulation.empty() ? 1 : btf.modulation.terms);
+  if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != outputs)
     throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
                 std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
-                std::to_string(btf.latentDim) + ") + 4 direction inputs and 3 outputs (RGB)");
+                std::to_string(btf.latentDim) + ") + 4 direction inputs and " + std::to_string(outputs) +
+                " outputs (RGB x modulation terms)");
   return btf;
 }
 }  // namespace
@@ -103,8 +106,13 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
     in.methodParameter = btf.latentRows;
     in.clusterIds = btf.ids;
     in.clusters = btf.latentRows;
-    in.texelCoefficients = reconstruction.decoder().texelCoefficients();
-    in.coefficientTerms = btf.modulation.terms;
+    if (!btf.modulation.empty()) {
+      // The floor of any model mixing per-cluster terms with the file's coefficients: their
+      // span per cluster, made orthonormal as clusterValues needs.
+      in.texelCoefficients = orthonormalizeTexelCoefficients(reconstruction.decoder().texelCoefficients(),
+                                                             btf.modulation.terms, btf.ids, btf.latentRows);
+      in.coefficientTerms = btf.modulation.terms;
+    }
   }
   if (btf.isPca()) in.methodParameter = btf.latentDim;
   in.referenceName = referenceName;

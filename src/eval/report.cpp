@@ -280,7 +280,7 @@ Doc reportDoc(const json& j) {
     rows.push_back({"Cluster-mean floor, all images (the best any one-value-per-cluster model can do)",
                     rmseText(j["floor_rmse"]), kLinear});
   if (!j["floor_rmse_modulated"].is_null())
-    rows.push_back({"Floor with the file's per-texel factors (clusters x factors, best cluster values)",
+    rows.push_back({"Floor with the file's per-texel coefficients (best cluster terms mixed by them)",
                     rmseText(j["floor_rmse_modulated"]), kLinear});
   const json& w = j["worst_pair"];
   rows.push_back({"Worst pair: light " + dirText(w["light"]) + ", view " + dirText(w["view"]), rmseText(w["rmse"]),
