@@ -113,6 +113,8 @@ std::string trainConfigJson(const TrainConfig& c) {
   j["training"] = {{"batch_size", c.batchSize},
                    {"images_per_input", c.imagesPerInput},
                    {"epochs", c.epochs},
+                   {"min_steps", c.minSteps},
+                   {"max_steps", c.maxSteps},
                    {"time_budget_seconds", c.timeBudgetSeconds},
                    {"schedule", c.schedule},
                    {"warmup_fraction", c.warmupFraction},
