@@ -8,6 +8,7 @@
 
 #include "cluster/clustering.h"
 #include "codec/pca_compressor.h"
+#include "codec/source_fingerprint.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
@@ -100,6 +101,8 @@ std::string sourceMetadataJson(const BtfStack& stack) {
   source["sample_type"] = sampleTypeName(stack.sampleType());
   source["crop"] = stack.crop.empty() ? json(nullptr)
                                       : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
+  // What `nbtf eval` checks its reference against (codec/source_fingerprint.h).
+  source["fingerprint"] = json::parse(sourceFingerprintJson(sourceFingerprint(stack)));
   return source.dump();
 }
 
@@ -166,6 +169,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     clustering = clusterAbrdfs(x, co);
     x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
     stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+    stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
     inputs.encoderInputs = &clustering.representatives;
     inputs.ids = clustering.ids;
   } else {
@@ -232,9 +236,11 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     o.checkpointPath = checkpointPathFor(output, options);
     checkWritable(o.checkpointPath);
   }
-  if (!o.pcaBaseline && !o.load.crop.empty())
+  if (!o.pcaBaseline && !o.load.crop.empty()) {
+    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
     checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
                       "the crop");
+  }
 
   CompressStats stats;
   stats.output = output;
