@@ -1,5 +1,6 @@
-// Small helpers shared by the subcommands: option parsing with clear errors, the
-// --threads option, and running a body that may throw nbtf::Error.
+// Small helpers shared by the subcommands: option parsing with clear errors (naming the
+// option, rejecting extra arguments), the options every command has (--threads, -q),
+// output folders, and running a body that may throw nbtf::Error.
 #pragma once
 #include <unistd.h>
 
