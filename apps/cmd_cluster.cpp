@@ -48,14 +48,11 @@ int clusterStack(const cxxopts::ParseResult& args) {
   if (options.pca.oversampling < 0) throw Error("--oversampling must be >= 0");
   if (options.kmeans.maxIterations < 0) throw Error("--max-iterations must be >= 0");
 
-  std::error_code ec;
-  fs::create_directories(outDir, ec);
-  if (ec) throw fileError(outDir, "cannot create output folder: " + ec.message());
+  checkFolderCreatable(outDir);  // created (with its parents) once there is something to write
   const std::string labelsPath = (fs::path(outDir) / "labels.png").string();
   const std::string summaryPath = (fs::path(outDir) / "summary.json").string();
   const std::string texelColourPath = (fs::path(outDir) / "texel_colour.png").string();
   const std::string clusterColourPath = (fs::path(outDir) / "cluster_colour.png").string();
-  checkWritable(labelsPath);
 
   ClusterRunInfo info;
   info.input = input;
@@ -92,6 +89,9 @@ int clusterStack(const cxxopts::ParseResult& args) {
   ClusteringResult result = clusterAbrdfs(x, options);
   info.totalSeconds = secondsSince(start);
 
+  std::error_code ec;
+  fs::create_directories(outDir, ec);
+  if (ec) throw fileError(outDir, "cannot create output folder: " + ec.message());
   writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, width, height));
   // Both appearance images on one scale (the brightest texel's average), so they compare.
   const float brightest = texelColour.maxCoeff();
@@ -143,14 +143,12 @@ int clusterMain(int argc, char** argv) {
         "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
-        "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>())(
-        "q,quiet", "No progress bars");
+        "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
     applyCommonOptions(args);
-    if (args.count("quiet")) Progress::setQuiet(true);
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf cluster --help')");
     if (!args.count("clusters")) throw Error("missing --clusters K (see 'nbtf cluster --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf cluster --help')");

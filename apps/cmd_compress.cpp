@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <thread>
 
 #include "cli_common.h"
 #include "codec/compressor.h"
@@ -57,6 +58,7 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
   if (args.count("epochs")) {
     c.epochs = args["epochs"].as<int>();
     if (c.epochs < 1) throw Error("--epochs must be >= 1, got " + std::to_string(c.epochs));
+    c.minSteps = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
   }
   if (args.count("time-budget")) {
     c.timeBudgetSeconds = args["time-budget"].as<double>();
@@ -69,7 +71,10 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
     if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
     c.seed = static_cast<std::uint64_t>(seed);
   }
-  if (args.count("threads")) c.threads = args["threads"].as<int>();
+  if (args.count("threads")) {  // capped at the cores, as applyCommonOptions did (with its warning)
+    const int cores = static_cast<int>(std::thread::hardware_concurrency());
+    c.threads = cores > 0 ? std::min(args["threads"].as<int>(), cores) : args["threads"].as<int>();
+  }
   if (args.count("resume")) c.resume = true;
   if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
   validateTrainConfig(c, args.count("config") ? args["config"].as<std::string>() + " + command line" : "command line");
@@ -129,13 +134,12 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
         "components",
         "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
-        cxxopts::value<int>()->default_value("0"))("q,quiet", "No progress bars");
+        cxxopts::value<int>()->default_value("0"));
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
     applyCommonOptions(args);
-    if (args.count("quiet")) Progress::setQuiet(true);
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
     if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
     const std::string input = args["input"].as<std::string>();
@@ -153,6 +157,9 @@ int compressMain(int argc, char** argv) {
     if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
     std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
+    // Every command creates the missing folders above its outputs.
+    for (const std::string& out : {output, statsPath, o.saveEncoderPath})
+      if (!out.empty()) createParentFolders(out);
     if (!statsPath.empty()) checkWritable(statsPath);  // the rest is checked by compressBtf
     if (o.train.resume) {
       std::error_code ec;

@@ -30,15 +30,13 @@ int decodeMain(int argc, char** argv) {
         "size", "Output image size WxH; the texture tiles (wraps) to fill it (default: the material's)",
         cxxopts::value<std::string>())("jpeg-quality", "JPEG quality 1..100",
                                        cxxopts::value<int>()->default_value("95"))(
-        "isa", "Decoder kernels: auto, portable, avx2, avx512", cxxopts::value<std::string>()->default_value("auto"))(
-        "q,quiet", "No progress bar or summary");
+        "isa", "Decoder kernels: auto, portable, avx2, avx512", cxxopts::value<std::string>()->default_value("auto"));
     addCommonOptions(options);
     options.parse_positional({"file"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
     applyCommonOptions(args);
-    const bool quiet = args.count("quiet") > 0;
-    if (quiet) Progress::setQuiet(true);
+    const bool quiet = cli::quiet(args);
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf decode --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf decode --help')");
     for (auto [one, list] : {std::pair{"light", "lights"}, std::pair{"view", "views"}})
@@ -63,7 +61,7 @@ int decodeMain(int argc, char** argv) {
     o.progress = !quiet;
 
     DecodeStackResult result = writeDecodedStack(decoder, args["output"].as<std::string>(), o);
-    if (!quiet) std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);
+    std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);  // -q hides progress only, as everywhere
     return 0;
   });
 }

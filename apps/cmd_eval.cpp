@@ -5,8 +5,10 @@
 
 #include "cli_common.h"
 #include "codec/nbtf_file.h"
+#include "codec/source_fingerprint.h"
 #include "commands.h"
 #include "eval/compressed_source.h"
+#include "eval/evaluate.h"
 #include "eval/report.h"
 #include "eval/sweep.h"
 #include "io/btf_loader.h"
@@ -24,9 +26,45 @@ int runSummarize(const cxxopts::ParseResult& args) {
   SweepFiles files = writeSweepSummary(entries, args["output"].as<std::string>());
   std::printf("%s", sweepTablesMarkdown(entries).c_str());
   std::printf("table           %s\n", files.table.c_str());
-  for (std::size_t i = 0; i < files.scripts.size(); ++i)
-    std::printf("gnuplot script  %s -> %s\n", files.scripts[i].c_str(), files.plots[i].c_str());
+  for (std::size_t i = 0; i < files.plots.size(); ++i)
+    std::printf("plot            %s (gnuplot %s redraws it with a log axis)\n", files.plots[i].c_str(),
+                files.scripts[i].c_str());
   return 0;
+}
+
+std::string rgbText(const std::array<double, 3>& m) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.4g, %.4g, %.4g)", m[0], m[1], m[2]);
+  return buf;
+}
+
+// The reference must be the material the file was made from: its per-image means are
+// compared with the file's source fingerprint. Returns the line the report states.
+std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
+                             const std::string& referencePath, bool force) {
+  std::optional<SourceFingerprint> stored = sourceFingerprintOf(btf.metadataJson, file);
+  if (!stored) {
+    std::fprintf(stderr,
+                 "nbtf eval: warning: %s has no source fingerprint (made by an older nbtf): cannot check that '%s' "
+                 "is the material it was made from\n",
+                 file.c_str(), referencePath.c_str());
+    return "not checked: the file has no source fingerprint (made by an older nbtf)";
+  }
+  FingerprintCheck c = checkSourceFingerprint(*stored, reference);
+  char pct[32];
+  std::snprintf(pct, sizeof pct, "%.1f%%", 100 * c.medianDifference);
+  if (c.matches) return std::string("matches the file's source fingerprint (median difference ") + pct + ")";
+  const Direction& l = reference.lights()[c.worstImage / reference.numViews()];
+  const Direction& v = reference.views()[c.worstImage % reference.numViews()];
+  std::string what = "reference '" + referencePath + "' is not the material '" + file +
+                     "' was made from: per-image mean linear RGB differs by " + pct +
+                     " (median over " + std::to_string(stored->images.size()) + " images, tolerance 10%); image " +
+                     std::to_string(c.worstImage) + " (light " + formatDirection(l) + ", view " + formatDirection(v) +
+                     ") has " + rgbText(c.measured) + " in the reference, " + rgbText(c.stored) + " in the source";
+  if (!force) throw Error(what + " (--force evaluates anyway)");
+  std::fprintf(stderr, "nbtf eval: warning: %s; evaluating anyway (--force)\n", what.c_str());
+  return std::string("MISMATCH, evaluated anyway (--force): per-image mean linear RGB differs by ") + pct +
+         " (median) from the file's source";
 }
 
 int runEval(const cxxopts::ParseResult& args) {
@@ -44,12 +82,9 @@ int runEval(const cxxopts::ParseResult& args) {
   if (options.blurSampleImages < 0) throw Error("--blur-images must be >= 0");
   options.progress = !args.count("quiet");
 
-  // Fail on an unwritable output before decoding anything.
-  std::filesystem::path probeDir = std::filesystem::path(outDir).parent_path();
-  if (!probeDir.empty() && !std::filesystem::is_directory(probeDir))
-    throw fileError(outDir, "the folder it would be created in does not exist");
-  if (std::filesystem::exists(outDir) && !std::filesystem::is_directory(outDir))
-    throw fileError(outDir, "exists and is not a folder");
+  // Fail on an unwritable output before decoding anything; the folder (and its missing
+  // parents) is made when the report is written.
+  checkFolderCreatable(outDir);
 
   CompressedBtf btf = readNbtf(file);
   std::uint64_t fileBytes = std::filesystem::file_size(file);
@@ -61,9 +96,11 @@ int runEval(const cxxopts::ParseResult& args) {
   load.layout = args.count("layout") ? parseLayout(args["layout"].as<std::string>()) : btf.layout;
   BtfStack reference = loadBtfStack(referencePath, load);
   checkReferenceMatches(btf, reference, file, referencePath);
+  const std::string referenceCheck = checkFingerprint(btf, reference, file, referencePath, args.count("force") > 0);
 
   CompressedReconstruction reconstruction(btf, file);
   EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
+  inputs.details.push_back({"reference check", referenceCheck});
   EvalResult result = evaluate(inputs, options);
   ReportPaths paths = writeReport(result, outDir);
 
@@ -102,14 +139,14 @@ int evalMain(int argc, char** argv) {
         "crop", "Crop X,Y,W,H of the reference (default: the file's crop)", cxxopts::value<std::string>())(
         "layout", "Reference layout: ubo2003 or utia (default: the file's)", cxxopts::value<std::string>())(
         "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
-        cxxopts::value<int>()->default_value("8"))("q,quiet", "No progress bars")(
+        cxxopts::value<int>()->default_value("8"))(
+        "force", "Evaluate even when the reference does not match the file's source fingerprint (the report says so)")(
         "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plot scripts)");
     addCommonOptions(options);
     options.parse_positional({"files"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
     applyCommonOptions(args);
-    if (args.count("quiet")) Progress::setQuiet(true);
     return runEval(args);
   });
 }

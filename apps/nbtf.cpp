@@ -17,22 +17,42 @@ const Command kCommands[] = {
 };
 
 void printUsage() {
-  std::cout << "usage: nbtf <command> [options]\n\ncommands:\n";
+  std::cout << "usage: nbtf <command> [options]\n       nbtf help <command>\n       nbtf --version\n\ncommands:\n";
   for (const auto& c : kCommands) std::printf("  %-10s %s\n", c.name, c.summary);
-  std::cout << "\n'nbtf <command> --help' shows a command's options.\n";
+  std::cout << "\n'nbtf <command> --help' (or 'nbtf help <command>') shows a command's options.\n";
+}
+
+const Command* findCommand(const char* name) {
+  for (const auto& c : kCommands)
+    if (!std::strcmp(name, c.name)) return &c;
+  return nullptr;
+}
+
+int unknownCommand(const char* name) {
+  std::cerr << "nbtf: unknown command '" << name << "'\n\n";
+  printUsage();
+  return 2;
 }
 }  // namespace
 }  // namespace nbtf::cli
 
 int main(int argc, char** argv) {
   using namespace nbtf::cli;
+  if (argc >= 2 && (!std::strcmp(argv[1], "--version") || !std::strcmp(argv[1], "version"))) {
+    std::printf("nbtf %s\n", NBTF_VERSION);
+    return 0;
+  }
+  if (argc >= 3 && !std::strcmp(argv[1], "help")) {  // nbtf help <command> = nbtf <command> --help
+    const Command* c = findCommand(argv[2]);
+    if (!c) return unknownCommand(argv[2]);
+    char help[] = "--help";
+    char* args[] = {argv[2], help, nullptr};
+    return c->run(2, args);
+  }
   if (argc < 2 || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "help")) {
     printUsage();
     return argc < 2 ? 2 : 0;
   }
-  for (const auto& c : kCommands)
-    if (!std::strcmp(argv[1], c.name)) return c.run(argc - 1, argv + 1);
-  std::cerr << "nbtf: unknown command '" << argv[1] << "'\n\n";
-  printUsage();
-  return 2;
+  if (const Command* c = findCommand(argv[1])) return c->run(argc - 1, argv + 1);
+  return unknownCommand(argv[1]);
 }

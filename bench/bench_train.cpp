@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
     }
     TrainConfig config;
     if (args.count("config")) config = loadTrainConfig(args["config"].as<std::string>());
-    if (args.count("epochs")) config.epochs = args["epochs"].as<int>();
+    if (args.count("epochs")) config.epochs = args["epochs"].as<int>(), config.minSteps = config.maxSteps = 0;
     config.threads = threads;
     config.progress = progress;
     const double traceEvery = args["trace"].as<double>();
@@ -224,6 +224,7 @@ int main(int argc, char** argv) {
       if (factor > 0) {
         TrainConfig longer = config;
         longer.epochs = config.epochs * factor;
+        longer.minSteps = config.minSteps * factor, longer.maxSteps = config.maxSteps * factor;
         if (config.timeBudgetSeconds > 0) longer.timeBudgetSeconds = config.timeBudgetSeconds * factor;
         TrainResult rl = trainModel(in, longer);
         printResult("long", rl);

@@ -66,7 +66,7 @@ class CmdCompress : public ::testing::Test {
     TrainConfig c = testing::quickConfig();
     std::string text = R"({"optimizer": {"name": "adam", "learning_rate": )" + std::to_string(c.learningRate) +
                        R"(}, "training": {"batch_size": )" + std::to_string(c.batchSize) +
-                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) + R"(, "epochs": )" +
+                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) + R"(, "min_steps": 0, "epochs": )" +
                        std::to_string(epochs) + R"(, "checkpoint_seconds": )" + std::to_string(checkpointSeconds) +
                        "}}";
     writeFileAtomic(path("quick.json"), text);
@@ -86,9 +86,11 @@ TEST_F(CmdCompress, MissingInputIsNamed) {
 
 TEST_F(CmdCompress, UnwritableOutputFailsBeforeAnyWork) {
   std::string stack = writeStack();
-  RunResult r = run("compress " + stack + " -o " + path("missing_dir/out.nbtf") + " -q");
+  // Missing folders are created (one rule for every command), but not through a file.
+  writeFileAtomic(path("a_file"), std::string("not a folder"));
+  RunResult r = run("compress " + stack + " -o " + path("a_file/out.nbtf") + " -q");
   EXPECT_EQ(r.exitCode, 1) << r.output;
-  EXPECT_TRUE(contains(r.output, "out.nbtf: output folder")) << r.output;
+  EXPECT_TRUE(contains(r.output, "out.nbtf: cannot create the folder")) << r.output;
   EXPECT_FALSE(contains(r.output, "summary")) << r.output;
   if (::geteuid() != 0) {  // root writes anywhere: only a real user can see the permission error
     fs::create_directories(path("readonly"));
@@ -149,6 +151,105 @@ TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
   EXPECT_TRUE(contains(r.output, "--resume: no checkpoint at " + again + ".ckpt, starting from the beginning"))
       << r.output;
   EXPECT_EQ(readFileBytes(again), readFileBytes(out));
+}
+
+// Issue 15's command-line rough edges, each as a new user met it.
+TEST_F(CmdCompress, CommandLineRoughEdges) {
+  std::string stack = writeStack();  // 8 x 8 texels, 9 x 9 directions
+  // Extra positional arguments were silently ignored.
+  RunResult r = run("compress " + stack + " " + stack + " -o " + path("x.nbtf") + " -q");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "unexpected argument '" + stack + "'")) << r.output;
+  EXPECT_FALSE(fs::exists(path("x.nbtf")));
+  r = run("info " + stack + " extra");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "unexpected argument 'extra'")) << r.output;
+  // A value that does not parse names its option.
+  r = run("compress " + stack + " -o " + path("x.nbtf") + " --clusters abc");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--clusters: invalid value")) << r.output;
+  EXPECT_TRUE(contains(r.output, "abc")) << r.output;
+  r = run("decode x.nbtf -o out --jpeg-quality=high");
+  EXPECT_TRUE(contains(r.output, "--jpeg-quality: invalid value")) << r.output;
+  // More threads than cores: a warning, and the cores are used.
+  r = run("info " + stack + " --threads 100000");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "warning: --threads 100000 is more than the")) << r.output;
+  // A crop outside the images is a crop error, even when k is also too large for it.
+  r = run("compress " + stack + " -o " + path("x.nbtf") + " --crop 20,20,30,30 --clusters 2000 -q");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "crop 20,20,30,30 lies outside the 8 x 8 images")) << r.output;
+  // -q is common to every command (query, decode and info rejected or ignored it before).
+  for (const char* cmd : {"query", "decode", "info", "eval", "cluster", "compress"}) {
+    RunResult h = run(std::string(cmd) + " --help");
+    EXPECT_TRUE(contains(h.output, "-q, --quiet")) << cmd << "\n" << h.output;
+  }
+  // --version and help <command>.
+  r = run("--version");
+  EXPECT_EQ(r.exitCode, 0);
+  EXPECT_TRUE(contains(r.output, "nbtf 0.")) << r.output;
+  r = run("help decode");
+  EXPECT_EQ(r.exitCode, 0);
+  EXPECT_TRUE(contains(r.output, "nbtf decode")) << r.output;
+  EXPECT_TRUE(contains(r.output, "--lights")) << r.output;
+  EXPECT_EQ(run("help nosuch").exitCode, 2);
+}
+
+TEST_F(CmdCompress, InfoJsonAndDirections) {
+  std::string stack = writeStack();
+  RunResult r = run("info " + stack + " --json -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  nlohmann::json j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["kind"], "stack");
+  EXPECT_EQ(j["images"].get<int>(), 81);
+  EXPECT_EQ(j["texels"].get<int>(), 64);
+  r = run("info " + stack + " --directions");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "lights (9;")) << r.output;
+  EXPECT_TRUE(contains(r.output, "decode --lights 0-5")) << r.output;
+  r = run("info " + stack + " --directions --json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  nlohmann::json d = nlohmann::json::parse(r.output);
+  ASSERT_EQ(d["lights"].size(), 9u);
+  EXPECT_EQ(d["lights"][3]["index"].get<int>(), 3);
+
+  std::string out = path("m.nbtf");
+  r = run("compress " + stack + " -o " + out + " --clusters 4 --threads 1 --config " + writeQuickConfig(8));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  // Progress in units a user reads: steps (8 epochs of one step each), k-means finished at 100%.
+  EXPECT_TRUE(contains(r.output, "train (steps)")) << r.output;
+  EXPECT_TRUE(contains(r.output, "100% 8/8")) << r.output;
+  EXPECT_FALSE(contains(r.output, "/1000")) << r.output;
+  EXPECT_TRUE(contains(r.output, "converged after")) << r.output;
+  EXPECT_FALSE(contains(r.output, "1% ")) << r.output;
+  r = run("info " + out + " --json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["kind"], "nbtf");
+  EXPECT_EQ(j["clusters"].get<int>(), 4);
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), fs::file_size(out));
+  EXPECT_TRUE(j["metadata"]["source"].contains("fingerprint"));
+  r = run("info " + out + " --directions");
+  EXPECT_TRUE(contains(r.output, "views (9;")) << r.output;
+}
+
+// Outputs: through a symbolic link the target is replaced and the link stays; a device or
+// pipe is written in place; missing parent folders are created.
+TEST_F(CmdCompress, OutputsThroughLinksDevicesAndNewFolders) {
+  std::string stack = writeStack();
+  fs::create_directories(path("real"));
+  fs::create_symlink(path("real/m.nbtf"), path("link.nbtf"));
+  RunResult r = run("compress " + stack + " -o " + path("link.nbtf") + " --clusters 4 --threads 1 -q --config " +
+                    writeQuickConfig(3) + " --stats-json /dev/stdout");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(fs::is_symlink(path("link.nbtf")));
+  EXPECT_TRUE(fs::is_regular_file(path("real/m.nbtf")));
+  EXPECT_TRUE(contains(r.output, "\"rmse_train\"")) << r.output;  // the stats went to stdout
+  r = run("compress " + stack + " -o " + path("new/sub/m.nbtf") + " --clusters 4 --threads 1 -q --config " +
+          path("quick.json") + " --stats-json /dev/null");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(fs::is_regular_file(path("new/sub/m.nbtf")));
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
 }
 
 TEST_F(CmdCompress, PcaMethodOptionsAreChecked) {

@@ -74,12 +74,43 @@ TEST_F(NbtfCommand, DecodeWritesAStackThatInfoLoads) {
   EXPECT_NE(info.out.find("texels         35"), std::string::npos) << info.out;
 }
 
+// One naming per layout: an unmeasured angle in a UBO2003 output gets a UBO2003 name (it
+// used to get a UTIA one, mixing both), numbered by its place in the output; the result loads.
+TEST_F(NbtfCommand, UnmeasuredAnglesInUbo2003OutputGetUbo2003Names) {
+  CommandRun r = runNbtf("decode '" + file + "' -o '" + (dir / "ubo") + "' --lights 0,t37.5p200 --views all -q", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::size_t images = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir / "ubo"))
+    if (e.is_regular_file()) {
+      ++images;
+      EXPECT_TRUE(std::isdigit(static_cast<unsigned char>(e.path().filename().string()[0]))) << e.path();
+    }
+  EXPECT_EQ(images, 4u);
+  EXPECT_TRUE(fs::exists(dir / "ubo/tv030_pv030/00003 tl037.500 pl200 tv030 pv030.png")) << r.out;
+  CommandRun info = runNbtf("info '" + (dir / "ubo") + "' -q", dir);
+  EXPECT_EQ(info.status, 0) << info.err;
+}
+
+// Decoding into a folder that holds the other layout's images would mix two namings.
+TEST_F(NbtfCommand, DecodeRefusesAFolderWithTheOtherLayout) {
+  CommandRun r = runNbtf("decode '" + file + "' -o '" + (dir / "out") + "' --layout utia -q", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "out") + "' -q", dir);  // the source's layout: UBO2003
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("holds images in the utia layout"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out/tv030_pv030/00005 tl015 pl060 tv030 pv030.png"));
+  // The same layout again replaces ours.
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "out") + "' --layout utia -q", dir);
+  EXPECT_EQ(r.status, 0) << r.err;
+}
+
 TEST_F(NbtfCommand, DecodeOneUnmeasuredPairAtAnotherSize) {
   CommandRun r = runNbtf("decode '" + file + "' -o '" + (dir / "one") +
                       "' --light 37.5,200 --view 10,45 --size 20x9 --format exr --layout utia -q",
                   dir);
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_TRUE(r.out.empty()) << r.out;  // -q
+  // -q hides progress bars only: the summary is printed, as by every command.
+  EXPECT_NE(r.out.find("decoded 1 image"), std::string::npos) << r.out;
   std::string path = dir / "one/tv010_pv045/tl037.500_pl200_tv010_pv045.exr";
   ASSERT_TRUE(fs::exists(path));
   ImageF img = readExr(path);  // XYZ-tagged: read back as linear sRGB

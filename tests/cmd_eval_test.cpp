@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "codec/source_fingerprint.h"
 #include "codec_fixtures.h"
 #include "eval/compressed_source.h"
 #include "io/btf_loader.h"
@@ -145,6 +146,75 @@ TEST_F(CmdEval, RejectsAReferenceOfAnotherSize) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.output.find("texel size is 5 x 3 in the reference but 4 x 3 in the file"), std::string::npos)
       << r.output;
+}
+
+// Another material with the same size and directions used to pass silently: the file's
+// source fingerprint (per-image mean linear RGB) now stops it, unless --force, which the
+// report states. 8-bit and float loadings of one material match; so does the file's crop.
+TEST_F(CmdEval, AnotherMaterialIsRejectedByTheSourceFingerprint) {
+  LoadOptions load;
+  load.crop = btf.crop;
+  load.progress = false;
+  CompressedBtf withFp = btf;
+  withFp.metadataJson = R"({"source": {"fingerprint": )" +
+                        sourceFingerprintJson(sourceFingerprint(loadBtfStack(tmp / "ref", load))) + "}}";
+  const std::string fpFile = tmp / "fp.nbtf";
+  writeNbtf(fpFile, withFp);
+  auto reportOf = [&](const std::string& dir) {
+    return nlohmann::json::parse(std::ifstream((std::filesystem::path(tmp / dir) / "report.json").string()));
+  };
+
+  CommandRun same = runNbtf("eval '" + fpFile + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "a") + "' -q",
+                            tmp / "log");
+  ASSERT_EQ(same.code, 0) << same.output;
+  EXPECT_EQ(same.output.find("warning"), std::string::npos) << same.output;
+  EXPECT_NE(reportOf("a")["details"]["reference check"].get<std::string>().find("matches"), std::string::npos)
+      << same.output;
+
+  // The same material as 8-bit PNGs: quantized, still the same material.
+  test::writeTestStack(tmp / "ref8", btf.lights, btf.views, btf.sourceWidth, btf.sourceHeight, Layout::Utia,
+                       ImageFormat::Png);
+  CommandRun eight = runNbtf("eval '" + fpFile + "' --reference '" + (tmp / "ref8") + "' -o '" + (tmp / "b") + "' -q",
+                             tmp / "log");
+  EXPECT_EQ(eight.code, 0) << eight.output;
+
+  // Another material: same size and directions, other values.
+  std::vector<float> rgb(static_cast<std::size_t>(btf.sourceWidth) * btf.sourceHeight * 3);
+  for (std::size_t l = 0; l < btf.lights.size(); ++l)
+    for (std::size_t v = 0; v < btf.views.size(); ++v) {
+      for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = 0.3f * (1.0f - test::patternValue(int(l), int(v), int(i / 3) % btf.sourceWidth, int(i / 3) / btf.sourceWidth, int(i % 3)));
+      auto folder = std::filesystem::path(tmp / "wool") / viewFolderName(btf.views[v]);
+      std::filesystem::create_directories(folder);
+      writeExr((folder / utiaFileName(btf.lights[l], btf.views[v], ".exr")).string(), btf.sourceWidth,
+               btf.sourceHeight, rgb.data(), true, ExrColorSpace::CieXyz);
+    }
+  CommandRun other = runNbtf("eval '" + fpFile + "' --reference '" + (tmp / "wool") + "' -o '" + (tmp / "c") + "' -q",
+                             tmp / "log");
+  EXPECT_EQ(other.code, 1) << other.output;
+  EXPECT_NE(other.output.find("is not the material"), std::string::npos) << other.output;
+  EXPECT_NE(other.output.find("--force"), std::string::npos) << other.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "c/report.json"));
+
+  CommandRun forced = runNbtf("eval '" + fpFile + "' --reference '" + (tmp / "wool") + "' -o '" + (tmp / "d") +
+                                  "' -q --force",
+                              tmp / "log");
+  ASSERT_EQ(forced.code, 0) << forced.output;
+  EXPECT_NE(forced.output.find("evaluating anyway (--force)"), std::string::npos) << forced.output;
+  EXPECT_NE(reportOf("d")["details"]["reference check"].get<std::string>().find("MISMATCH"), std::string::npos);
+
+  // An older file without a fingerprint: a warning, and the evaluation goes on.
+  CommandRun old = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "e") + "' -q",
+                           tmp / "log");
+  EXPECT_EQ(old.code, 0) << old.output;
+  EXPECT_NE(old.output.find("has no source fingerprint"), std::string::npos) << old.output;
+}
+
+// Missing parent folders of -o are created, as decode and compress do.
+TEST_F(CmdEval, CreatesMissingParentFoldersOfTheReport) {
+  CommandRun r = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "a/b/c") + "' -q",
+                         tmp / "log");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(tmp / "a/b/c/report.json"));
 }
 
 TEST_F(CmdEval, MissingOptionsAreNamed) {

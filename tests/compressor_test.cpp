@@ -105,6 +105,13 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
   EXPECT_EQ(meta["training"]["rmse_train"].get<double>(), stats.rmseTrain);
   EXPECT_EQ(meta["clustering"]["k"].get<int>(), 6);
   EXPECT_EQ(meta["config"]["optimizer"]["name"], "adam");
+  // What eval checks a reference against: the source's per-image means.
+  ASSERT_TRUE(meta["source"].contains("fingerprint"));
+  EXPECT_EQ(meta["source"]["fingerprint"]["images"].size(), 32u);
+  // The stats say the PCA components used (the default, capped by the data), as `info` does.
+  EXPECT_EQ(stats.pcaComponents, 32);
+  EXPECT_EQ(meta["clustering"]["pca_components"].get<int>(), stats.pcaComponents);
+  EXPECT_EQ(nlohmann::json::parse(compressStatsJson(stats))["pca_components"].get<int>(), 32);
 }
 
 // Per-texel modulation with compact storage: the file decodes (through its own decoder, every

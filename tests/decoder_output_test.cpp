@@ -164,7 +164,9 @@ TEST_F(DecoderOutput, ExrHoldsModelOutputTimesAlphaAtHalfPrecision) {
     }
 }
 
-TEST_F(DecoderOutput, SubsetsAndUnmeasuredAnglesAreNamedByTheirAngles) {
+// One naming per layout: with an unmeasured angle in a UBO2003 output every image is
+// numbered by its place in the output (it used to get a UTIA name among UBO2003 ones).
+TEST_F(DecoderOutput, SubsetsAndUnmeasuredAnglesGetTheLayoutsNames) {
   CompressedBtf b = makeDisplayableMaterial(4);
   NbtfDecoder dec(b);
   test::TempDir dir;
@@ -175,8 +177,8 @@ TEST_F(DecoderOutput, SubsetsAndUnmeasuredAnglesAreNamedByTheirAngles) {
   o.views = parseDirectionList("0", dec.views(), "--views");
   DecodeStackResult r = writeDecodedStack(dec, dir.path(), o);
   EXPECT_EQ(r.images, 2);
-  EXPECT_TRUE(fs::exists(dir / "tv000_pv000/00002 tl015 pl000 tv000 pv000.png"));
-  const std::string unmeasured = dir / "tv000_pv000/tl037.500_pl200_tv000_pv000.png";
+  EXPECT_TRUE(fs::exists(dir / "tv000_pv000/00000 tl015 pl000 tv000 pv000.png"));
+  const std::string unmeasured = dir / "tv000_pv000/00001 tl037.500 pl200 tv000 pv000.png";
   ASSERT_TRUE(fs::exists(unmeasured));
   std::size_t files = 0;
   for (auto& e : fs::recursive_directory_iterator(dir.path())) files += e.is_regular_file();

@@ -87,6 +87,13 @@ TEST(Sweep, WritesDataSortedByRatioAndAScriptGnuplotRuns) {
   EXPECT_NE(gp.find("'rd_WOOL_per-texel-neural.dat'"), std::string::npos);
   EXPECT_NE(gp.find("set output 'rd_WOOL.png'"), std::string::npos);
   EXPECT_NE(slurp(f.table).find("## Sweep"), std::string::npos);
+  // The plot exists without gnuplot (drawn by nbtf); the script redraws it.
+  ASSERT_EQ(f.plots.size(), 2u);
+  for (const auto& plot : f.plots) {
+    auto drawn = readFileBytes(plot);
+    ASSERT_GT(drawn.size(), 1000u) << plot;
+    EXPECT_EQ(drawn[1], 'P') << plot;
+  }
   if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot not installed";
   std::string cmd = "cd '" + (tmp / "sweep") + "' && gnuplot rd_WOOL.gp 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0);

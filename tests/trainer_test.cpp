@@ -236,6 +236,68 @@ TEST(Trainer, ResumeAfterInterruptionEqualsUninterruptedRun) {
   std::filesystem::remove(ckpt);
 }
 
+// A time budget means the same over resumes as in one run: the resumed run spends what the
+// interrupted one left (it used to stop at once and return the under-trained model).
+TEST(Trainer, ResumedTimeBudgetSpendsTheRemainingBudget) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 0;
+  c.timeBudgetSeconds = 3;
+  c.checkpointPath = tempPath("budget.ckpt");
+  std::filesystem::remove(c.checkpointPath);
+  c.stopAtStep = 5;
+  TrainResult part = trainModel(m.clustered(), c);
+  ASSERT_TRUE(part.interrupted);
+  ASSERT_EQ(part.steps, 5);
+  ASSERT_LT(part.seconds, 1.5) << "this machine is too slow for the test's budget";
+
+  c.resume = true;
+  c.stopAtStep = 0;
+  TrainResult resumed = trainModel(m.clustered(), c);
+  EXPECT_FALSE(resumed.interrupted);
+  EXPECT_EQ(resumed.resumedFromStep, 5);
+  EXPECT_GT(resumed.steps, 5 + 20) << "the resumed run did no training";
+  // Together the two runs spent about the budget, not twice it.
+  EXPECT_GT(part.seconds + resumed.seconds, 0.6 * c.timeBudgetSeconds);
+  EXPECT_LT(part.seconds + resumed.seconds, 1.6 * c.timeBudgetSeconds);
+  std::filesystem::remove(c.checkpointPath);
+}
+
+// The default amount of training does not collapse when an epoch is small (few encoder
+// inputs, few images): epochs x steps per epoch is bounded below by min_steps, above by
+// max_steps; --epochs (bounds 0) means exactly that many epochs.
+TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
+  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 16000 steps, 16384 samples per step
+  TrainPlan small = planTraining(c, 16, 81);  // k = 16, one view: an epoch is one step
+  EXPECT_EQ(small.stepsPerEpoch, 1);
+  EXPECT_EQ(small.totalSteps, c.minSteps);
+  TrainPlan paper = planTraining(c, 500, 6561);  // k = 500, full stack: 20 epochs, unchanged
+  EXPECT_EQ(paper.stepsPerEpoch, 201);
+  EXPECT_EQ(paper.totalSteps, 20 * 201);
+  EXPECT_EQ(planTraining(c, 65536, 6561).totalSteps, c.maxSteps);  // per-texel 256 x 256
+  TrainConfig exact = c;
+  exact.minSteps = exact.maxSteps = 0;
+  EXPECT_EQ(planTraining(exact, 16, 81).totalSteps, 20);
+  TrainConfig budget = c;
+  budget.epochs = 0, budget.timeBudgetSeconds = 10;
+  EXPECT_EQ(planTraining(budget, 16, 81).totalSteps, 0);
+  TrainConfig bad = c;
+  bad.minSteps = 5, bad.maxSteps = 4;
+  EXPECT_NE(errorOf([&] { validateTrainConfig(bad, "x.json"); }).find("'training.min_steps'"), std::string::npos);
+}
+
+TEST(Trainer, MinStepsAppliesToSmallEpochs) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();  // 4 clusters x 81 images = one 1024-sample step per epoch
+  c.epochs = 2;
+  c.minSteps = 12;
+  TrainResult r = trainModel(m.clustered(), c);
+  EXPECT_EQ(r.steps, 12);
+  EXPECT_EQ(r.epochsRun, 12);
+  c.epochs = 30, c.maxSteps = 20;
+  EXPECT_EQ(trainModel(m.clustered(), c).steps, 20);
+}
+
 TEST(Trainer, StopFlagWritesACheckpoint) {
   const TestMaterial& m = material();
   TrainConfig c = quickConfig();
@@ -317,7 +379,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
     "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3},
     "optimizer": {"name": "sgd", "learning_rate": 0.05, "momentum": 0.9},
     "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
-                 "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
+                 "min_steps": 100, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
                  "resume": true, "progress": false}
   })");
@@ -331,6 +393,8 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.batchSize, 512);
   EXPECT_EQ(c.imagesPerInput, 16);
   EXPECT_EQ(c.epochs, 7);
+  EXPECT_EQ(c.minSteps, 100);
+  EXPECT_EQ(c.maxSteps, 900);
   EXPECT_DOUBLE_EQ(c.timeBudgetSeconds, 60);
   EXPECT_EQ(c.schedule, "step");
   EXPECT_DOUBLE_EQ(c.polishFraction, 0.2);

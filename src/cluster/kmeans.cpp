@@ -238,6 +238,7 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
   }
   bar.setStatus(result.converged ? "converged after " + std::to_string(result.iterations) + " iterations"
                                  : "iteration limit reached");
+  if (result.converged) bar.setTotal(static_cast<std::size_t>(result.iterations));
   bar.finish();
 
   result.ids = lloyd.assign;

@@ -12,6 +12,7 @@
 #include "cluster/clustering.h"
 #include "codec/decoder.h"
 #include "codec/pca_compressor.h"
+#include "codec/source_fingerprint.h"
 #include "codec/texel_modulation.h"
 #include "model/training_set.h"
 #include "preprocess/abrdf_matrix.h"
@@ -138,6 +139,8 @@ std::string sourceMetadataJson(const BtfStack& stack) {
   source["sample_type"] = sampleTypeName(stack.sampleType());
   source["crop"] = stack.crop.empty() ? json(nullptr)
                                       : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
+  // What `nbtf eval` checks its reference against (codec/source_fingerprint.h).
+  source["fingerprint"] = json::parse(sourceFingerprintJson(sourceFingerprint(stack)));
   return source.dump();
 }
 
@@ -151,6 +154,8 @@ std::string trainConfigJson(const TrainConfig& c) {
   j["training"] = {{"batch_size", c.batchSize},
                    {"images_per_input", c.imagesPerInput},
                    {"epochs", c.epochs},
+                   {"min_steps", c.minSteps},
+                   {"max_steps", c.maxSteps},
                    {"time_budget_seconds", c.timeBudgetSeconds},
                    {"schedule", c.schedule},
                    {"warmup_fraction", c.warmupFraction},
@@ -204,6 +209,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     clustering = clusterAbrdfs(x, co);
     x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
     stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+    stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
     inputs.encoderInputs = &clustering.representatives;
     inputs.ids = clustering.ids;
   } else {
@@ -333,9 +339,11 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     o.checkpointPath = checkpointPathFor(output, options);
     checkWritable(o.checkpointPath);
   }
-  if (!o.pcaBaseline && !o.load.crop.empty())
+  if (!o.pcaBaseline && !o.load.crop.empty()) {
+    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
     checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
                       "the crop");
+  }
 
   CompressStats stats;
   stats.output = output;

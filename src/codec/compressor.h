@@ -41,7 +41,7 @@ struct CompressStats {
   std::string output;
   CodecMethod method = CodecMethod::ClusteredNeural;
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
-  int pcaComponents = 0;      // PCA baseline: components C; 0 otherwise
+  int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
   int texels = 0, images = 0, holdoutImages = 0;
   float alpha = 1;
   // RMSE of eq. (10) over texels x images x channels, on linear RGB divided by alpha.

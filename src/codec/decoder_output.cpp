@@ -188,11 +188,15 @@ ImageFormat resolvedFormat(const NbtfDecoder& decoder, const DecodeStackOptions&
 }
 
 std::string decodedImagePath(Layout layout, ImageFormat format, const DirectionChoice& light,
-                             const DirectionChoice& view, int numViews) {
+                             const DirectionChoice& view, int numViews, int outputIndex) {
   std::string ext = extensionOf(format);
-  std::string name = layout == Layout::Ubo2003 && light.measured() && view.measured()
-                         ? ubo2003FileName(light.index * numViews + view.index, light.direction, view.direction, ext)
-                         : utiaFileName(light.direction, view.direction, ext);
+  const bool measured = light.measured() && view.measured();
+  if (layout == Layout::Ubo2003 && !measured && outputIndex < 0)
+    throw Error("decodedImagePath: an unmeasured direction in the UBO2003 layout needs the output index");
+  std::string name =
+      layout == Layout::Utia ? utiaFileName(light.direction, view.direction, ext)
+      : outputIndex >= 0     ? ubo2003FileName(outputIndex, light.direction, view.direction, ext)
+                             : ubo2003FileName(light.index * numViews + view.index, light.direction, view.direction, ext);
   return (fs::path(viewFolderName(view.direction)) / name).string();
 }
 
@@ -334,6 +338,34 @@ constexpr std::size_t kQueuedBytes = std::size_t(256) << 20;  // bound on images
 
 }  // namespace
 
+namespace {
+// A folder that already holds images named for the other layout would end up with both
+// namings mixed, a stack no loader reads: refuse before writing anything.
+void refuseOtherLayout(const std::string& folder, Layout layout, const std::vector<DirectionChoice>& views) {
+  std::vector<fs::path> places{fs::path(folder)};
+  for (const auto& v : views) places.push_back(fs::path(folder) / viewFolderName(v.direction));
+  std::error_code ec;
+  for (const auto& place : places) {
+    if (!fs::is_directory(place, ec)) continue;
+    for (const auto& entry : fs::directory_iterator(place, ec)) {
+      if (!entry.is_regular_file(ec)) continue;
+      const std::string name = entry.path().filename().string();
+      std::optional<ParsedBtfName> parsed;
+      try {
+        parsed = parseBtfFileName(name);
+      } catch (const Error&) {
+        continue;  // not one of ours either way
+      }
+      if (parsed && parsed->layout != Layout::Unknown && parsed->layout != layout)
+        throw fileError(folder, "holds images in the " + layoutName(parsed->layout) + " layout (e.g. '" +
+                                    entry.path().string() + "'); decoding the " + layoutName(layout) +
+                                    " layout into it would mix two namings. Use an empty folder, remove them, or "
+                                    "pass --layout " + layoutName(parsed->layout));
+    }
+  }
+}
+}  // namespace
+
 DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::string& folder,
                                     const DecodeStackOptions& options) {
   DecodeStackResult r;
@@ -350,6 +382,7 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   if (options.jpegQuality < 1 || options.jpegQuality > 100)
     throw Error("JPEG quality " + std::to_string(options.jpegQuality) + " is outside 1..100");
 
+  refuseOtherLayout(folder, r.layout, views);
   // Folders first (once, before the parallel part), and an early check that we can write.
   std::error_code ec;
   fs::create_directories(folder, ec);
@@ -360,9 +393,12 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
     if (ec) throw fileError(sub.string(), "cannot create folder: " + ec.message());
   }
   const int numViews = static_cast<int>(decoder.views().size());
+  bool allMeasured = true;
+  for (const auto& l : lights) allMeasured = allMeasured && l.measured();
+  for (const auto& v : views) allMeasured = allMeasured && v.measured();
   auto pathOf = [&](int image) {
     return (fs::path(folder) / decodedImagePath(r.layout, r.format, lights[image / r.views], views[image % r.views],
-                                                numViews))
+                                                numViews, allMeasured ? -1 : image))
         .string();
   };
   checkWritable(pathOf(0));

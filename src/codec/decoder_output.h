@@ -71,9 +71,12 @@ struct DecodeStackResult {
 // The layout and format the options resolve to for this material.
 Layout resolvedLayout(const NbtfDecoder& decoder, const DecodeStackOptions& options);
 ImageFormat resolvedFormat(const NbtfDecoder& decoder, const DecodeStackOptions& options);
-// Path of one image relative to the output folder.
+// Path of one image relative to the output folder. One naming per layout: UBO2003 names
+// carry a running number, the source's image number (light x views + view) when both
+// directions are measured, else `outputIndex` (the decode numbers all of its images by their
+// position in the output whenever one of them is unmeasured, so numbers never collide).
 std::string decodedImagePath(Layout layout, ImageFormat format, const DirectionChoice& light,
-                             const DirectionChoice& view, int numViews);
+                             const DirectionChoice& view, int numViews, int outputIndex = -1);
 
 // Decodes every selected (light, view) pair into `folder` (created if missing), in
 // parallel on threadCount() threads, each file written atomically.

@@ -10,6 +10,8 @@
 #include <set>
 #include <sstream>
 
+#include "eval/figures.h"
+#include "io/image_io.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 
@@ -197,6 +199,34 @@ std::string rateDistortionScript(const std::string& material, const std::vector<
   return gp.str();
 }
 
+namespace {
+Color8 familyColor(const std::string& family, std::size_t i) {
+  static const Color8 colors[] = {{0x55, 0x55, 0x55}, {0xe0, 0x7b, 0x39}, {0x2a, 0x6f, 0x97}, {0x6a, 0x99, 0x4e},
+                                  {0x9d, 0x4e, 0xdd}};
+  int rank = familyRank(family);
+  return colors[rank < 3 ? rank : 3 + i % 2];
+}
+
+// The rate-distortion plot drawn by nbtf: x = log10 of the ratio (the line chart's axes are linear).
+Image8 rateDistortionChart(const std::string& material, const std::vector<SweepEntry>& entries,
+                           const std::vector<std::string>& families) {
+  std::vector<ChartSeries> series;
+  for (std::size_t i = 0; i < families.size(); ++i) {
+    ChartSeries s;
+    s.name = familyTitle(families[i]);
+    s.color = familyColor(families[i], i);
+    std::vector<const SweepEntry*> pts;
+    for (const auto& e : entries)
+      if (e.family == families[i]) pts.push_back(&e);
+    std::sort(pts.begin(), pts.end(), [](const SweepEntry* a, const SweepEntry* b) { return a->ratio < b->ratio; });
+    for (const auto* e : pts) s.x.push_back(std::log10(std::max(e->ratio, 1e-12))), s.y.push_back(e->rmse);
+    series.push_back(std::move(s));
+  }
+  return renderLineChart(series, "Rate-distortion: " + material, "compression ratio, log10 (raw float32 / total)",
+                         "RMSE (linear RGB / alpha, eq. 10)");
+}
+}  // namespace
+
 SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir) {
   namespace fs = std::filesystem;
   if (entries.empty()) throw Error("sweep: no reports to summarize");
@@ -242,6 +272,8 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
     std::string png = "rd_" + slug(mat) + ".png", gpName = "rd_" + slug(mat) + ".gp";
     writeFileAtomic(path(gpName), rateDistortionScript(mat, families, files, png));
     out.scripts.push_back(path(gpName));
+    // Drawn now, without an external program; the gnuplot script redraws it with a true log axis.
+    writeImage8(path(png), ImageFormat::Png, rateDistortionChart(mat, mine, families));
     out.plots.push_back(path(png));
   }
   return out;

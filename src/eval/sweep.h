@@ -35,9 +35,10 @@ struct SweepFiles {
   std::string table;                   // sweep.md
   std::vector<std::string> dataFiles;  // rd_<material>_<family>.dat
   std::vector<std::string> scripts;    // rd_<material>.gp -> rd_<material>.png
-  std::vector<std::string> plots;      // the PNGs the scripts will write
+  std::vector<std::string> plots;      // rd_<material>.png, drawn by nbtf (the scripts redraw them)
 };
-// Writes sweep.md, the data files and one gnuplot script per material into `dir` (atomic
+// Writes sweep.md, the data files, one rate-distortion PNG (drawn here, no external program)
+// and one gnuplot script that redraws it with a log axis per material into `dir` (atomic
 // writes; the folder is created if missing).
 SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir);
 

@@ -140,16 +140,14 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
   return listing;
 }
 
-BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
-  StackListing listing = listBtfStack(path, options.layout);
+namespace {
+// The size of the stack's first image (every other image must have it), and the crop
+// checked against it.
+Crop cropFor(const std::string& path, const StackListing& listing, const LoadOptions& options, int& srcW, int& srcH) {
   const std::string& first = listing.files.front();
-  bool exr = imageFormatFromName(first) == ImageFormat::Exr;
-  ExrColorSpace exrSpace =
-      (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
-
-  // The first image fixes the size every other image must have.
-  int srcW = 0, srcH = 0;
-  if (exr) {
+  if (imageFormatFromName(first) == ImageFormat::Exr) {
+    ExrColorSpace exrSpace =
+        (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
     ImageF img = readExr(first, exrSpace);
     srcW = img.width, srcH = img.height;
   } else {
@@ -164,6 +162,23 @@ BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
       << srcW << " x " << srcH << " images";
     throw fileError(path, s.str());
   }
+  return crop;
+}
+}  // namespace
+
+Crop checkCrop(const std::string& path, const LoadOptions& options) {
+  int srcW = 0, srcH = 0;
+  return cropFor(path, listBtfStack(path, options.layout), options, srcW, srcH);
+}
+
+BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
+  StackListing listing = listBtfStack(path, options.layout);
+  const std::string& first = listing.files.front();
+  bool exr = imageFormatFromName(first) == ImageFormat::Exr;
+  ExrColorSpace exrSpace =
+      (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
+  int srcW = 0, srcH = 0;
+  const Crop crop = cropFor(path, listing, options, srcW, srcH);
 
   BtfStack stack(listing.lights, listing.views, crop.width, crop.height, exr ? SampleType::Half : SampleType::Srgb8);
   stack.source = path;

@@ -33,4 +33,8 @@ StackListing listBtfStack(const std::string& path, Layout forced = Layout::Unkno
 // naming the file and the problem for every kind of bad input.
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
 
+// Lists the stack and reads its first image only: throws the loader's errors (a crop outside
+// the images included) before a long load. Returns the crop that loading would apply.
+Crop checkCrop(const std::string& path, const LoadOptions& options);
+
 }  // namespace nbtf

@@ -63,23 +63,27 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
   try {
     torch::serialize::InputArchive archive, enc, dec, opt;
     archive.load_from(path);
-    torch::Tensor t;
-    archive.read("version", t);
-    if (t.item<std::int64_t>() != kCheckpointVersion)
-      throw fileError(path, "checkpoint version " + std::to_string(t.item<std::int64_t>()) + ", this nbtf reads " +
+    // A fresh tensor per value: read() into a defined tensor calls set_(), which keeps that
+    // tensor's dtype and reinterprets the stored bytes (the double elapsed_seconds read into
+    // the int64 tensor of the step came back as 4.6e18 s, so a resumed --time-budget run
+    // found its budget spent and did no training).
+    auto value = [&](const char* key) {
+      torch::Tensor t;
+      archive.read(key, t);
+      return t;
+    };
+    const std::int64_t version = value("version").item<std::int64_t>();
+    if (version != kCheckpointVersion)
+      throw fileError(path, "checkpoint version " + std::to_string(version) + ", this nbtf reads " +
                                 std::to_string(kCheckpointVersion));
-    archive.read("fingerprint", t);
-    meta.fingerprint = static_cast<std::uint64_t>(t.item<std::int64_t>());
+    meta.fingerprint = static_cast<std::uint64_t>(value("fingerprint").item<std::int64_t>());
     if (meta.fingerprint != expectedFingerprint)
       throw fileError(path,
                       "checkpoint is from a different setup (data, clusters, hold-out, model, optimizer or batch "
                       "geometry differ); remove it or rerun with the same inputs and config");
-    archive.read("step", t);
-    meta.step = t.item<std::int64_t>();
-    archive.read("elapsed_seconds", t);
-    meta.elapsedSeconds = t.item<double>();
-    archive.read("ema_loss", t);
-    meta.emaLoss = t.item<double>();
+    meta.step = value("step").item<std::int64_t>();
+    meta.elapsedSeconds = value("elapsed_seconds").item<double>();
+    meta.emaLoss = value("ema_loss").item<double>();
     archive.read("encoder", enc);
     archive.read("decoder", dec);
     archive.read("optimizer", opt);

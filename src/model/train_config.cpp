@@ -1,6 +1,7 @@
 // Training configs: JSON, one object per component. Every key is optional (defaults are
 // TrainConfig's); unknown keys, wrong types and out-of-range values are errors that name
 // the file and the key, so a typo never silently trains with a default.
+#include <algorithm>
 #include <climits>
 #include <cmath>
 #include <fstream>
@@ -138,6 +139,8 @@ TrainConfig loadTrainConfig(const std::string& path) {
   tr.read("batch_size", c.batchSize);
   tr.read("images_per_input", c.imagesPerInput);
   tr.read("epochs", c.epochs);
+  tr.read("min_steps", c.minSteps);
+  tr.read("max_steps", c.maxSteps);
   tr.read("time_budget_seconds", c.timeBudgetSeconds);
   tr.read("schedule", c.schedule);
   tr.read("warmup_fraction", c.warmupFraction);
@@ -184,6 +187,11 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (c.epochs < 0) bad(source, "training.epochs", "must be >= 0");
   if (!finite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)
     bad(source, "training.time_budget_seconds", "must be >= 0 (0 = no limit)");
+  if (c.minSteps < 0) bad(source, "training.min_steps", "must be >= 0 (0 = no minimum)");
+  if (c.maxSteps < 0) bad(source, "training.max_steps", "must be >= 0 (0 = no maximum)");
+  if (c.minSteps > 0 && c.maxSteps > 0 && c.minSteps > c.maxSteps)
+    bad(source, "training.min_steps", "(" + std::to_string(c.minSteps) + ") must not exceed training.max_steps (" +
+                                          std::to_string(c.maxSteps) + ")");
   if (c.epochs == 0 && c.timeBudgetSeconds == 0)
     bad(source, "training.epochs", "is 0 and there is no time budget: nothing would be trained");
   if (c.schedule != "constant" && c.schedule != "cosine" && c.schedule != "step")
@@ -211,6 +219,21 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
       bad(source, key, "must be \"float32\" or \"half\", got \"" + *value + "\"");
   if (c.storage.ids != "raw" && c.storage.ids != "zstd")
     bad(source, "storage.ids", "must be \"raw\" or \"zstd\", got \"" + c.storage.ids + "\"");
+}
+
+TrainPlan planTraining(const TrainConfig& c, std::int64_t encoderInputs, int trainImages) {
+  if (encoderInputs < 1 || trainImages < 1) throw Error("planTraining: no encoder inputs or no training images");
+  TrainPlan p;
+  p.perTile = std::min(c.imagesPerInput, trainImages);
+  p.tiles = std::max(1, c.batchSize / p.perTile);
+  p.batch = static_cast<std::int64_t>(p.tiles) * p.perTile;
+  const double samplesPerEpoch = static_cast<double>(encoderInputs) * trainImages;
+  p.stepsPerEpoch = std::max<std::int64_t>(1, std::llround(std::ceil(samplesPerEpoch / p.batch)));
+  if (c.epochs <= 0) return p;  // bounded by the time budget only
+  p.totalSteps = p.stepsPerEpoch * c.epochs;
+  if (c.minSteps > 0) p.totalSteps = std::max<std::int64_t>(p.totalSteps, c.minSteps);
+  if (c.maxSteps > 0) p.totalSteps = std::min<std::int64_t>(p.totalSteps, c.maxSteps);
+  return p;
 }
 
 }  // namespace nbtf

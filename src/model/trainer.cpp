@@ -137,11 +137,13 @@ std::vector<std::uint8_t> serializeModule(torch::nn::Module& module) {
   return bytes;
 }
 
-std::string formatStatus(double loss, double rmse, double samplesPerSecond, double gflops, int epoch, int epochs,
-                         bool polish) {
+// `epoch` is the one being run, 1-based (the last step's epoch stays the last one).
+std::string formatStatus(double loss, double rmse, double samplesPerSecond, double gflops, std::int64_t epoch,
+                         std::int64_t epochs, bool polish) {
   char buf[192];
+  if (epochs > 0) epoch = std::min(epoch, epochs);
   const std::string ep = epochs > 0 ? std::to_string(epoch) + "/" + std::to_string(epochs) : std::to_string(epoch);
-  std::snprintf(buf, sizeof buf, "ep %s  loss %.3e  rmse~ %.4f  %.0fk smp/s  %.1f GF/s%s", ep.c_str(), loss, rmse,
+  std::snprintf(buf, sizeof buf, "epoch %s  loss %.3e  rmse~ %.4f  %.0fk smp/s  %.1f GF/s%s", ep.c_str(), loss, rmse,
                 samplesPerSecond / 1e3, gflops, polish ? "  (decoder polish)" : "");
   return buf;
 }
@@ -179,12 +181,10 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
 
   // ---- Step geometry: `tiles` encoder inputs x `perTile` images = one decoder batch.
   const int trainImages = static_cast<int>(set.trainImages().size());
-  const int perTile = std::min(config.imagesPerInput, trainImages);
-  const int tiles = std::max(1, config.batchSize / perTile);
-  const std::int64_t batch = static_cast<std::int64_t>(tiles) * perTile;
-  const double samplesPerEpoch = static_cast<double>(set.groups()) * trainImages;
-  const std::int64_t stepsPerEpoch = std::max<std::int64_t>(1, std::llround(std::ceil(samplesPerEpoch / batch)));
-  const std::int64_t totalSteps = config.epochs > 0 ? stepsPerEpoch * config.epochs : 0;  // 0: time budget only
+  const TrainPlan geometry = planTraining(config, set.groups(), trainImages);
+  const int perTile = geometry.perTile, tiles = geometry.tiles;
+  const std::int64_t batch = geometry.batch, stepsPerEpoch = geometry.stepsPerEpoch;
+  const std::int64_t totalSteps = geometry.totalSteps;  // 0: time budget only
 
   // ---- Resume.
   CheckpointMeta meta;
@@ -215,8 +215,15 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   for (int i : set.trainImages()) withinTrain += set.withinSse(i);
   withinTrain /= static_cast<double>(set.texels()) * trainImages * 3;
 
-  Progress bar("train", 1000, config.progress);
-  std::size_t shownPermille = 0;
+  // The bar counts optimizer steps, or whole seconds of the budget when only a budget bounds
+  // the run: units a user can compare with the summary.
+  const bool barInSeconds = totalSteps == 0;
+  const std::int64_t totalEpochs = totalSteps > 0 ? (totalSteps + stepsPerEpoch - 1) / stepsPerEpoch : 0;
+  Progress bar(barInSeconds ? "train (s)" : "train (steps)",
+               static_cast<std::size_t>(barInSeconds ? std::ceil(config.timeBudgetSeconds) : totalSteps),
+               config.progress);
+  std::size_t shown = barInSeconds ? static_cast<std::size_t>(priorSeconds) : static_cast<std::size_t>(step);
+  bar.advance(shown);
   const auto loopStart = Clock::now();
   auto lastCheckpoint = loopStart, lastStatus = loopStart;
   const std::int64_t firstStep = step;
@@ -320,8 +327,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
 
     // Progress, status line, periodic checkpoint.
     const double now = elapsedTotal();
-    std::size_t permille = static_cast<std::size_t>(progressOf(step, now) * 1000);
-    if (permille > shownPermille) bar.advance(permille - shownPermille), shownPermille = permille;
+    const std::size_t done = barInSeconds ? static_cast<std::size_t>(now) : static_cast<std::size_t>(step);
+    if (done > shown) bar.advance(done - shown), shown = done;
     const double sps = (step - firstStep) * static_cast<double>(batch) / std::max(1e-9, since(loopStart));
     if (config.monitor) {
       TrainStatus st;
@@ -332,7 +339,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     }
     if (since(lastStatus) > 0.5) {
       bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss * lossToTexelMse + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
-                                 static_cast<int>(step / stepsPerEpoch), config.epochs, polish));
+                                 step / stepsPerEpoch + 1, totalEpochs, polish));
       lastStatus = Clock::now();
     }
     if (config.checkpointSeconds > 0 && since(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();

@@ -75,6 +75,12 @@ struct TrainConfig {
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
   int imagesPerInput = 512;        // images per encoder input in a step (a "tile"); clamped to the training images
   int epochs = 20;                 // one epoch = (encoder inputs) x (training images) decoder samples
+  // Bounds on epochs x steps per epoch (0 = no bound; `nbtf compress --epochs E` sets both to 0).
+  // An epoch's size follows k x images, so 20 epochs is 4,000 steps at k = 500 on 6561 images
+  // but 2 at k = 16 on 81 images: the decoder needs a number of optimizer steps whatever the
+  // data (min), and huge encoder-input counts (per-texel, k >> 2000) must stay affordable (max).
+  int minSteps = 2000;
+  int maxSteps = 16000;
   double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
   std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
   double warmupFraction = 0.02;    // linear learning-rate warm-up, fraction of the run
@@ -97,6 +103,15 @@ struct TrainConfig {
 TrainConfig loadTrainConfig(const std::string& path);
 // Throws nbtf::Error naming `source` and the key when a value is out of range.
 void validateTrainConfig(const TrainConfig& config, const std::string& source);
+
+// The step geometry of a run: decoder samples per step and per epoch, steps per epoch, and
+// the planned optimizer steps: epochs x steps per epoch bounded by min_steps / max_steps
+// (0 when training is bounded by the time budget only).
+struct TrainPlan {
+  std::int64_t batch = 0, stepsPerEpoch = 0, totalSteps = 0;
+  int perTile = 0, tiles = 0;
+};
+TrainPlan planTraining(const TrainConfig& config, std::int64_t encoderInputs, int trainImages);
 
 // What training needs. In the clustered mode the encoder sees one representative per
 // cluster; in the per-texel mode (ids empty) it sees every texel's own ABRDF.

@@ -1,6 +1,7 @@
 #include "util/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -40,7 +41,52 @@ void syncAndRename(const std::string& tmp, const std::string& path) {
 }
 }  // namespace
 
-void writeFileAtomic(const std::string& path, const void* data, std::size_t size) {
+namespace {
+
+// An output that is not replaced but written in place: a device, pipe or socket
+// (`/dev/stdout`, `/dev/null`, a FIFO), or anything under /dev and /proc (whose links lead to
+// such things, or to the file the shell redirected stdout to).
+bool isStreamOutput(const std::string& path) {
+  if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) return true;
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+// Through symbolic links to the file they name (so the link stays a link and its target is
+// replaced); the path itself when it is not a link.
+std::string linkTarget(const std::string& path) {
+  fs::path p(path);
+  std::error_code ec;
+  for (int depth = 0; depth < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++depth) {
+    fs::path target = fs::read_symlink(p, ec);
+    if (ec) throw fileError(path, "cannot read the symbolic link: " + ec.message());
+    p = target.is_absolute() ? target : p.parent_path() / target;
+  }
+  return p.string();
+}
+
+void writeStream(const std::string& path, const void* data, std::size_t size) {
+  int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fd < 0) throw fileError(path, std::string("cannot open for writing: ") + std::strerror(errno));
+  const char* p = static_cast<const char*>(data);
+  while (size > 0) {
+    ssize_t n = ::write(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      int err = errno;
+      ::close(fd);
+      throw fileError(path, std::string("write failed: ") + std::strerror(err));
+    }
+    p += n, size -= static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+}
+
+}  // namespace
+
+void writeFileAtomic(const std::string& requested, const void* data, std::size_t size) {
+  if (isStreamOutput(requested)) return writeStream(requested, data, size);
+  const std::string path = linkTarget(requested);
   std::string tmp = temporaryPathFor(path);
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw fileError(path, std::string("cannot create file: ") + std::strerror(errno));
@@ -56,8 +102,13 @@ void writeFileAtomic(const std::string& path, const void* data, std::size_t size
   syncAndRename(tmp, path);
 }
 
-void writeAtomicVia(const std::string& path, const std::function<void(const std::string&)>& write) {
-  std::string tmp = temporaryPathFor(path);
+void writeAtomicVia(const std::string& requested, const std::function<void(const std::string&)>& write) {
+  const bool stream = isStreamOutput(requested);
+  // A device or pipe: the writer needs a file, so it writes one in the temporary folder
+  // whose bytes are then copied out.
+  const std::string path = stream ? requested : linkTarget(requested);
+  std::string tmp = stream ? (fs::temp_directory_path() / fs::path(temporaryPathFor(path)).filename()).string()
+                           : temporaryPathFor(path);
   try {
     write(tmp);
   } catch (...) {
@@ -66,6 +117,17 @@ void writeAtomicVia(const std::string& path, const std::function<void(const std:
   }
   std::error_code ec;
   if (!fs::exists(tmp, ec)) throw fileError(path, "writer produced no file");
+  if (stream) {
+    std::vector<std::uint8_t> bytes;
+    try {
+      bytes = readFileBytes(tmp);
+    } catch (...) {
+      std::remove(tmp.c_str());
+      throw;
+    }
+    std::remove(tmp.c_str());
+    return writeStream(path, bytes.data(), bytes.size());
+  }
   syncAndRename(tmp, path);
 }
 
@@ -82,7 +144,13 @@ std::vector<std::uint8_t> readFileBytes(const std::string& path) {
   return bytes;
 }
 
-void checkWritable(const std::string& path) {
+void checkWritable(const std::string& requested) {
+  if (isStreamOutput(requested)) {  // written in place: it must exist and take writes
+    if (::access(requested.c_str(), W_OK) != 0)
+      throw fileError(requested, std::string("cannot write to it: ") + std::strerror(errno));
+    return;
+  }
+  const std::string path = linkTarget(requested);
   fs::path p(path);
   fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   std::error_code ec;
@@ -100,6 +168,15 @@ void checkWritable(const std::string& path) {
   std::fclose(f);
   std::remove(probe.c_str());
   if (!ok) throw fileError(path, std::string("cannot write to output folder: ") + std::strerror(err));
+}
+
+void createParentFolders(const std::string& path) {
+  if (isStreamOutput(path)) return;
+  fs::path dir = fs::path(linkTarget(path)).parent_path();
+  if (dir.empty()) return;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw fileError(path, "cannot create the folder '" + dir.string() + "': " + ec.message());
 }
 
 }  // namespace nbtf

@@ -1,5 +1,8 @@
 // Atomic output: write to a temporary name beside the target, fsync, then rename,
-// so a crash or kill never leaves a half-written file under the final name.
+// so a crash or kill never leaves a half-written file under the final name. Only regular
+// files are replaced: a symbolic link is followed to its target (the link stays), and a
+// device, pipe or socket (`/dev/stdout`, `/dev/null`, a FIFO; anything under /dev or /proc)
+// is written in place, never unlinked.
 #pragma once
 #include <cstdint>
 #include <functional>
@@ -26,7 +29,10 @@ std::string temporaryPathFor(const std::string& path);
 std::vector<std::uint8_t> readFileBytes(const std::string& path);
 
 // Throws a clear error now (before hours of work) if `path` cannot be created:
-// its folder must exist and be writable.
+// its folder must exist and be writable (a device or pipe: it must take writes).
 void checkWritable(const std::string& path);
+
+// Creates the missing folders above `path` (the one rule of every command's outputs).
+void createParentFolders(const std::string& path);
 
 }  // namespace nbtf

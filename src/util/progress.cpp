@@ -40,6 +40,8 @@ void Progress::setStatus(const std::string& status) {
   status_ = status;
 }
 
+void Progress::setTotal(std::size_t total) { total_ = total; }
+
 void Progress::finish() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (finished_) return;
@@ -48,8 +50,8 @@ void Progress::finish() {
 }
 
 void Progress::draw(bool final) {
-  std::size_t done = done_.load();
-  double fraction = total_ ? static_cast<double>(done) / total_ : 1.0;
+  std::size_t done = done_.load(), total = total_.load();
+  double fraction = total ? static_cast<double>(done) / total : 1.0;
   if (fraction > 1) fraction = 1;
   double elapsed = elapsedSeconds();
   const int width = 30;
@@ -61,7 +63,7 @@ void Progress::draw(bool final) {
     std::snprintf(eta, sizeof eta, " ETA %.0f s", elapsed / fraction - elapsed);
   }
   std::fprintf(stderr, "%s%s [%s] %3.0f%% %zu/%zu %.1f s%s%s%s%s", tty_ ? "\r" : "", label_.c_str(),
-               bar.c_str(), fraction * 100, done, total_, elapsed, eta, status_.empty() ? "" : "  ",
+               bar.c_str(), fraction * 100, done, total, elapsed, eta, status_.empty() ? "" : "  ",
                status_.c_str(), tty_ ? "\033[K" : "");
   if (final) std::fputc('\n', stderr);
   std::fflush(stderr);

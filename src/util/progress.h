@@ -17,6 +17,9 @@ class Progress {
   void advance(std::size_t count = 1);
   // Extra text shown after the counters (e.g. "loss 0.0123").
   void setStatus(const std::string& status);
+  // A stage that ends early (k-means converged) sets its total to what was done, so the
+  // last line reads 100% rather than "1% 4/300".
+  void setTotal(std::size_t total);
   void finish();
   double elapsedSeconds() const;
 
@@ -26,7 +29,7 @@ class Progress {
  private:
   void draw(bool final);
   std::string label_;
-  std::size_t total_;
+  std::atomic<std::size_t> total_;
   std::atomic<std::size_t> done_{0};
   bool enabled_;
   bool finished_ = false;
