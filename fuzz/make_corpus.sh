@@ -12,10 +12,10 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
 "$bin/nbtf-synth" --preset fabric --size 8 --layout utia --format png --seed 1 --no-ground-truth -q -o "$tmp/stack"
-compress() {  # NAME ARGS...: one corpus file
+compress() {  # NAME ARGS...: one corpus file (CONFIG=file: another recipe than tiny_config.json)
   local name=$1
   shift
-  "$bin/nbtf" compress "$tmp/stack" -o "$tmp/$name.nbtf" --config "$root/fuzz/tiny_config.json" --seed 1 \
+  "$bin/nbtf" compress "$tmp/stack" -o "$tmp/$name.nbtf" --config "${CONFIG:-$root/fuzz/tiny_config.json}" --seed 1 \
     --threads 1 -q "$@" >/dev/null
 }
 # Clustered, whole image, 1-byte ids.
@@ -23,6 +23,9 @@ compress clustered --clusters 3
 # Clustered with a crop and a hold-out set (section HOLD). (--save-encoder is left out: the
 # serialized encoder is ~40 KB, and the reader only copies section ENCD as opaque bytes.)
 compress clustered_crop_holdout --clusters 5 --crop 1,2,5,4 --holdout 0.01
+# Format 1.2: per-texel modulation (TXSC), half-precision decoder and latents (DECH, LATH),
+# zstd-coded ids (TXIZ).
+CONFIG=$root/fuzz/tiny_compact_config.json compress compact --clusters 5
 # Per-texel (no id list), cropped to 3 x 2 texels.
 compress per_texel --clusters 0 --crop 2,2,3,2
 # PCA baseline (sections PCAM/PCAB/PCAC). Its mean and basis have a row per image, so the

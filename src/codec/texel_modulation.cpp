@@ -22,15 +22,21 @@ TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients
   m.bits = bits;
   m.codes.resize(coefficients.size());
   const double levels = static_cast<double>((1u << bits) - 1);
+  std::vector<float> column(texels);
   for (int r = 0; r < terms; ++r) {
-    float lo = INFINITY, hi = -INFINITY;
     for (std::size_t t = 0; t < texels; ++t) {
-      const float v = coefficients[t * terms + r];
-      if (!std::isfinite(v))
+      column[t] = coefficients[t * terms + r];
+      if (!std::isfinite(column[t]))
         throw Error("modulation: texel " + std::to_string(t) + " has a non-finite coefficient in term " +
                     std::to_string(r));
-      lo = std::min(lo, v), hi = std::max(hi, v);
     }
+    // The range: from the 0.1% to the 99.9% quantile (min and max below 1000 texels), so that a
+    // few outlying texels do not coarsen the steps for all others; those few are clamped.
+    const std::size_t cut = texels >= 1000 ? texels / 1000 : 0;
+    std::nth_element(column.begin(), column.begin() + cut, column.end());
+    const float lo = column[cut];
+    std::nth_element(column.begin(), column.begin() + (texels - 1 - cut), column.end());
+    const float hi = column[texels - 1 - cut];
     m.minimum[r] = lo;
     m.maximum[r] = hi;
     const double span = static_cast<double>(hi) - lo;

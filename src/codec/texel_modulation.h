@@ -17,7 +17,8 @@
 namespace nbtf {
 
 // Quantizes coefficients (texels x terms, texel-major) to `bits`-bit linear codes over each
-// term's own range. Throws on non-finite input or out-of-range terms / bits.
+// term's range: its 0.1% to 99.9% quantiles (min to max below 1000 texels; values outside are
+// clamped). Throws on non-finite input or out-of-range terms / bits.
 TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits);
 
 // The dequantized coefficient of `code` in term `term`: min + code / (2^bits - 1) x (max - min).

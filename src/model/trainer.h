@@ -36,17 +36,20 @@ Mlp decoderShape(const ModelConfig& model);
 
 // Per-texel modulation (beyond the paper; codec/texel_modulation.h, cluster/cluster_values.h):
 // the "modulation" object of a config. Clustered mode only.
+// Defaults (= configs/default.json): 1 term (a brightness factor per texel), 6-bit codes;
+// configs/paper-clustered.json: "none".
 struct ModulationConfig {
-  std::string mode = "none";  // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
+  std::string mode = "svd";   // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
   int terms = 1;              // RGB terms per cluster, each texel mixing them with its own coefficients (1..8)
-  int bits = 8;               // linear code bits per coefficient (1..16)
+  int bits = 6;               // linear code bits per coefficient (1..16)
 };
 
-// How the decoding parts are stored in the .nbtf (the "storage" object of a config).
+// How the decoding parts are stored in the .nbtf (the "storage" object of a config). Defaults:
+// the compact storage; configs/paper-clustered.json keeps the paper's (float32, raw ids).
 struct StorageConfig {
-  std::string decoder = "float32";  // "float32" | "half"
-  std::string latents = "float32";  // "float32" | "half"
-  std::string ids = "raw";          // "raw" (smallest integer width) | "zstd"
+  std::string decoder = "half";     // "float32" | "half"
+  std::string latents = "half";     // "float32" | "half"
+  std::string ids = "zstd";         // "raw" (smallest integer width) | "zstd"
 };
 
 // A snapshot of a running training, for callers that log or plot its course.
