@@ -99,8 +99,7 @@ int renderMain(int argc, char** argv) {
                                        cxxopts::value<double>()->default_value("8"))(
         "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
         cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
-        "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>())(
-        "q,quiet", "No progress bar");
+        "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>());
     addCommonOptions(options);
     options.parse_positional({"material"});
     cxxopts::ParseResult args;
@@ -235,7 +234,7 @@ int renderMain(int argc, char** argv) {
     o << s.derivativeRays << " derivative + " << s.plainRays << " plain rays, " << std::fixed << std::setprecision(2)
       << s.seconds << " s -> " << output;
     if (j.contains("rmse_vs_reference")) o << "; RMSE vs reference " << std::setprecision(5) << j["rmse_vs_reference"].get<double>();
-    if (!quiet) std::cout << o.str() << std::endl;
+    std::cout << o.str() << std::endl;  // -q hides progress bars only, as in every command
     return 0;
   });
 }

@@ -78,10 +78,10 @@ TEST(Report, WritesEverySectionAndEmbedsTheFigures) {
                               "By light elevation", "By view elevation", "held-out images"})
     EXPECT_NE(md.find(section), std::string::npos) << section;
   // 2 charts + 3 comparisons, all as PNG files beside the report and embedded in the HTML.
-  EXPECT_EQ(p.figures.size(), 5u);
+  EXPECT_EQ(p.figures.size(), 6u);
   std::size_t embedded = 0;
   for (std::size_t at = 0; (at = html.find("src=\"data:image/png;base64,", at)) != std::string::npos; ++at) ++embedded;
-  EXPECT_EQ(embedded, 5u);
+  EXPECT_EQ(embedded, 6u);
   for (const auto& f : p.figures) {
     auto bytes = readFileBytes(f);
     ASSERT_GT(bytes.size(), 8u);
