@@ -79,7 +79,7 @@ inline int cappedThreads(int threads, const std::string& program) {
   return threads;
 }
 
-inline void applyCommonOptions(const cxxopts::ParseResult& result, const std::string& program = "nbtf") {
+inline void applyCommonOptions(const cxxopts::ParseResult& result, const std::string& program) {
   setThreadCount(cappedThreads(result["threads"].as<int>(), program));
   if (result.count("quiet")) Progress::setQuiet(true);
 }

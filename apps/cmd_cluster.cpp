@@ -148,7 +148,7 @@ int clusterMain(int argc, char** argv) {
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf cluster --help')");
     if (!args.count("clusters")) throw Error("missing --clusters K (see 'nbtf cluster --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf cluster --help')");

@@ -139,7 +139,7 @@ int compressMain(int argc, char** argv) {
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
     if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
     const std::string input = args["input"].as<std::string>();

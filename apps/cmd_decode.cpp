@@ -35,7 +35,7 @@ int decodeMain(int argc, char** argv) {
     options.parse_positional({"file"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     const bool quiet = cli::quiet(args);
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf decode --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf decode --help')");

@@ -146,7 +146,7 @@ int evalMain(int argc, char** argv) {
     options.parse_positional({"files"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     return runEval(args);
   });
 }

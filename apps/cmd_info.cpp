@@ -165,7 +165,7 @@ int infoMain(int argc, char** argv) {
     options.parse_positional({"path"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     if (!args.count("path")) throw Error("missing <path> (see 'nbtf info --help')");
     std::string path = args["path"].as<std::string>();
     return looksLikeNbtf(path) ? infoNbtf(path, args) : infoStack(path, args);

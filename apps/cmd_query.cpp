@@ -42,7 +42,7 @@ int queryMain(int argc, char** argv) {
     options.parse_positional({"file"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf query --help')");
     const OutputScale scale = args.count("normalized") ? OutputScale::Normalized : OutputScale::Linear;
     const bool batch = args.count("batch") > 0;

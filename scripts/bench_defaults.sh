@@ -9,7 +9,8 @@
 # stacks are links to its files: "view1" = one view (0/0) x 81 lights, "sub9x9" = 9 views x 9
 # lights (every 9th of each). Texel counts come from --crop (the top-left S x S texels).
 # Every point is 2000 + 8000 optimizer steps (an epoch of k x 81 images is never more than
-# 10 steps here, so the default's minimum of 2000 steps decides): about 5 minutes on 2 cores.
+# 10 steps here, so the default's minimum of 2000 steps decides): 5-10 minutes a point on 2
+# idle cores (the default grid took 67 minutes on a shared, loaded machine).
 #
 # Usage: scripts/bench_defaults.sh [WORK_DIR]   (default build/bench_defaults)
 #   NBTF_BENCH_GRID="view1:16:16 sub9x9:32:64 ..."   subset:size:k points instead of the default grid

@@ -174,7 +174,7 @@ TEST_F(CmdCompress, CommandLineRoughEdges) {
   // More threads than cores: a warning, and the cores are used.
   r = run("info " + stack + " --threads 100000");
   EXPECT_EQ(r.exitCode, 0) << r.output;
-  EXPECT_TRUE(contains(r.output, "warning: --threads 100000 is more than the")) << r.output;
+  EXPECT_TRUE(contains(r.output, "nbtf info: warning: --threads 100000 is more than the")) << r.output;
   // A crop outside the images is a crop error, even when k is also too large for it.
   r = run("compress " + stack + " -o " + path("x.nbtf") + " --crop 20,20,30,30 --clusters 2000 -q");
   EXPECT_EQ(r.exitCode, 1);
