@@ -104,7 +104,7 @@ int renderMain(int argc, char** argv) {
     options.parse_positional({"material"});
     cxxopts::ParseResult args;
     if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args);
+    applyCommonOptions(args, options.program());
     const bool quiet = args.count("quiet") > 0;
     if (quiet) Progress::setQuiet(true);
     if (!args.count("material")) throw Error("missing <material> (a .nbtf file or an image stack folder; see 'nbtf render --help')");
