@@ -328,8 +328,9 @@ TEST(NbtfFile, LargestIdSurvivesAtEachWidthBoundary) {
 
 // ---- Sizes (Table 1)
 
-TEST(NbtfFile, SizesReproduceThePapersTable1) {
-  // 100 x 100 texels, 6561 images, decoder 12 -> 106 -> 106 -> 106 -> 3, k = 500.
+// The paper's material shape: 100 x 100 texels, 6561 images, decoder 12 -> 106 -> 106 -> 106
+// -> 3, k = 500 (latents and ids all zero).
+CompressedBtf paperShapedBtf() {
   std::mt19937 rng(1);
   CompressedBtf b;
   b.width = b.height = b.sourceWidth = b.sourceHeight = 100;
@@ -339,6 +340,11 @@ TEST(NbtfFile, SizesReproduceThePapersTable1) {
   b.latentRows = 500;
   b.latents.assign(500 * 8, 0.f);
   b.ids.assign(10000, 0);
+  return b;
+}
+
+TEST(NbtfFile, SizesReproduceThePapersTable1) {
+  CompressedBtf b = paperShapedBtf();
   NbtfSizes s = computeSizes(b);
   EXPECT_EQ(s.decoderParameters, 24383u);
   EXPECT_EQ(s.decoder, 97532u);     // 95.2 KiB
@@ -371,16 +377,9 @@ TEST(NbtfFile, SizesReproduceThePapersTable1) {
 }
 
 TEST(NbtfFile, CompactPartsShrinkTheTotalAndAreListed) {
-  // The same material with half-precision parts, zstd ids and 8-bit factors per texel.
-  std::mt19937 rng(1);
-  CompressedBtf b;
-  b.width = b.height = b.sourceWidth = b.sourceHeight = 100;
-  b.lights = hemisphere81();
-  b.views = hemisphere81();
-  b.decoder = makeDecoder(8, {106, 106, 106}, rng);
-  b.latentRows = 500;
+  // The same material with half-precision parts, zstd ids and 8-bit coefficients per texel.
+  CompressedBtf b = paperShapedBtf();
   b.latents.assign(500 * 8, 0.25f);
-  b.ids.resize(10000);
   for (int t = 0; t < 10000; ++t) b.ids[t] = (t % 100) / 10 + 10 * (t / 1000);  // 10 x 10 blocks: coherent
   std::vector<float> coefficients(10000, 1.0f);
   for (int t = 0; t < 10000; ++t) coefficients[t] = 0.5f + (t % 7) * 0.1f;

@@ -214,12 +214,11 @@ std::string describePair(const DirectionChoice& l, const DirectionChoice& v) {
 // Largest finite half float: EXR values beyond it would be stored as infinity.
 constexpr float kHalfMax = 65504.0f;
 
-// One image's per-row values: decoded (linear), checked finite, negatives clamped to 0.
-void decodeCheckedRows(const NbtfDecoder& decoder, const DirectionChoice& l, const DirectionChoice& v,
-                       std::vector<float>& rows, std::uint64_t& clamped, float maxValue) {
-  rows.resize(3 * static_cast<std::size_t>(decoder.latentRows()));
-  decoder.decodeRows(l.direction, v.direction, rows.data(), OutputScale::Linear);
-  for (float& x : rows) {
+// Decoded linear values: each checked finite and below maxValue (an error naming the pair),
+// negatives clamped to 0 and counted.
+void checkDecoded(const NbtfDecoder& decoder, const DirectionChoice& l, const DirectionChoice& v,
+                  std::vector<float>& values, std::uint64_t& clamped, float maxValue) {
+  for (float& x : values) {
     if (!std::isfinite(x) || x > maxValue) {
       std::ostringstream s;
       s << "decoder output " << x << " for " << describePair(l, v)
@@ -231,22 +230,21 @@ void decodeCheckedRows(const NbtfDecoder& decoder, const DirectionChoice& l, con
   }
 }
 
-// A modulated material's image (linear, tiled over width x height), checked and clamped as
-// decodeCheckedRows does: its texels are not copies of rows.
+// One image's per-row values: decoded (linear), checked.
+void decodeCheckedRows(const NbtfDecoder& decoder, const DirectionChoice& l, const DirectionChoice& v,
+                       std::vector<float>& rows, std::uint64_t& clamped, float maxValue) {
+  rows.resize(3 * static_cast<std::size_t>(decoder.latentRows()));
+  decoder.decodeRows(l.direction, v.direction, rows.data(), OutputScale::Linear);
+  checkDecoded(decoder, l, v, rows, clamped, maxValue);
+}
+
+// A modulated material's image (linear, tiled over width x height), checked: its texels are
+// not copies of rows.
 void decodeCheckedImage(const NbtfDecoder& decoder, const DirectionChoice& l, const DirectionChoice& v, int width,
                         int height, std::vector<float>& image, std::uint64_t& clamped, float maxValue) {
   image.resize(3 * static_cast<std::size_t>(width) * height);
   decoder.decodeImage(l.direction, v.direction, image.data(), OutputScale::Linear, width, height);
-  for (float& x : image) {
-    if (!std::isfinite(x) || x > maxValue) {
-      std::ostringstream s;
-      s << "decoder output " << x << " for " << describePair(l, v)
-        << (std::isfinite(x) ? " exceeds the largest half float (65504)" : " is not finite")
-        << "; the material's decoder is unusable at these angles";
-      throw fileError(decoder.name(), s.str());
-    }
-    if (x < 0) x = 0, ++clamped;
-  }
+  checkDecoded(decoder, l, v, image, clamped, maxValue);
 }
 
 // Texel values from per-row values, tiling the material over width x height.
