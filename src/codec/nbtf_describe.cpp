@@ -88,7 +88,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     if (!btf.modulation.empty())
       field("modulation", std::to_string(btf.modulation.terms) + " RGB term" + (btf.modulation.terms > 1 ? "s" : "") +
                               " per cluster, mixed by per-texel coefficients (" + std::to_string(btf.modulation.bits) +
-                              "-bit codes, orthonormalized per cluster)");
+                              "-bit codes, refit to the trained terms)");
     field("storage", std::string("decoder ") + (btf.storage.decoderHalf ? "half" : "float32") + ", latents " +
                          (btf.storage.latentsHalf ? "half" : "float32") +
                          (btf.method == CodecMethod::ClusteredNeural
