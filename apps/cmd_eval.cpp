@@ -85,6 +85,8 @@ int runEval(const cxxopts::ParseResult& args) {
   // Fail on an unwritable output before decoding anything; the folder (and its missing
   // parents) is made when the report is written.
   checkFolderCreatable(outDir);
+  RenderSection render;
+  if (args.count("render-compare")) render = loadRenderSection(args["render-compare"].as<std::string>());
 
   CompressedBtf btf = readNbtf(file);
   std::uint64_t fileBytes = std::filesystem::file_size(file);
@@ -102,6 +104,7 @@ int runEval(const cxxopts::ParseResult& args) {
   EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
   inputs.details.push_back({"reference check", referenceCheck});
   EvalResult result = evaluate(inputs, options);
+  result.render = std::move(render);
   ReportPaths paths = writeReport(result, outDir);
 
   std::printf("method          %s (%d decoder evaluations per image)\n", result.method.c_str(),
@@ -141,6 +144,8 @@ int evalMain(int argc, char** argv) {
         "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
         cxxopts::value<int>()->default_value("8"))(
         "force", "Evaluate even when the reference does not match the file's source fingerprint (the report says so)")(
+        "render-compare", "Include a rendered comparison: the folder `nbtf render --compare` wrote",
+        cxxopts::value<std::string>())(
         "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plot scripts)");
     addCommonOptions(options);
     options.parse_positional({"files"});

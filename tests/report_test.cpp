@@ -15,6 +15,7 @@
 
 #include "eval_fixtures.h"
 #include "test_util.h"
+#include "io/image_io.h"
 #include "util/atomic_file.h"
 #include "util/progress.h"
 
@@ -77,7 +78,7 @@ TEST(Report, WritesEverySectionAndEmbedsTheFigures) {
                               "### #3 worst error", "## Effective blur", "## How these numbers are computed",
                               "By light elevation", "By view elevation", "held-out images"})
     EXPECT_NE(md.find(section), std::string::npos) << section;
-  // 2 charts + 3 comparisons, all as PNG files beside the report and embedded in the HTML.
+  // 2 charts + the mean-brightness maps + 3 comparisons, as PNG files beside the report and embedded in the HTML.
   EXPECT_EQ(p.figures.size(), 6u);
   std::size_t embedded = 0;
   for (std::size_t at = 0; (at = html.find("src=\"data:image/png;base64,", at)) != std::string::npos; ++at) ++embedded;
@@ -94,6 +95,35 @@ TEST(Report, WritesEverySectionAndEmbedsTheFigures) {
     for (auto& e : std::filesystem::directory_iterator(dir)) entries += e.path().extension() == ".tmp";
     EXPECT_EQ(entries, 0u) << "no temporary files left behind";
   }
+}
+
+// `nbtf eval --render-compare DIR`: the folder `nbtf render --compare` writes becomes a section.
+TEST(Report, IncludesARenderedComparison) {
+  test::TempDir tmp;
+  const std::string folder = tmp / "cmp";
+  std::filesystem::create_directories(folder);
+  std::vector<float> rgb(3 * 8 * 6, 0.25f);
+  for (const char* name : {"reference.png", "compressed.png", "error.png"})
+    writeImageSrgb8(folder + "/" + name, ImageFormat::Png, 8, 6, rgb.data());
+  writeFileAtomic(folder + "/compare.json",
+                  R"({"reference": "stack", "compressed": "f.nbtf", "scene": "sphere", "width": 8, "height": 6,
+                      "sampling": "adaptive, 2 levels", "error_magnification": 8, "space": "linear RGB radiance",
+                      "rmse": {"all": {"rmse": 0.013, "pixels": 48}, "dark10": {"rmse": 0.004, "pixels": 5},
+                               "bright10": {"rmse": 0.074, "pixels": 5}}})");
+  EvalResult r = fixture().result;
+  r.render = loadRenderSection(folder);
+  ReportPaths p = writeReport(r, tmp / "report");
+  std::string md = slurp(p.markdown);
+  EXPECT_NE(md.find("## Rendered comparison"), std::string::npos);
+  EXPECT_NE(md.find("| Brightest 10% | 0.07400 |"), std::string::npos) << md;
+  EXPECT_EQ(p.figures.size(), 9u);
+  json j = json::parse(slurp(p.json));
+  EXPECT_DOUBLE_EQ(j["render_comparison"]["rmse_dark10"].get<double>(), 0.004);
+  EXPECT_TRUE(json::parse(slurp(writeReport(fixture().result, tmp / "plain").json))["render_comparison"].is_null());
+  // A folder that is not a comparison is named.
+  test::expectErrorContaining([&] { loadRenderSection(tmp / "report"); }, {"compare.json", "render --compare"});
+  writeFileAtomic(folder + "/compare.json", "{\"scene\": 3}");
+  test::expectErrorContaining([&] { loadRenderSection(folder); }, {"compare.json", "not a render comparison"});
 }
 
 TEST(Report, JsonHasTheDocumentedKeysAndTheMetrics) {

@@ -15,6 +15,7 @@
 
 #include "eval/blur.h"
 #include "eval/metrics.h"
+#include "eval/render_section.h"
 #include "io/btf_stack.h"
 #include "io/image_io.h"
 
@@ -124,6 +125,8 @@ struct EvalResult {
   // Clustered: the cluster-mean floor over all images (the best any one-value-per-cluster
   // model can do) and, with per-texel modulation, the floor of the modulated model; -1 = none.
   double floorRmse = -1, floorRmseModulated = -1;
+  // A rendered comparison to include (`nbtf eval --render-compare DIR`); empty = none.
+  RenderSection render;
   double seconds = 0;
 
   bool hasHoldout() const { return !holdoutImages.empty(); }

@@ -192,6 +192,24 @@ json reportJson(const EvalResult& r) {
                {"max_iterations", r.blurOptions.maxIterations}};
 
   j["figures"] = {{"heat_map", kHeatMapFile}, {"elevation", kElevationFile}, {"mean_brightness", kMeanMapFile}};
+  if (r.render.present()) {
+    const RenderSection& s = r.render;
+    j["render_comparison"] = {{"folder", s.folder},
+                              {"scene", s.scene},
+                              {"sampling", s.sampling},
+                              {"reference", s.reference},
+                              {"compressed", s.compressed},
+                              {"width", s.width},
+                              {"height", s.height},
+                              {"space", s.space},
+                              {"rmse_all", s.rmseAll},
+                              {"rmse_dark10", s.rmseDark},
+                              {"rmse_bright10", s.rmseBright},
+                              {"error_magnification", s.errorMagnification},
+                              {"figures", {kRenderFiles[0], kRenderFiles[1], kRenderFiles[2]}}};
+  } else {
+    j["render_comparison"] = nullptr;
+  }
   j["seconds"] = r.seconds;
   return j;
 }
@@ -436,6 +454,29 @@ Doc reportDoc(const json& j) {
       break;
     }
 
+  // ---- Rendered comparison (nbtf render --compare)
+  if (!j["render_comparison"].is_null()) {
+    const json& rc = j["render_comparison"];
+    doc.heading("Rendered comparison");
+    doc.paragraph("The " + rc["scene"].get<std::string>() + " scene (" + integerText(rc["width"]) + " x " +
+                  integerText(rc["height"]) + " pixels, " + rc["sampling"].get<std::string>() +
+                  ") rendered by `nbtf render --compare` from the original stack `" +
+                  rc["reference"].get<std::string>() + "` and from `" + rc["compressed"].get<std::string>() +
+                  "`, as the paper's Tables 3-4 measure compression: RMSE of the whole image and of its darkest "
+                  "and brightest 10% of pixels (" + rc["space"].get<std::string>() + ").");
+    doc.table({"Region", "RMSE"},
+              {{"Whole image", rmseText(rc["rmse_all"])},
+               {"Darkest 10%", rmseText(rc["rmse_dark10"])},
+               {"Brightest 10%", rmseText(rc["rmse_bright10"])}},
+              "Rendered with the same scene, camera and sampling", {false, true});
+    const auto& f = rc["figures"];
+    doc.figure(f[0].get<std::string>(), "Rendered from the original stack.", "rendered reference");
+    doc.figure(f[1].get<std::string>(), "Rendered from the compressed file.", "rendered compressed");
+    doc.figure(f[2].get<std::string>(),
+               "Absolute difference, magnified x " + fmt("%g", rc["error_magnification"].get<double>()) + ".",
+               "rendered error");
+  }
+
   // ---- Definitions
   doc.heading("How these numbers are computed");
   doc.paragraph("**RMSE (linear RGB / alpha)** is eq. (10) of the paper: the square root of the mean squared "
@@ -488,6 +529,11 @@ ReportPaths writeReport(const EvalResult& r, const std::string& dir) {
                                  "RMSE (linear RGB / alpha)", ticks.size() > 1 ? ticks : std::vector<double>{});
   images[kElevationFile] = writePng(path(kElevationFile), chart);
   images[kMeanMapFile] = writePng(path(kMeanMapFile), r.meanMapFigure);
+  if (r.render.present()) {
+    images[kRenderFiles[0]] = writePng(path(kRenderFiles[0]), r.render.referenceImage);
+    images[kRenderFiles[1]] = writePng(path(kRenderFiles[1]), r.render.compressedImage);
+    images[kRenderFiles[2]] = writePng(path(kRenderFiles[2]), r.render.errorImage);
+  }
 
   for (std::size_t i = 0; i < r.comparisons.size(); ++i)
     images[comparisonFile(i)] = writePng(path(comparisonFile(i)), r.comparisons[i].figure);
