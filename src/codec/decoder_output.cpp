@@ -348,6 +348,7 @@ void refuseOtherLayout(const std::string& folder, Layout layout, const std::vect
     for (const auto& entry : fs::directory_iterator(place, ec)) {
       if (!entry.is_regular_file(ec)) continue;
       const std::string name = entry.path().filename().string();
+      if (!name.empty() && name[0] == '.') continue;  // hidden: a temporary file of an interrupted write
       std::optional<ParsedBtfName> parsed;
       try {
         parsed = parseBtfFileName(name);
