@@ -164,7 +164,7 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
   NbtfDecoder dec(b);
   ASSERT_TRUE(dec.modulated());
   EXPECT_EQ(dec.modulationTerms(), terms);
-  const std::vector<float> e = effectiveTexelCoefficients(b.modulation, b.ids, k);
+  const std::vector<float> e = dequantizeTexelCoefficients(b.modulation);
   EXPECT_EQ(dec.texelCoefficients(), e);
   const Direction l{37.5, 200}, v{10, 45};
   std::vector<float> img(3 * 54);

@@ -32,7 +32,6 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
   }
   const int outputs = 3 * terms;
   ClusterValues out;
-  out.terms = terms;
   if (keepMeans) out.means.assign(static_cast<std::size_t>(clusters) * images * outputs, 0.0f);
   out.withinSse.assign(images, 0.0);
   Progress bar("cluster means", images, progress);
@@ -44,15 +43,13 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
     for (std::size_t i = begin; i < end; ++i) {
       stack.imageLinear(static_cast<int>(i), rgb.data());
       std::fill(sums.begin(), sums.end(), 0.0);
-      if (coef) {
-        for (std::int64_t t = 0; t < texels; ++t) {
-          double* s = &sums[static_cast<std::size_t>(ids[t]) * outputs];
-          for (int r = 0; r < terms; ++r)
-            for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coef[t * terms + r];
+      // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
+      for (std::int64_t t = 0; t < texels; ++t) {
+        double* s = &sums[static_cast<std::size_t>(ids[t]) * outputs];
+        for (int r = 0; r < terms; ++r) {
+          const double e = coef ? coef[t * terms + r] : 1.0;
+          for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * e;
         }
-      } else {  // the plain means, summed exactly as before modulation existed
-        for (std::int64_t t = 0; t < texels; ++t)
-          for (int c = 0; c < 3; ++c) sums[3 * ids[t] + c] += rgb[3 * t + c] * invAlpha;
       }
       for (int g = 0; g < clusters; ++g)
         for (int o = 0; o < outputs; ++o) {
@@ -61,22 +58,14 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
           if (keepMeans) out.means[(static_cast<std::size_t>(g) * images + i) * outputs + o] = m;
         }
       double sse = 0;
-      if (coef) {
-        for (std::int64_t t = 0; t < texels; ++t) {
-          const float* m = &mean[static_cast<std::size_t>(ids[t]) * outputs];
-          for (int c = 0; c < 3; ++c) {
-            double model = 0;
-            for (int r = 0; r < terms; ++r) model += static_cast<double>(coef[t * terms + r]) * m[3 * r + c];
-            double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
-            sse += d * d;
-          }
+      for (std::int64_t t = 0; t < texels; ++t) {
+        const float* m = &mean[static_cast<std::size_t>(ids[t]) * outputs];
+        for (int c = 0; c < 3; ++c) {
+          double model = 0;
+          for (int r = 0; r < terms; ++r) model += (coef ? static_cast<double>(coef[t * terms + r]) : 1.0) * m[3 * r + c];
+          double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
+          sse += d * d;
         }
-      } else {
-        for (std::int64_t t = 0; t < texels; ++t)
-          for (int c = 0; c < 3; ++c) {
-            double r = static_cast<double>(rgb[3 * t + c] * invAlpha) - mean[3 * ids[t] + c];
-            sse += r * r;
-          }
       }
       out.withinSse[i] = sse;
       bar.advance();

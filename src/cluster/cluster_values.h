@@ -15,7 +15,6 @@
 namespace nbtf {
 
 struct ClusterValues {
-  int terms = 1;
   std::vector<float> means;       // clusters x images x (3 terms): term r, channel c at 3 r + c (when kept)
   std::vector<double> withinSse;  // per image: sum over texels and channels of the leftover squared
   // RMSE of the leftover over the given images (eq. 10: texels x images x 3), the floor.

@@ -105,7 +105,7 @@ void NbtfDecoder::build(const DecoderOptions& options) {
     pca_ = std::make_unique<detail::PcaState>(detail::PcaState{DirectionInterpolator(material_.lights, material_.views)});
     return;
   }
-  coefficients_ = effectiveTexelCoefficients(material_.modulation, material_.ids, material_.latentRows);
+  coefficients_ = dequantizeTexelCoefficients(material_.modulation);  // shapes checked by validate()
   terms_ = material_.modulation.empty() ? 1 : material_.modulation.terms;
   packed_ = std::make_unique<detail::PackedDecoder>(detail::packDecoder(material_.decoder, material_.latentDim));
   packed_->latents = material_.latents.data();
@@ -188,7 +188,10 @@ void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const std::int32_t* 
     a.out = modulated() ? terms : rgb + 3 * begin;
     a.scratch = scratch;
     tile(*packed_, a);
-    if (modulated()) combinerOf(*this)(terms, texels + begin, a.n, rgb + 3 * begin);
+    if (modulated())
+      for (int i = 0; i < a.n; ++i)
+        combineTerms(coefficients_.data() + static_cast<std::size_t>(texels[begin + i]) * terms_,
+                     terms + static_cast<std::size_t>(i) * 3 * terms_, terms_, rgb + 3 * (begin + i));
   }
   if (scale == OutputScale::Linear)
     for (std::size_t i = 0; i < 3 * n; ++i) rgb[i] *= material_.alpha;

@@ -128,37 +128,36 @@ void checkMetadata(const std::string& json, const std::string& name) {
 
 // ---- Coded parts (format 1.2), shared by the writer and computeSizes
 
-// The id list as byte planes (all low bytes, then the next...): neighbouring texels share
-// clusters, and the planes put the repetitive bytes together for zstd.
-std::vector<std::uint8_t> idPlanes(const std::vector<std::int32_t>& ids, int width) {
-  const std::size_t n = ids.size();
+// Values of `width` bytes as byte planes (all low bytes, then the next...): neighbouring
+// texels share clusters and codes, and the planes put the repetitive bytes together for zstd.
+std::vector<std::uint8_t> toBytePlanes(const std::vector<std::uint32_t>& values, int width) {
+  const std::size_t n = values.size();
   std::vector<std::uint8_t> planes(n * width);
   for (int b = 0; b < width; ++b)
-    for (std::size_t t = 0; t < n; ++t) planes[b * n + t] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(ids[t]) >> (8 * b));
+    for (std::size_t i = 0; i < n; ++i) planes[b * n + i] = static_cast<std::uint8_t>(values[i] >> (8 * b));
   return planes;
+}
+std::vector<std::uint32_t> fromBytePlanes(const std::vector<std::uint8_t>& planes, std::size_t n, int width) {
+  std::vector<std::uint32_t> values(n, 0);
+  for (int b = 0; b < width; ++b)
+    for (std::size_t i = 0; i < n; ++i) values[i] |= static_cast<std::uint32_t>(planes[b * n + i]) << (8 * b);
+  return values;
 }
 
 int modulationCodeBytes(int bits) { return bits <= 8 ? 1 : 2; }
 
-// Modulation codes term-planar, then byte planes (as the ids).
-std::vector<std::uint8_t> modulationPlanes(const TexelModulation& m) {
-  const std::size_t texels = m.codes.size() / std::max(m.terms, 1);
-  const int width = modulationCodeBytes(m.bits);
-  std::vector<std::uint8_t> planes(m.codes.size() * width);
-  std::size_t i = 0;
-  for (int b = 0; b < width; ++b)
-    for (int r = 0; r < m.terms; ++r)
-      for (std::size_t t = 0; t < texels; ++t) planes[i++] = static_cast<std::uint8_t>(m.codes[t * m.terms + r] >> (8 * b));
-  return planes;
-}
-
 std::vector<std::uint8_t> codedIds(const CompressedBtf& btf) {
-  auto planes = idPlanes(btf.ids, idWidthForClusters(btf.latentRows));
+  auto planes = toBytePlanes(std::vector<std::uint32_t>(btf.ids.begin(), btf.ids.end()), idWidthForClusters(btf.latentRows));
   return zstdCompress(planes.data(), planes.size());
 }
 
+// The codes term by term (all texels' term 0, then term 1...), as byte planes.
 std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
-  auto planes = modulationPlanes(m);
+  const std::size_t texels = m.codes.size() / std::max(m.terms, 1);
+  std::vector<std::uint32_t> byTerm(m.codes.size());
+  for (int r = 0; r < m.terms; ++r)
+    for (std::size_t t = 0; t < texels; ++t) byTerm[r * texels + t] = m.codes[t * m.terms + r];
+  auto planes = toBytePlanes(byTerm, modulationCodeBytes(m.bits));
   return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
 }
 
@@ -861,12 +860,11 @@ void parseIdsZstd(const SectionRef& s, CompressedBtf& btf, const std::string& na
   const std::size_t rest = r.remaining();
   auto planes = zstdDecompress(r.take(rest, "id data"), rest, static_cast<std::size_t>(count) * width, name,
                                sectionLabel(s.tag));
+  const std::vector<std::uint32_t> ids = fromBytePlanes(planes, count, width);
   btf.ids.resize(count);
   for (std::size_t t = 0; t < count; ++t) {
-    std::uint32_t v = 0;
-    for (int b = 0; b < width; ++b) v |= static_cast<std::uint32_t>(planes[b * static_cast<std::size_t>(count) + t]) << (8 * b);
-    if (v > static_cast<std::uint32_t>(INT_MAX)) throw r.fail("id " + std::to_string(v) + " is out of range");
-    btf.ids[t] = static_cast<std::int32_t>(v);
+    if (ids[t] > static_cast<std::uint32_t>(INT_MAX)) throw r.fail("id " + std::to_string(ids[t]) + " is out of range");
+    btf.ids[t] = static_cast<std::int32_t>(ids[t]);
   }
   btf.storage.idsZstd = true;
 }
@@ -903,11 +901,10 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
       throw r.fail("holds " + std::to_string(rest) + " bytes of codes, expected " + std::to_string(expected));
     planes.assign(data, data + rest);
   }
-  m.codes.assign(values, 0);
-  std::size_t i = 0;
-  for (int b = 0; b < width; ++b)
-    for (int q = 0; q < terms; ++q)
-      for (std::size_t t = 0; t < texels; ++t) m.codes[t * terms + q] |= static_cast<std::uint16_t>(planes[i++] << (8 * b));
+  const std::vector<std::uint32_t> byTerm = fromBytePlanes(planes, values, width);
+  m.codes.resize(values);
+  for (int q = 0; q < terms; ++q)
+    for (std::size_t t = 0; t < texels; ++t) m.codes[t * terms + q] = static_cast<std::uint16_t>(byTerm[q * texels + t]);
   btf.storage.modulationZstd = coding == 1;
 }
 

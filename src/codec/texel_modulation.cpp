@@ -96,13 +96,7 @@ std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> a, int ter
   return a;
 }
 
-std::vector<float> effectiveTexelCoefficients(const TexelModulation& m, const std::vector<std::int32_t>& ids,
-                                              int clusters) {
-  if (m.empty()) return {};
-  if (m.codes.size() != ids.size() * m.terms)
-    throw Error("modulation holds " + std::to_string(m.codes.size()) + " codes for " + std::to_string(ids.size()) +
-                " texels x " + std::to_string(m.terms) + " terms");
-  (void)clusters;
+std::vector<float> dequantizeTexelCoefficients(const TexelModulation& m) {
   std::vector<float> a(m.codes.size());
   for (std::size_t i = 0; i < a.size(); ++i) a[i] = dequantizeTexelCoefficient(m, static_cast<int>(i % m.terms), m.codes[i]);
   return a;

@@ -30,8 +30,8 @@ float dequantizeTexelCoefficient(const TexelModulation& modulation, int term, st
 std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> coefficients, int terms,
                                                    const std::vector<std::int32_t>& ids, int clusters);
 
-// What decoding multiplies the terms by: the dequantized codes, texels x terms.
-std::vector<float> effectiveTexelCoefficients(const TexelModulation& modulation, const std::vector<std::int32_t>& ids,
-                                              int clusters);
+// What decoding multiplies the terms by: the dequantized codes, texels x terms (empty
+// without modulation).
+std::vector<float> dequantizeTexelCoefficients(const TexelModulation& modulation);
 
 }  // namespace nbtf

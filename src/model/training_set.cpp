@@ -111,16 +111,9 @@ std::vector<std::uint8_t> holdoutImageMask(int images, double fraction, std::uin
 
 void TrainingSet::targets(int group, const int* images, int count, float* out) const {
   if (!perTexel_) {
-    const int o = outputs();
+    const std::size_t o = static_cast<std::size_t>(outputs());
     const float* m = &means_[static_cast<std::size_t>(group) * images_ * o];
-    if (o == 3) {
-      for (int s = 0; s < count; ++s) {
-        const float* p = m + 3 * static_cast<std::size_t>(images[s]);
-        out[3 * s] = p[0], out[3 * s + 1] = p[1], out[3 * s + 2] = p[2];
-      }
-    } else {
-      for (int s = 0; s < count; ++s) std::memcpy(out + static_cast<std::size_t>(o) * s, m + static_cast<std::size_t>(o) * images[s], o * sizeof(float));
-    }
+    for (int s = 0; s < count; ++s) std::memcpy(out + o * s, m + o * images[s], o * sizeof(float));
     return;
   }
   const float invAlpha = 1.0f / alpha_;
