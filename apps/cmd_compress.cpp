@@ -134,7 +134,14 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
         "components",
         "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
-        cxxopts::value<int>()->default_value("0"));
+        cxxopts::value<int>()->default_value("0"))(
+        "world-size", "Data-parallel training over this many processes (docs/model.md; same command on every rank)",
+        cxxopts::value<int>()->default_value("1"))(
+        "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
+        cxxopts::value<int>()->default_value("0"))(
+        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1)", cxxopts::value<std::string>())(
+        "dist-timeout", "Seconds the rendezvous and every collective may wait for the other ranks",
+        cxxopts::value<double>()->default_value("120"));
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
@@ -153,6 +160,14 @@ int compressMain(int argc, char** argv) {
     o.pcaComponents = args["components"].as<int>();
     if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
     applyMethod(args, o);
+    DistributedConfig& dist = o.train.distributed;
+    dist.worldSize = args["world-size"].as<int>();
+    dist.rank = args["rank"].as<int>();
+    dist.timeoutSeconds = args["dist-timeout"].as<double>();
+    if (args.count("master")) dist.master = args["master"].as<std::string>();
+    if (dist.enabled() && !args.count("master")) throw Error("--world-size > 1 needs --master HOST:PORT");
+    if (dist.enabled() && o.pcaBaseline) throw Error("--world-size: the PCA baseline has no training to distribute");
+    validateDistributedConfig(dist);
     if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
     if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
@@ -185,6 +200,12 @@ int compressMain(int argc, char** argv) {
                      output.c_str());
       if (!statsPath.empty()) writeFileAtomic(statsPath, compressStatsJson(stats));
       return 130;
+    }
+    if (stats.worker) {
+      std::printf("\nrank %d of %d: trained its share of %lld steps (%.2f ms all-reduce per step); rank 0 writes %s\n",
+                  dist.rank, dist.worldSize, static_cast<long long>(stats.steps), 1e3 * stats.allReduceSecondsPerStep,
+                  output.c_str());
+      return 0;
     }
     std::printf("\n%s", formatCompressSummary(stats).c_str());
     if (!statsPath.empty()) writeFileAtomic(statsPath, compressStatsJson(stats));

@@ -13,6 +13,7 @@ PACKAGES=(
   libgtest-dev            # tests
   nlohmann-json3-dev      # configs, reports
   libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
+  libgloo-dev             # headers of libtorch's distributed backend (c10d Gloo): data-parallel training
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do

@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "model/decoder_backprop.h"
+#include "model/distributed_group.h"
 #include "model/fused_adam.h"
 #include "model/torch_modules.h"
 #include "model/train_checkpoint.h"
@@ -115,18 +116,17 @@ torch::Device trainingDevice(const TrainConfig& config) {
   return torch::Device(torch::kCUDA, 0);
 }
 
-// One step of the torch backend: stock modules, autograd, torch::optim. z: [tiles, latent]
+// The forward and backward pass of the torch backend: stock modules and autograd (the
+// optimizer, torch::optim, steps after it). z: [tiles, latent]
 // (from the encoder, with its graph, or the frozen polish latents); dirs and targets on the
 // CPU. Gradients are reset to undefined, not zero, so parameters outside the graph (the
 // frozen encoder while polishing) are not moved by the optimizer's momentum.
-double stockTrainStep(Decoder& decoder, torch::optim::Optimizer& optimizer, const std::vector<torch::Tensor>& params,
-                      const torch::Tensor& z, const torch::Tensor& dirs, const torch::Tensor& targets, int perTile,
-                      const torch::Device& device) {
+double stockTrainStep(Decoder& decoder, const std::vector<torch::Tensor>& params, const torch::Tensor& z,
+                      const torch::Tensor& dirs, const torch::Tensor& targets, int perTile, const torch::Device& device) {
   for (const torch::Tensor& p : params) const_cast<torch::Tensor&>(p).mutable_grad() = torch::Tensor();
   torch::Tensor inputs = torch::cat({z.repeat_interleave(perTile, 0), dirs.to(device)}, 1);
   torch::Tensor loss = torch::mse_loss(decoder->forward(inputs), targets.to(device));
   loss.backward();
-  optimizer.step();
   return loss.item<double>();
 }
 
@@ -216,6 +216,21 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   const std::int64_t batch = geometry.batch, stepsPerEpoch = geometry.stepsPerEpoch;
   const std::int64_t totalSteps = geometry.totalSteps;  // 0: time budget only
 
+  // ---- Data-parallel: rendezvous, and this rank's share of every step's tiles.
+  std::unique_ptr<detail::DistributedGroup> group;
+  int shareBegin = 0, shareEnd = tiles;
+  if (config.distributed.enabled()) {
+    if (config.timeBudgetSeconds > 0)
+      throw Error("--time-budget cannot be used with --world-size > 1 (ranks must run the same steps); use --epochs");
+    if (config.resume) throw Error("--resume cannot be used with --world-size > 1");
+    if (tiles < config.distributed.worldSize)
+      throw Error("--world-size " + std::to_string(config.distributed.worldSize) + " exceeds the " +
+                  std::to_string(tiles) + " encoder inputs of a step: every rank needs at least one");
+    tileShare(tiles, config.distributed.rank, config.distributed.worldSize, shareBegin, shareEnd);
+    group = std::make_unique<detail::DistributedGroup>(config.distributed);
+  }
+  const bool worker = group && group->rank() != 0;
+
   // ---- Resume.
   CheckpointMeta meta;
   meta.fingerprint = checkpointFingerprint(config, set);
@@ -275,7 +290,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     return std::min(1.0, p);
   };
   auto writeCheckpointNow = [&] {
-    if (config.checkpointPath.empty()) return;
+    if (config.checkpointPath.empty() || worker) return;  // rank 0 checkpoints for all
     meta.step = step;
     meta.elapsedSeconds = elapsedTotal();
     meta.emaLoss = emaLoss;
@@ -305,23 +320,31 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       tPhase = now;
     };
     planStep(set, config.seed, step, tiles, perTile, plan);
+    // This rank's share of the step's tiles (all of them in one process). The encoder still
+    // runs on every distinct input of the step, so its BatchNorm sees the same batch on every
+    // rank as in one process; only the decoder's rows (the cost) are split.
+    const int stepTiles = shareEnd - shareBegin;
     {
       float* d = dirs.data_ptr<float>();
       float* y = targets.data_ptr<float>();
       const std::vector<float>& allDirs = set.directions();
-      at::parallel_for(0, tiles, 1, [&](std::int64_t begin, std::int64_t end) {
+      at::parallel_for(0, stepTiles, 1, [&](std::int64_t begin, std::int64_t end) {
         for (std::int64_t t = begin; t < end; ++t) {
-          const int* img = &plan.images[t * perTile];
-          set.targets(plan.tileGroup[t], img, perTile, y + t * perTile * outputs);
+          const int* img = &plan.images[(shareBegin + t) * perTile];
+          set.targets(plan.tileGroup[shareBegin + t], img, perTile, y + t * perTile * outputs);
           for (int s = 0; s < perTile; ++s)
             std::memcpy(d + (t * perTile + s) * 4, &allDirs[static_cast<std::size_t>(img[s]) * 4], 4 * sizeof(float));
         }
       });
     }
-    for (int t = 0; t < tiles; ++t) {
-      tileSlot.data_ptr<std::int64_t>()[t] = plan.tileSlot[t];
-      tileGroup.data_ptr<std::int64_t>()[t] = plan.tileGroup[t];
+    for (int t = 0; t < stepTiles; ++t) {
+      tileSlot.data_ptr<std::int64_t>()[t] = plan.tileSlot[shareBegin + t];
+      tileGroup.data_ptr<std::int64_t>()[t] = plan.tileGroup[shareBegin + t];
     }
+    // Views of the step's rows (all of them unless this rank trains a share).
+    const std::int64_t stepRows = static_cast<std::int64_t>(stepTiles) * perTile;
+    const torch::Tensor stepDirs = dirs.narrow(0, 0, stepRows), stepTargets = targets.narrow(0, 0, stepRows);
+    const torch::Tensor stepTileSlot = tileSlot.narrow(0, 0, stepTiles), stepTileGroup = tileGroup.narrow(0, 0, stepTiles);
 
     double loss;
     TrainResult::Profile& prof = result.profile;
@@ -331,14 +354,14 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
                                              static_cast<std::int64_t>(plan.distinctGroups.size()));
       if (stock) {
         // Autograd through encoder and decoder; the whole step is timed as the decoder's.
-        torch::Tensor z = encoder->forwardStock(in.to(device)).index_select(0, tileSlot.to(device));
-        loss = stockTrainStep(decoder, *optimizer, params, z, dirs, targets, perTile, device);
+        torch::Tensor z = encoder->forwardStock(in.to(device)).index_select(0, stepTileSlot.to(device));
+        loss = stockTrainStep(decoder, params, z, stepDirs, stepTargets, perTile, device);
         lap(prof.decoder);
       } else {
         for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
-        torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
+        torch::Tensor z = encoder->forward(in).index_select(0, stepTileSlot);
         lap(prof.encoder);
-        loss = backprop.trainStep(z.detach(), dirs, targets, perTile, dz);
+        loss = backprop.trainStep(z.detach(), stepDirs, stepTargets, perTile, dz);
         lap(prof.decoder);
         z.backward(dz);
         lap(prof.encoder);
@@ -351,17 +374,28 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       }
       lap(prof.encoder);
       if (stock)
-        loss = stockTrainStep(decoder, *optimizer, params, polishLatents.index_select(0, tileGroup).to(device), dirs,
-                              targets, perTile, device);
+        loss = stockTrainStep(decoder, params, polishLatents.index_select(0, stepTileGroup).to(device), stepDirs,
+                              stepTargets, perTile, device);
       else
-        loss = backprop.trainStep(polishLatents.index_select(0, tileGroup), dirs, targets, perTile, dz);
+        loss = backprop.trainStep(polishLatents.index_select(0, stepTileGroup), stepDirs, stepTargets, perTile, dz);
       lap(prof.decoder);
+    }
+    if (group) {
+      // The whole step's gradient and loss: each rank's (a mean over its rows) weighted by its
+      // share of the rows, summed over the ranks. Every rank then takes the same step.
+      const double weight = static_cast<double>(stepTiles) / tiles;
+      for (const torch::Tensor& p : params)
+        if (p.grad().defined()) p.grad().mul_(weight);
+      group->allReduceGradients(params);
+      torch::Tensor lossSum = torch::full({1}, static_cast<float>(loss * weight));
+      group->allReduceSum(lossSum);
+      loss = lossSum.item<float>();
     }
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
                   " (loss is not finite); lower optimizer.learning_rate");
     if (stock) {
-      // stockTrainStep stepped the optimizer.
+      optimizer->step();
     } else if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer.get())) {
       detail::fusedAdamStep(*adam);
     } else {
@@ -392,6 +426,21 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   }
   result.trainSeconds = since(loopStart);
   bar.finish();
+  if (group && group->calls() > 0) {
+    result.allReduceBytesPerStep = group->bytesReduced() / group->calls();
+    result.allReduceSecondsPerStep = group->secondsInCollectives() / group->calls();
+  }
+  if (worker) {
+    // Rank 0 exports, evaluates and writes; this rank's part is done.
+    result.worker = true;
+    result.steps = step;
+    result.epochsRun = static_cast<int>(step / stepsPerEpoch);
+    result.rmseTrain = result.rmseHoldout = -1;
+    result.samplesPerSecond =
+        result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
+    result.seconds = since(callStart);
+    return result;
+  }
 
   // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
   result.steps = step;

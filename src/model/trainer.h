@@ -9,6 +9,7 @@
 
 #include "io/btf_stack.h"
 #include "codec/mlp.h"
+#include "model/distributed.h"
 #include "preprocess/abrdf_matrix.h"
 
 namespace nbtf {
@@ -103,6 +104,9 @@ struct TrainConfig {
   // "cpu" | "cuda". cuda needs the torch backend and a libtorch built with CUDA (Debian's is
   // CPU-only: a clear error there).
   std::string device = "cpu";
+  // ---- data-parallel training over processes (not in config files: `nbtf compress
+  // --world-size N --rank R --master HOST:PORT`; model/distributed.h)
+  DistributedConfig distributed;
   // ---- run control (not in config files)
   std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
   std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done
@@ -160,6 +164,10 @@ struct TrainResult {
   double decoderGflops = 0;             // samplesPerSecond x 3 x forward flops of the decoder
   double finalLoss = 0;                 // smoothed training loss at the end (MSE vs cluster means)
   int encoderBlocks = 0;                // conv blocks used for this N
+  // Data-parallel runs: this rank is not rank 0 (it trained its shares; rank 0 exports and
+  // evaluates, so decoder, latents and rmse* are empty / -1 here), and the gradient traffic.
+  bool worker = false;
+  double allReduceBytesPerStep = 0, allReduceSecondsPerStep = 0;
   // Where the loop's time went (seconds): drawing samples and gathering targets, encoder
   // forward + backward, the decoder's forward + backward, the optimizer update.
   struct Profile {

@@ -260,6 +260,13 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.steps = train.steps;
   stats.samplesPerSecond = train.samplesPerSecond;
   stats.decoderGflops = train.decoderGflops;
+  stats.worldSize = config.distributed.worldSize;
+  stats.allReduceBytesPerStep = train.allReduceBytesPerStep;
+  stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
+  if (train.worker) {  // rank > 0: its shares are trained; rank 0 assembles and writes the file
+    stats.worker = true;
+    return {};
+  }
   if (train.interrupted) {
     stats.interrupted = true;
     return {};
@@ -358,7 +365,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
 
   CompressedBtf btf = compressStack(stack, o, stats);  // fills the other stages' seconds
-  if (stats.interrupted) return stats;
+  if (stats.interrupted || stats.worker) return stats;
 
   // ---- Write (atomic); the encoder copy is the same file plus the encoder section.
   t = Clock::now();
@@ -446,6 +453,13 @@ std::string formatCompressSummary(const CompressStats& s) {
   std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
                 s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops);
   out += line;
+  if (s.worldSize > 1) {
+    std::snprintf(line, sizeof line,
+                  "data-parallel: %d processes (c10d Gloo); gradients all-reduced every step: %.1f KiB, %.2f ms per "
+                  "step on this rank\n",
+                  s.worldSize, s.allReduceBytesPerStep / 1024, 1e3 * s.allReduceSecondsPerStep);
+    out += line;
+  }
   std::snprintf(line, sizeof line,
                 "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | write %.2f | total "
                 "%.2f\n",
@@ -491,6 +505,9 @@ std::string compressStatsJson(const CompressStats& s) {
   j["decoder_gflops"] = s.decoderGflops;
   j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
   j["interrupted"] = s.interrupted;
+  j["world_size"] = s.worldSize;
+  j["all_reduce_bytes_per_step"] = s.allReduceBytesPerStep;
+  j["all_reduce_seconds_per_step"] = s.allReduceSecondsPerStep;
   return j.dump(2) + "\n";
 }
 

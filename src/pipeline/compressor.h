@@ -61,6 +61,11 @@ struct CompressStats {
   // Clustered: of the standardized log ABRDFs; PCA baseline: of the fitted linear ABRDFs / alpha.
   double pcaExplainedVarianceRatio = -1;  // -1 in per-texel mode
   bool interrupted = false;   // stopped by stopFlag: nothing written, checkpoint kept
+  // Data-parallel training (train.distributed): processes, whether this one is a worker
+  // (rank > 0: it trains its shares, rank 0 writes the file), and the gradient traffic.
+  int worldSize = 1;
+  bool worker = false;
+  double allReduceBytesPerStep = 0, allReduceSecondsPerStep = 0;
   std::string checkpointPath;
 };
 
