@@ -23,6 +23,8 @@ trap 'rm -rf "$work"' EXIT
 cores=$(nproc)
 common=("$data" --clusters 500 --epochs "$epochs" --seed 1 -q)
 echo "== $cores cores; load average $(cut -d' ' -f1-3 /proc/loadavg); ${common[*]}"
+echo "== 1 process, 1 thread (the same arithmetic as each rank: the RMSE reference)"
+"$bin/nbtf" compress "${common[@]}" --threads 1 -o "$work/one1.nbtf" --stats-json "$work/one1.json" > /dev/null
 echo "== 1 process, $cores threads"
 "$bin/nbtf" compress "${common[@]}" --threads "$cores" -o "$work/one.nbtf" --stats-json "$work/one.json" > /dev/null
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
@@ -33,15 +35,17 @@ rank1=$!
 "$bin/nbtf" compress "${common[@]}" --threads 1 -o "$work/two.nbtf" --stats-json "$work/two.json" --world-size 2 \
   --rank 0 --master "127.0.0.1:$port" > /dev/null
 wait "$rank1"
-python3 - "$work/one.json" "$work/two.json" <<'PY'
+python3 - "$work/one.json" "$work/two.json" "$work/one1.json" <<'PY'
 import json, sys
-one, two = (json.load(open(p)) for p in sys.argv[1:3])
+one, two, one1 = (json.load(open(p)) for p in sys.argv[1:4])
 steps = one["steps"]
 t1, t2 = one["seconds"]["train"], two["seconds"]["train"]
 msg, comm = two["all_reduce_bytes_per_step"], two["all_reduce_seconds_per_step"]
 print(f"steps                         {steps} (both)")
-print(f"RMSE (linear / alpha)         1 process {one['rmse_train']:.5f}, 2 processes {two['rmse_train']:.5f}")
-print(f"training seconds              1 process {t1:.1f}, 2 processes {t2:.1f} (ratio {t2 / t1:.2f})")
+print(f"RMSE (linear / alpha)         1 process x 1 thread {one1['rmse_train']:.6f}, 2 processes x 1 thread "
+      f"{two['rmse_train']:.6f} (1 process x all threads {one['rmse_train']:.6f}: another thread count, other sums)")
+print(f"training seconds              1 process x all threads {t1:.1f}, 2 processes x 1 thread {t2:.1f} "
+      f"(ratio {t2 / t1:.2f}), 1 process x 1 thread {one1['seconds']['train']:.1f}")
 print(f"all-reduce per step           {msg / 1024:.1f} KiB, {1e3 * comm:.2f} ms on rank 0 (includes waiting for the peer)")
 step = t1 / steps
 print(f"step time, 1 process          {1e3 * step:.1f} ms")
