@@ -192,11 +192,11 @@ TEST(Ubo2014Btf, WrongSignatureNamesTheFile) {
   EXPECT_EQ(e.rfind(path + ": not a UBO BTF file", 0), 0u) << e;
   EXPECT_NE(e.find("!DFMF08FCR"), std::string::npos) << e;
 
-  const std::string fmf = dir / "fmf.btf";
-  std::string text = "!FMF12FCER and then some";
-  writeBytes(fmf, std::vector<char>(text.begin(), text.end()));
-  e = errorOf(fmf);
-  EXPECT_EQ(e.rfind(fmf + ": signature '!FMF12FCER' (FMF", 0), 0u) << e;
+  const std::string bdi = dir / "bdi.btf";
+  std::string text = "!BDIF06R2! and then some";
+  writeBytes(bdi, std::vector<char>(text.begin(), text.end()));
+  e = errorOf(bdi);
+  EXPECT_EQ(e.rfind(bdi + ": signature '!BDIF06R2!' (BDI", 0), 0u) << e;
   EXPECT_NE(e.find("does not read"), std::string::npos) << e;
 
   EXPECT_NE(errorOf(dir / "missing.btf").find("no such file"), std::string::npos);
@@ -252,6 +252,67 @@ TEST(Ubo2014Btf, SizesThatDoNotFitAreNamed) {
   bad[model] = 2;  // LAB
   writeBytes(dir / "lab.btf", bad);
   EXPECT_NE(errorOf(dir / "lab.btf").find("colour model LAB is not supported"), std::string::npos) << errorOf(dir / "lab.btf");
+}
+
+// FMF (read_ubo_fmf.m): one U for all channels (rows channel fastest), one SxV; header version
+// 1 adds the dynamic range reduction (exp(x) - eps), version 2 a height map.
+TEST(Ubo2014Btf, ReadsFmfAsThreeChannels) {
+  test::TempDir dir;
+  const std::string dfmf = dir / "d.btf";
+  smallMaterial(0, 2).write(dfmf);
+  const std::vector<char> bytes = fileBytes(dfmf);
+  const std::size_t perChannel = 13 + 2 * (2 + 6 * 2 + 12 * 2);
+  const std::size_t headerEnd = bytes.size() - 3 * perChannel - 56;  // signature + common header
+  const int k = 2, rows = 18, cols = 12;
+  std::vector<float> u(rows * k), sxv(cols * k);
+  for (int i = 0; i < rows * k; ++i) u[i] = 0.01f * (i % 23) - 0.05f;
+  for (int i = 0; i < cols * k; ++i) sxv[i] = 0.5f + 0.02f * (i % 7);
+  auto put = [](std::vector<char>& b, const void* p, std::size_t n) {
+    b.insert(b.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n);
+  };
+  for (std::string sig : {"!FMF06FCR", "!FMF06FC", "!FMF12FCER"}) {
+    std::vector<char> b(sig.begin(), sig.end());
+    std::size_t end = headerEnd - (sig == "!FMF06FC" ? 4 : 0);  // no rotation count without the 'R'
+    b.insert(b.end(), bytes.begin() + 10, bytes.begin() + static_cast<std::ptrdiff_t>(end));
+    const bool extended = sig == "!FMF12FCER";
+    if (extended) {
+      const std::uint8_t version = 2;
+      const std::uint32_t drr = 1, hmRows = 2, hmCols = 3;
+      put(b, &version, 1), put(b, &drr, 4), put(b, &hmRows, 4), put(b, &hmCols, 4);
+      b.insert(b.end(), 2 * 2 * 3, 0);
+    }
+    const std::uint32_t kk = k, r = rows, c = cols;
+    const std::uint8_t scalar = 4;
+    put(b, &kk, 4), put(b, &scalar, 1), put(b, &kk, 4), put(b, &r, 4), put(b, &c, 4);
+    const float sv[2] = {2, 1};
+    put(b, sv, 8), put(b, u.data(), u.size() * 4), put(b, sxv.data(), sxv.size() * 4);
+    const std::string path = dir / "f.btf";
+    writeBytes(path, b);
+    Ubo2014Btf btf = Ubo2014Btf::read(path);
+    EXPECT_EQ(btf.meta().signature, sig);
+    EXPECT_EQ(btf.meta().colorModel, extended ? 12 : 0);
+    EXPECT_EQ(btf.meta().rotations.size(), 0u);
+    std::vector<float> abrdf(btf.numImages() * 3);
+    btf.abrdfLinear(5, abrdf.data());
+    for (int l = 0; l < 3; ++l)
+      for (int v = 0; v < 2; ++v)
+        for (int ch = 0; ch < 3; ++ch) {
+          float want = dot(u, 3 * (l + 3 * v) + ch, sxv, 5, k);
+          if (extended) want = std::exp(want) - 1e-5f;
+          EXPECT_NEAR(abrdf[(l * 2 + v) * 3 + ch], want, 1e-6f) << sig;
+        }
+    // written back, it is the equivalent DFMF file
+    btf.write(dir / "back.btf");
+    EXPECT_EQ(Ubo2014Btf::read(dir / "back.btf").meta().signature, "!DFMF08FCR");
+    b.resize(b.size() - 3);
+    writeBytes(path, b);
+    EXPECT_NE(errorOf(path).find("truncated UBO BTF file: SxV needs"), std::string::npos) << errorOf(path);
+  }
+  const std::string pvf = dir / "p.btf";
+  writeBytes(pvf, {'!', 'P', 'V', 'F', '0', '6', 'F', 'C', 'R', 0});
+  EXPECT_NE(errorOf(pvf).find("signature '!PVF06FCR' (PVF: per-view factorization) is a UBO BTF format nbtf does not read"),
+            std::string::npos)
+      << errorOf(pvf);
 }
 
 TEST(Ubo2014Btf, LooksLikeUbo2014) {

@@ -118,6 +118,11 @@ class Reader {
     }
     return out;
   }
+  void seek(std::uint64_t position) {
+    in_.clear();
+    in_.seekg(static_cast<std::streamoff>(position));
+    offset_ = position;
+  }
   [[noreturn]] void fail(const std::string& message) const {
     throw fileError(path_, message + " (at offset " + std::to_string(offset_) + ")");
   }
@@ -400,6 +405,64 @@ BtfStack Ubo2014Btf::toStack(const Crop& requested, bool progress) const {
   return stack;
 }
 
+namespace {
+
+// FMF (read_ubo_fmf.m): one factorization of all channels; U's rows are channel fastest, then
+// light, then view (or channel, then texel), SxV is shared. Presented as three DFMF channels
+// (U split by channel, SxV copied) in RGB, or log RGB when the dynamic range was reduced.
+Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint64_t texels, const std::string& path) {
+  std::uint8_t headerVersion = 0;
+  if (m.signature == "!FMF12FCER") headerVersion = r.value<std::uint8_t>("the FMF header version");
+  if (headerVersion >= 3) r.fail("unknown FMF header version " + std::to_string(headerVersion));
+  std::uint32_t drr = 0;
+  if (headerVersion >= 1) drr = r.value<std::uint32_t>("the dynamic range reduction method");
+  if (headerVersion >= 2) {  // a height map (half floats); nbtf does not use it
+    std::uint32_t rows = r.value<std::uint32_t>("the height map size"), cols = r.value<std::uint32_t>("the height map size");
+    std::uint64_t bytes = 2ull * rows * cols;
+    r.need(bytes, "the height map");
+    r.text(bytes, "the height map");
+  }
+  m.maxComponents = r.value<std::uint32_t>("the component count");
+  const int scalarSize = r.value<std::uint8_t>("the scalar size");
+  if (scalarSize != 2 && scalarSize != 4 && scalarSize != 8)
+    r.fail("unknown scalar size " + std::to_string(scalarSize) + " (2, 4 or 8 bytes)");
+  const std::uint32_t k = r.value<std::uint32_t>("the component count");
+  const std::uint32_t rows = r.value<std::uint32_t>("the row count"), cols = r.value<std::uint32_t>("the column count");
+  const bool inU = rows == 3 * pairs && cols == texels, inSxV = rows == 3 * texels && cols == pairs;
+  if (!inU && !inSxV) {
+    std::ostringstream s;
+    s << "the matrix is " << rows << " x " << cols << ", expected 3 x " << pairs << " (channels x lights x views) by "
+      << texels << " (texels), or 3 x " << texels << " by " << pairs;
+    r.fail(s.str());
+  }
+  if (k == 0 || k > std::min(rows, cols))
+    r.fail(std::to_string(k) + " components for a " + std::to_string(rows) + " x " + std::to_string(cols) + " matrix");
+  std::vector<float> sv = r.scalars(k, scalarSize, "the singular values");
+  std::vector<float> u = r.scalars(static_cast<std::uint64_t>(rows) * k, scalarSize, "U");
+  std::vector<float> sxv = r.scalars(static_cast<std::uint64_t>(cols) * k, scalarSize, "SxV");
+  for (const std::vector<float>* part : {&u, &sxv})
+    for (float f : *part)
+      if (!std::isfinite(f)) r.fail("a factor is not finite (NaN or infinity)");
+  if (r.left() != 0) r.fail(std::to_string(r.left()) + " unexpected bytes after SxV (an FMF file ends there)");
+  m.colorModel = drr ? 12 : 0;  // restore_dynamic_range.m: exp(x) - eps, which is colour model 12
+  std::vector<Ubo2014Channel> channels(3);
+  const std::size_t perChannel = rows / 3;
+  for (int c = 0; c < 3; ++c) {
+    Ubo2014Channel& ch = channels[c];
+    ch.scalarSize = scalarSize;
+    ch.components = static_cast<int>(k);
+    ch.uRows = static_cast<int>(perChannel), ch.sxvRows = static_cast<int>(cols);
+    ch.s = sv;
+    ch.u.resize(perChannel * k);
+    for (std::size_t row = 0; row < perChannel; ++row)
+      std::copy_n(u.data() + (3 * row + c) * k, k, ch.u.data() + row * k);
+    ch.sxv = sxv;
+  }
+  return Ubo2014Btf(std::move(m), std::move(channels), path);
+}
+
+}  // namespace
+
 Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   Reader r(path);
   // Signature (ubo_btf_signatures.m; read_ubo_dfmf.m seeks past it).
@@ -408,15 +471,17 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   if (known.empty())
     throw fileError(path, "not a UBO BTF file: it starts with '" + printable(head) + "', expected the signature '" +
                               kDfmfSignature + "' (Bonn's UBO2014 format)");
-  if (known != kDfmfSignature) {
+  const bool fmf = known.rfind("!FMF", 0) == 0;
+  if (known != kDfmfSignature && !fmf) {
     std::string what;
     for (const KnownSignature& s : kSignatures)
       if (known == s.text) what = s.what;
     throw fileError(path, "signature '" + known + "' (" + what + ") is a UBO BTF format nbtf does not read; nbtf reads '" +
-                              kDfmfSignature + "' (the UBO2014 distribution format)");
+                              kDfmfSignature + "' (the UBO2014 distribution format) and the FMF signatures");
   }
   Ubo2014Meta m;
   m.signature = known;
+  r.seek(known.size());  // the header follows the signature (read_ubo_dfmf.m, read_ubo_fmf.m: fseek past it)
 
   // Meta data (read_meta_data.m): its size counts the size field itself.
   const std::uint64_t metaStart = r.offset();
@@ -494,13 +559,15 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
     }
   }
 
+  const std::uint64_t pairs = static_cast<std::uint64_t>(lights) * views, texels = static_cast<std::uint64_t>(w) * h;
+  if (fmf) return readFmfBody(r, std::move(m), pairs, texels, path);
+
   // DFMF fields (read_ubo_dfmf.m).
   m.maxComponents = r.value<std::uint32_t>("the component count");
   m.colorModel = r.value<std::int32_t>("the colour model");
   for (float& f : m.colorMean) f = r.value<float>("the colour mean");
   for (float& f : m.colorTransform) f = r.value<float>("the colour transformation matrix");
 
-  const std::uint64_t pairs = static_cast<std::uint64_t>(lights) * views, texels = static_cast<std::uint64_t>(w) * h;
   std::vector<Ubo2014Channel> channels(3);
   for (int c = 0; c < 3; ++c) {
     Ubo2014Channel& ch = channels[c];

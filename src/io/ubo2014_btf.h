@@ -1,4 +1,5 @@
-// Bonn UBO2014 `.btf` files: the DFMF variant (signature "!DFMF08FCR"), read and written.
+// Bonn UBO2014 `.btf` files: the DFMF variant (signature "!DFMF08FCR"), read and written;
+// the FMF variants ("!FMF12FCER", "!FMF06FCR", "!FMF06FC") read.
 //
 // A DFMF file holds, per colour channel of a decorrelated colour model, a truncated SVD of
 // the BTF matrix: U (one row per light/view pair) and S V^T stored as SxV (one row per
@@ -79,7 +80,9 @@ class Ubo2014Btf {
   // `source` names the material in errors.
   Ubo2014Btf(Ubo2014Meta meta, std::vector<Ubo2014Channel> channels, std::string source = "");
 
-  // Reads a DFMF file. Throws nbtf::Error naming the file and what is wrong: another
+  // Reads a DFMF file, or an FMF one (one factorization of all channels: read as three
+  // channels with a shared SxV, colour model 0, or 12 when its dynamic range was reduced;
+  // written back as the equivalent DFMF). Throws nbtf::Error naming the file and what is wrong: another
   // signature (named, with what nbtf supports), a truncated file (which part, bytes
   // expected and left), sizes that do not fit, an unsupported colour model, trailing bytes.
   static Ubo2014Btf read(const std::string& path);
