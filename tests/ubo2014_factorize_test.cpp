@@ -87,6 +87,7 @@ TEST(Ubo2014Factorize, RefusesWhatItCannotWrite) {
   Ubo2014FactorizeOptions o;
   o.progress = false;
   o.colorModel = 2;
+  EXPECT_THROW(checkUbo2014FactorizeOptions(o), Error);
   EXPECT_THROW(factorizeUbo2014(stack, o), Error);
   o.colorModel = 0;
   o.components = 0;

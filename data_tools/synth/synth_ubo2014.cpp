@@ -17,6 +17,7 @@ SynthUbo2014Summary writeSynthUbo2014(const SynthOptions& options, const std::st
   SynthOptions checked = options;
   checked.layout = Layout::Ubo2003, checked.format = ImageFormat::Jpg;  // the image layout does not apply
   validateSynthOptions(checked);
+  checkUbo2014FactorizeOptions(factorize);
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw fileError(path, "is a folder; the ubo2014 layout writes one .btf file (e.g. -o fabric.btf)");

@@ -568,6 +568,7 @@ DecodeUbo2014Result writeDecodedUbo2014(const NbtfDecoder& decoder, const std::s
     throw fileError(path, "is a folder; --layout ubo2014 writes one .btf file (e.g. -o material.btf)");
   if (options.format) throw Error("--format does not apply to --layout ubo2014 (the .btf file stores half floats)");
   if (options.width || options.height) throw Error("--size does not apply to --layout ubo2014");
+  checkUbo2014FactorizeOptions(factorize);
   checkWritable(path);
   BtfStack stack = decodeStack(decoder, SampleType::Half, options.lights, options.views, options.progress);
   Ubo2014FactorizeOptions f = factorize;

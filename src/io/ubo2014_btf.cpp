@@ -541,6 +541,8 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
       r.text(8ull * n, "a view's light directions");
     }
   }
+  if (static_cast<std::uint64_t>(lights) * views > (1u << 26))
+    r.fail("implausible direction counts: " + std::to_string(lights) + " lights x " + std::to_string(views) + " views");
   for (const Direction& d : m.lights) checkHemisphere(d, path + ": light");
   for (const Direction& d : m.views) checkHemisphere(d, path + ": view");
 

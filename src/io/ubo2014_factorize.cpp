@@ -34,15 +34,19 @@ MatrixF orthonormal(const MatrixF& y) {
 
 }  // namespace
 
-Ubo2014Btf factorizeUbo2014(const std::vector<Direction>& lights, const std::vector<Direction>& views, int width,
-                            int height, const std::function<void(int, float*)>& image,
-                            const Ubo2014FactorizeOptions& o, Ubo2014FactorizeReport* report) {
-  const auto start = std::chrono::steady_clock::now();
+void checkUbo2014FactorizeOptions(const Ubo2014FactorizeOptions& o) {
   if (o.colorModel != 0 && o.colorModel != 11)
     throw Error("UBO2014 writer: colour model " + std::to_string(o.colorModel) + " (" + uboColorModelName(o.colorModel) +
                 ") cannot be written; nbtf writes 11 (Ylog U/Y V/Y) or 0 (RGB)");
   if (o.components < 1) throw Error("UBO2014 writer: --components must be at least 1");
   if (o.scalarSize != 2 && o.scalarSize != 4) throw Error("UBO2014 writer: scalar size must be 2 (half) or 4 (float)");
+}
+
+Ubo2014Btf factorizeUbo2014(const std::vector<Direction>& lights, const std::vector<Direction>& views, int width,
+                            int height, const std::function<void(int, float*)>& image,
+                            const Ubo2014FactorizeOptions& o, Ubo2014FactorizeReport* report) {
+  const auto start = std::chrono::steady_clock::now();
+  checkUbo2014FactorizeOptions(o);
   const int nl = static_cast<int>(lights.size()), nv = static_cast<int>(views.size());
   const int pairs = nl * nv, texels = width * height;
   if (pairs == 0 || texels == 0) throw Error("UBO2014 writer: nothing to write (no images or no texels)");

@@ -36,6 +36,10 @@ struct Ubo2014FactorizeReport {
   double seconds = 0;
 };
 
+// Throws nbtf::Error for options the writer cannot use (colour model, components, scalar
+// size): callers check before rendering or decoding anything.
+void checkUbo2014FactorizeOptions(const Ubo2014FactorizeOptions& options);
+
 // `image(i, rgb)` fills image i = light * views + view (width * height * 3 linear floats,
 // texel y * width + x). Throws nbtf::Error for a colour model it cannot write or a negative
 // value under a logarithmic model.
