@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "cli_common.h"
-#include "codec/compressor.h"
+#include "pipeline/compressor.h"
 #include "commands.h"
 #include "util/atomic_file.h"
 #include "util/progress.h"

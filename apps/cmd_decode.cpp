@@ -5,7 +5,7 @@
 
 #include "cli_common.h"
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "commands.h"
 #include "util/progress.h"
 

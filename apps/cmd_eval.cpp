@@ -5,7 +5,7 @@
 
 #include "cli_common.h"
 #include "codec/nbtf_file.h"
-#include "codec/source_fingerprint.h"
+#include "io/source_fingerprint.h"
 #include "commands.h"
 #include "eval/compressed_source.h"
 #include "eval/evaluate.h"
@@ -17,7 +17,7 @@
 namespace nbtf::cli {
 namespace {
 
-// --summarize: many report.json files -> sweep tables and rate-distortion plot scripts.
+// --summarize: many report.json files -> sweep tables and rate-distortion plots.
 int runSummarize(const cxxopts::ParseResult& args) {
   if (!args.count("output")) throw Error("missing -o <folder> for the sweep summary (see 'nbtf eval --help')");
   if (!args.count("files")) throw Error("--summarize needs report.json files");
@@ -26,9 +26,7 @@ int runSummarize(const cxxopts::ParseResult& args) {
   SweepFiles files = writeSweepSummary(entries, args["output"].as<std::string>());
   std::printf("%s", sweepTablesMarkdown(entries).c_str());
   std::printf("table           %s\n", files.table.c_str());
-  for (std::size_t i = 0; i < files.plots.size(); ++i)
-    std::printf("plot            %s (gnuplot %s redraws it with a log axis)\n", files.plots[i].c_str(),
-                files.scripts[i].c_str());
+  for (const auto& plot : files.plots) std::printf("plot            %s\n", plot.c_str());
   return 0;
 }
 
@@ -146,7 +144,7 @@ int evalMain(int argc, char** argv) {
         "force", "Evaluate even when the reference does not match the file's source fingerprint (the report says so)")(
         "render-compare", "Include a rendered comparison: the folder `nbtf render --compare` wrote",
         cxxopts::value<std::string>())(
-        "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plot scripts)");
+        "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plots)");
     addCommonOptions(options);
     options.parse_positional({"files"});
     cxxopts::ParseResult args;

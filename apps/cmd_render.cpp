@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "cli_common.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "codec/nbtf_file.h"
 #include "commands.h"
 #include "io/image_io.h"

@@ -20,7 +20,7 @@
 #include "cluster/clustering.h"
 #include "io/btf_loader.h"
 #include "io/color.h"
-#include "io/directions.h"
+#include "util/directions.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/atomic_file.h"
 #include "util/error.h"

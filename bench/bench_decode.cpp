@@ -22,7 +22,7 @@
 #include <string>
 
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "codec/nbtf_file.h"
 #include "util/parallel.h"
 #include "util/progress.h"

@@ -12,7 +12,7 @@
 
 #include "cluster/clustering.h"
 #include "io/btf_loader.h"
-#include "model/torch_reference.h"
+#include "support/torch_reference.h"
 #include "model/trainer.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/error.h"

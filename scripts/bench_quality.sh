@@ -75,10 +75,6 @@ done
 
 # ---- Rate-distortion plot and sweep tables from the same reports.
 "$nbtf" eval --summarize -o "$out/summary" "${reports[@]}" > /dev/null
-if ls "$out"/summary/rd_*.gp > /dev/null 2>&1; then
-  command -v gnuplot > /dev/null 2>&1 || "$root/scripts/setup.sh" --with gnuplot-nox || true
-  if command -v gnuplot > /dev/null 2>&1; then (cd "$out/summary" && for gp in rd_*.gp; do gnuplot "$gp"; done); fi
-fi
 
 # ---- The table and the targets.
 python3 - "$out" "$k" $presets <<'PY'

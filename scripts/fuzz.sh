@@ -13,7 +13,7 @@ seconds=${1:-600}
 [[ "$seconds" =~ ^[1-9][0-9]*$ ]] || { echo "fuzz.sh: SECONDS must be a positive integer, got '$seconds'" >&2; exit 2; }
 
 # clang 14 and its runtime libraries (libclang_rt.fuzzer / asan / ubsan) from Debian.
-"$root/scripts/setup.sh" --with clang-14 --with libclang-rt-14-dev --with libimath-dev
+"$root/scripts/setup.sh" --with clang-14 --with libclang-rt-14-dev
 build=$root/build-fuzz
 cmake -S "$root/fuzz" -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=None >/dev/null
 cmake --build "$build" -j "$(nproc)" -- --no-print-directory 2>&1 | { grep -vE '^\[ *[0-9]+%\] (Building|Linking)|^Scanning|^Consolidate' || true; }

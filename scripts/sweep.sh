@@ -3,7 +3,7 @@
 # component counts (`nbtf compress --method pca`), the per-texel neural BTF and the
 # clustered neural BTF at several k, evaluates each against the reference with
 # `nbtf eval`, and writes the paper-style table (sweep.md) and a rate-distortion plot
-# (rd_<material>.png, gnuplot) into the output folder.
+# (rd_<material>.png, drawn by nbtf itself) into the output folder.
 #
 # usage: scripts/sweep.sh <input stack> [options] [-- extra nbtf compress options]
 #   -o DIR            output folder (default: sweep_<material>)
@@ -17,7 +17,7 @@
 #                     passed to the neural runs only (PCA has no training)
 #   -- OPTIONS        extra `nbtf compress` options for the neural runs
 # Several materials: run once per material, then combine the reports:
-#   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json && (cd all && gnuplot rd_*.gp)
+#   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 nbtf=${NBTF_BIN:-$root/build/bin/nbtf}
@@ -47,15 +47,10 @@ while [[ $# -gt 0 ]]; do
   shift
 done
 
-# ---- Tools: the nbtf binary, its compress command, gnuplot.
+# ---- Tools: the nbtf binary and its compress command.
 [[ -x "$nbtf" ]] || "$root/scripts/build.sh" "$root/build"
 [[ -x "$nbtf" ]] || die "no nbtf binary at $nbtf"
 compress_help=$("$nbtf" compress --help 2>&1) || die "this build of nbtf has no 'compress' command yet"
-if ! command -v gnuplot >/dev/null 2>&1; then
-  "$root/scripts/setup.sh" --with gnuplot-nox || true
-fi
-command -v gnuplot >/dev/null 2>&1 ||
-  die "gnuplot is needed for the rate-distortion plot: install it with 'scripts/setup.sh --with gnuplot-nox'"
 has_pca=0
 grep -q -- "--method" <<<"$compress_help" && grep -qi "pca" <<<"$compress_help" && has_pca=1
 
@@ -89,7 +84,6 @@ done
 
 # ---- Table and plot.
 "$nbtf" eval --summarize -o "$out" "${reports[@]}"
-(cd "$out" && for gp in rd_*.gp; do gnuplot "$gp"; done)
 echo "sweep: table $out/sweep.md, plot(s): $(ls "$out"/rd_*.png | tr '\n' ' ')"
 if [[ $has_pca -eq 0 ]]; then
   echo "sweep: PCA baseline pending: this build's 'nbtf compress' has no '--method pca' (issue 6); neural methods only"

@@ -11,11 +11,11 @@
 #include <sstream>
 
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
 #include "codec/decoder_query.h"
 #include "decoder_fixtures.h"
 #include "io/image_io.h"
 #include "io/ubo2014_btf.h"
+#include "pipeline/decoder_output.h"
 #include "test_util.h"
 #include "util/atomic_file.h"
 

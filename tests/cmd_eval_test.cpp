@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "codec/source_fingerprint.h"
+#include "io/source_fingerprint.h"
 #include "codec_fixtures.h"
 #include "eval/compressed_source.h"
 #include "io/btf_loader.h"

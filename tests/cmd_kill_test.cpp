@@ -23,7 +23,7 @@
 #include "codec_fixtures.h"
 #include "decoder_fixtures.h"
 #include "io/btf_loader.h"
-#include "io/directions.h"
+#include "util/directions.h"
 #include "io/image_io.h"
 #include "test_util.h"
 #include "util/atomic_file.h"

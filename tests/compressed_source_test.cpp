@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "codec/compressor.h"
+#include "pipeline/compressor.h"
 #include "codec_fixtures.h"
 #include "model_test_material.h"
 #include "test_util.h"

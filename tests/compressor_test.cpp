@@ -1,4 +1,4 @@
-#include "codec/compressor.h"
+#include "pipeline/compressor.h"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 #include "codec/decoder.h"
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
+#include "support/mlp_reference.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 
@@ -34,7 +35,7 @@ CompressOptions quickOptions(int clusters) {
 // user of the file gets, independent of the trainer's bookkeeping.
 double fileRmse(const CompressedBtf& b, const BtfStack& stack, const std::vector<int>& images) {
   double sse = 0;
-  Mlp::RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + 4);
+  RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + 4);
   for (int t = 0; t < b.numTexels(); ++t) {
     const float* z = b.latentOfTexel(t);
     for (std::size_t j = 0; j < images.size(); ++j) {
@@ -44,7 +45,7 @@ double fileRmse(const CompressedBtf& b, const BtfStack& stack, const std::vector
       in(j, b.latentDim) = l[0], in(j, b.latentDim + 1) = l[1], in(j, b.latentDim + 2) = v[0],
                      in(j, b.latentDim + 3) = v[1];
     }
-    Mlp::RowMatrix out = b.decoder.forward(in);
+    RowMatrix out = mlpForward(b.decoder, in);
     for (std::size_t j = 0; j < images.size(); ++j)
       for (int c = 0; c < 3; ++c) sse += std::pow(out(j, c) - stack.sample(images[j], t, c) / b.alpha, 2);
   }

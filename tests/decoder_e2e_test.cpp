@@ -5,9 +5,9 @@
 
 #include <cmath>
 
-#include "codec/compressor.h"
+#include "pipeline/compressor.h"
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "codec_fixtures.h"
 #include "io/btf_loader.h"
 #include "test_util.h"

@@ -9,7 +9,7 @@
 
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf::testing {
 

@@ -1,7 +1,7 @@
 // Decoding to image stacks: the files load back with the stack loader and hold the
 // model's values (8-bit sRGB within quantization, EXR = output x alpha at half precision),
 // names and subsets, unmeasured angles, tiling, direction lists, and bad input.
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 
 #include <gtest/gtest.h>
 

@@ -13,6 +13,7 @@
 #include "codec/pca_model.h"
 #include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
+#include "support/mlp_reference.h"
 #include "decoder_fixtures.h"
 #include "test_util.h"
 #include "util/error.h"
@@ -71,14 +72,14 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
     }
 }
 
-// The model stage's own forward pass (model/mlp.h, what training evaluates) on the same
+// The plain forward pass (tests/support/mlp_reference.h, Eigen) on the same
 // inputs: decoder input = latent | stereographic light | stereographic view.
 TEST(Decoder, AgreesWithTheModelsForwardPass) {
   for (int k : {6, 0}) {
     CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4);
     NbtfDecoder dec(b);
     std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
-    Mlp::RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + 4);
+    RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + 4);
     for (std::size_t p = 0; p < pairs.size(); ++p)
       for (int t = 0; t < b.numTexels(); ++t) {
         auto row = in.row(static_cast<Eigen::Index>(p * b.numTexels() + t));
@@ -86,7 +87,7 @@ TEST(Decoder, AgreesWithTheModelsForwardPass) {
         auto d = decoderDirectionInput(pairs[p].first, pairs[p].second);
         for (int q = 0; q < 4; ++q) row(b.latentDim + q) = d[q];
       }
-    Mlp::RowMatrix out = b.decoder.forward(in);
+    RowMatrix out = mlpForward(b.decoder, in);
     for (std::size_t p = 0; p < pairs.size(); ++p) {
       std::vector<float> img(3 * b.numTexels());
       dec.decodeImage(pairs[p].first, pairs[p].second, img.data(), OutputScale::Normalized);
@@ -186,13 +187,13 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
     std::vector<double> term(3 * terms);
     {
       // referenceOutput evaluates 3 outputs; evaluate the R x 3 outputs by hand via Mlp.
-      Mlp::RowMatrix in(1, b.decoder.inputSize());
+      RowMatrix in(1, b.decoder.inputSize());
       const float* z = b.latentOfTexel(t);
       for (int d = 0; d < b.latentDim; ++d) in(0, d) = z[d];
       auto ls = stereographic(l), vs = stereographic(v);
       in(0, b.latentDim) = ls[0], in(0, b.latentDim + 1) = ls[1], in(0, b.latentDim + 2) = vs[0],
                    in(0, b.latentDim + 3) = vs[1];
-      Mlp::RowMatrix out = b.decoder.forward(in);
+      RowMatrix out = mlpForward(b.decoder, in);
       for (int o = 0; o < 3 * terms; ++o) term[o] = out(0, o);
     }
     (void)mag;
@@ -217,31 +218,41 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
 // tests/data/legacy_v1_0.nbtf was written by nbtf before format 1.2 (commit 094d9fb, `nbtf
 // compress`), and its answers to the queries beside it by that commit's `nbtf query
 // --normalized --isa portable`: this build decodes the old file to the same floats.
-TEST(Decoder, CommittedFormat10FileDecodesAsBefore) {
+// A committed file decodes to exactly the values its answers file records (written by the
+// `nbtf query --normalized --isa portable` of the commit that made the file).
+void expectCommittedAnswers(const std::string& name, int formatMinor, int expectedCount) {
   const std::string dir = std::string(NBTF_SOURCE_DIR) + "/tests/data/";
   DecoderOptions options;
   options.isa = DecoderIsa::Portable;
-  NbtfDecoder dec = NbtfDecoder::open(dir + "legacy_v1_0.nbtf", options);
-  EXPECT_EQ(dec.material().formatMinor, 0);
-  std::ifstream answers(dir + "legacy_v1_0.answers.csv");
+  NbtfDecoder dec = NbtfDecoder::open(dir + name + ".nbtf", options);
+  EXPECT_EQ(dec.material().formatMinor, formatMinor);
+  std::ifstream answers(dir + name + ".answers.csv");
   std::string line;
   std::getline(answers, line);  // header
   int count = 0;
   while (std::getline(answers, line)) {
-    float v[9];
-    ASSERT_EQ(std::sscanf(line.c_str(), "%f,%f,%f,%f,%f,%f,%f,%f,%f", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
-                          &v[7], &v[8]),
+    // Angles as doubles, as `nbtf query` parses them; the answers were printed with 9 digits,
+    // which a float survives exactly.
+    double v[9];
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
+                          &v[6], &v[7], &v[8]),
               9)
         << line;
     Rgb c = dec.evaluate(static_cast<int>(v[0]), static_cast<int>(v[1]), {v[2], v[3]}, {v[4], v[5]},
                          OutputScale::Normalized);
-    EXPECT_EQ(c.r, v[6]) << line;
-    EXPECT_EQ(c.g, v[7]) << line;
-    EXPECT_EQ(c.b, v[8]) << line;
+    EXPECT_EQ(c.r, static_cast<float>(v[6])) << line;
+    EXPECT_EQ(c.g, static_cast<float>(v[7])) << line;
+    EXPECT_EQ(c.b, static_cast<float>(v[8])) << line;
     ++count;
   }
-  EXPECT_EQ(count, 4);
+  EXPECT_EQ(count, expectedCount);
 }
+
+TEST(Decoder, CommittedFormat10FileDecodesAsBefore) { expectCommittedAnswers("legacy_v1_0", 0, 4); }
+
+// Format 1.2 with every compact part (half decoder and latents, zstd ids, per-texel
+// modulation), written by commit 12d31f5 before the library split of issue 16.
+TEST(Decoder, CommittedFormat12FileDecodesAsBefore) { expectCommittedAnswers("compact_v1_2", 2, 6); }
 
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);

@@ -53,9 +53,9 @@ TEST_P(DenseKernels, ProductsMatchADoubleReference) {
   for (const Shape& s : kShapes) {
     SCOPED_TRACE(testing::Message() << "n " << s.n << " k " << s.k << " cols " << s.cols);
     AlignedFloats b, h, y;
-    b.assign(static_cast<std::size_t>(s.k) * s.cols);
-    h.assign(static_cast<std::size_t>(s.n) * s.cols);
-    y.assign(h.size());
+    b.assign(static_cast<std::size_t>(s.k) * s.cols, 0.0f);
+    h.assign(static_cast<std::size_t>(s.n) * s.cols, 0.0f);
+    y.assign(h.size(), 0.0f);
     std::vector<float> x = randomValues(static_cast<std::size_t>(s.n) * s.ld + s.k, rng);
     std::vector<float> bv = randomValues(b.size(), rng), hv = randomValues(h.size(), rng);
     std::copy(bv.begin(), bv.end(), b.data());
@@ -84,8 +84,8 @@ TEST_P(DenseKernels, AccumulateOuterAddsToTheGradient) {
     const int m = s.k;  // gradient rows
     SCOPED_TRACE(testing::Message() << "n " << s.n << " m " << m << " cols " << s.cols);
     AlignedFloats h, w;
-    h.assign(static_cast<std::size_t>(s.n) * s.cols);
-    w.assign(static_cast<std::size_t>(m) * s.cols);
+    h.assign(static_cast<std::size_t>(s.n) * s.cols, 0.0f);
+    w.assign(static_cast<std::size_t>(m) * s.cols, 0.0f);
     std::vector<float> g = randomValues(static_cast<std::size_t>(s.n) * s.ld + m, rng);
     std::vector<float> hv = randomValues(h.size(), rng), w0 = randomValues(w.size(), rng);
     std::copy(hv.begin(), hv.end(), h.data());
@@ -120,7 +120,7 @@ TEST(DenseKernelsRowDots, MatchADoubleReference) {
 TEST(AlignedFloats, IsAlignedAndZeroed) {
   AlignedFloats a;
   for (std::size_t n : {1, 17, 1000}) {
-    a.assign(n);
+    a.assign(n, 0.0f);
     EXPECT_EQ(reinterpret_cast<std::uintptr_t>(a.data()) % 64, 0u);
     EXPECT_EQ(a.size(), n);
     for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(a.data()[i], 0.0f);

@@ -1,4 +1,4 @@
-#include "io/directions.h"
+#include "util/directions.h"
 
 #include <gtest/gtest.h>
 

@@ -76,11 +76,48 @@ TEST(Figures, ComparisonShowsReferenceReconstructionAndError) {
 }
 
 TEST(Figures, LineChartRejectsMismatchedSeries) {
-  ChartSeries s{"a", {0, 15}, {0.1}, kBlack};
+  ChartSeries s{"a", {0, 15}, {0.1}, kBlack, {}};
   test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y"); }, {"series 'a'"});
   s.y.push_back(0.2);
-  Image8 img = renderLineChart({s}, "t", "x", "y", {0, 15});
+  Image8 img = renderLineChart({s}, "t", "x", "y", ChartAxes{{0, 15}, false, ""});
   EXPECT_GT(img.width, 500);
+}
+
+// The rate-distortion plots' axis: log10 x, ticks at powers of 10, a point at 10^3 drawn a
+// third of the way from 10^2 to 10^5; x <= 0 and mislabelled series are errors.
+TEST(Figures, LineChartLogAxisPlacesPointsByDecade) {
+  const Color8 pure{255, 0, 0};
+  ChartSeries s{"a", {100, 1000, 100000}, {0.1, 0.1, 0.1}, pure, {}};
+  ChartAxes axes;
+  axes.logX = true;
+  Image8 img = renderLineChart({s}, "t", "x", "y", axes);
+  auto red = [&](int x, int y) {
+    const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
+    return p[0] == 255 && p[1] == 0 && p[2] == 0;
+  };
+  // The row through the points has the most red (the line); 3 rows above it only the round
+  // markers are red: three runs, whose centres are the points.
+  int lineRow = 0, most = 0;
+  for (int y = 0; y < img.height; ++y) {
+    int n = 0;
+    for (int x = 0; x < img.width; ++x) n += red(x, y);
+    if (n > most) most = n, lineRow = y;
+  }
+  std::vector<double> centres;
+  for (int x = 0; x < img.width; ++x)
+    if (red(x, lineRow - 3) && (x == 0 || !red(x - 1, lineRow - 3))) {
+      int e = x;
+      while (e + 1 < img.width && red(e + 1, lineRow - 3)) ++e;
+      centres.push_back((x + e) / 2.0);
+    }
+  ASSERT_EQ(centres.size(), 3u);
+  // Linear in log10: 10^3 lies 1/3 of the way from 10^2 to 10^5 (on a linear axis, 1%).
+  EXPECT_NEAR((centres[1] - centres[0]) / (centres[2] - centres[0]), 1.0 / 3.0, 0.01);
+  s.x[0] = 0;
+  test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y", axes); }, {"series 'a'", "log axis"});
+  s.x[0] = 100;
+  s.labels = {"k=1"};
+  test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y", axes); }, {"1 labels for 3 points"});
 }
 
 }  // namespace

@@ -1,11 +1,12 @@
-#include "model/mlp.h"
+#include "codec/mlp.h"
+#include "support/mlp_reference.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 
-#include "model/torch_reference.h"
+#include "support/torch_reference.h"
 #include "model/trainer.h"
 #include "util/error.h"
 
@@ -25,9 +26,9 @@ TEST(Mlp, ForwardEqualsHandComputation) {
   // 2 -> 3 (ReLU) -> 2 (linear); weights out x in, row-major.
   mlp.layers.push_back(layer(2, 3, {1, 2, -1, 0, 0.5f, -3}, {0.5f, 0, 1}, Activation::Relu));
   mlp.layers.push_back(layer(3, 2, {1, -1, 2, 0, 3, 1}, {0, -0.25f}, Activation::None));
-  Mlp::RowMatrix in(2, 2);
+  RowMatrix in(2, 2);
   in << 1, 2, -1, 0.5f;
-  Mlp::RowMatrix out = mlp.forward(in);
+  RowMatrix out = mlpForward(mlp, in);
   // Row 0: h = relu([1*1 + 2*2 + 0.5, -1*1 + 0*2 + 0, 0.5*1 - 3*2 + 1]) = [5.5, 0, 0]
   //        y = [5.5 - 0 + 0, 0 + 0 + 0 - 0.25] = [5.5, -0.25]
   // Row 1: h = relu([-1 + 1 + 0.5, 1 + 0, -0.5 - 1.5 + 1]) = [0.5, 1, 0]
@@ -43,9 +44,9 @@ TEST(Mlp, ForwardEqualsHandComputation) {
 TEST(Mlp, SigmoidActivation) {
   Mlp mlp;
   mlp.layers.push_back(layer(1, 1, {2}, {-1}, Activation::Sigmoid));
-  Mlp::RowMatrix in(1, 1);
+  RowMatrix in(1, 1);
   in << 1.5f;
-  EXPECT_NEAR(mlp.forward(in)(0, 0), 1 / (1 + std::exp(-2.0)), 1e-6);
+  EXPECT_NEAR(mlpForward(mlp, in)(0, 0), 1 / (1 + std::exp(-2.0)), 1e-6);
 }
 
 TEST(Mlp, LargeBatchesMatchRowByRow) {
@@ -58,11 +59,11 @@ TEST(Mlp, LargeBatchesMatchRowByRow) {
     for (auto& w : l.weight) w = rnd() * 0.3f;
     for (auto& b : l.bias) b = rnd() * 0.1f;
   }
-  Mlp::RowMatrix in(2000, mlp.inputSize());
+  RowMatrix in(2000, mlp.inputSize());
   for (Eigen::Index i = 0; i < in.size(); ++i) in.data()[i] = rnd() * 2;
-  Mlp::RowMatrix all = mlp.forward(in);
+  RowMatrix all = mlpForward(mlp, in);
   for (int r : {0, 511, 512, 1023, 1999}) {
-    Mlp::RowMatrix one = mlp.forward(in.row(r));
+    RowMatrix one = mlpForward(mlp, in.row(r));
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(all(r, c), one(0, c), 1e-5f) << "row " << r;
   }
 }
@@ -82,8 +83,8 @@ TEST(Mlp, ValidateRejectsBrokenNetworks) {
   Mlp nan = ok;
   nan.layers[0].bias[0] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(nan.validate(), Error);
-  Mlp::RowMatrix wrongWidth(1, 3);
-  EXPECT_THROW(ok.forward(wrongWidth), Error);
+  RowMatrix wrongWidth(1, 3);
+  EXPECT_THROW(mlpForward(ok, wrongWidth), Error);
 }
 
 TEST(Mlp, PaperDecoderHas24383Parameters) {
@@ -101,11 +102,11 @@ TEST(Mlp, PaperDecoderHas24383Parameters) {
 
 TEST(Mlp, ExportedDecoderEqualsTorchDecoder) {
   ModelConfig model;
-  Mlp::RowMatrix in(300, 12);
+  RowMatrix in(300, 12);
   for (Eigen::Index i = 0; i < in.size(); ++i) in.data()[i] = std::sin(0.37f * i) * 1.5f;
   ReferenceDecoder ref = referenceDecoder(model, 42, in);
   EXPECT_EQ(ref.exported.parameterCount(), 24383u);
-  Mlp::RowMatrix ours = ref.exported.forward(in);
+  RowMatrix ours = mlpForward(ref.exported, in);
   ASSERT_EQ(ours.rows(), ref.torchOutput.rows());
   ASSERT_EQ(ours.cols(), 3);
   float scale = ref.torchOutput.cwiseAbs().maxCoeff();

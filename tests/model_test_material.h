@@ -8,9 +8,10 @@
 #include <vector>
 
 #include "io/btf_stack.h"
-#include "io/directions.h"
+#include "util/directions.h"
 #include "model/trainer.h"
 #include "preprocess/abrdf_matrix.h"
+#include "support/mlp_reference.h"
 
 namespace nbtf::testing {
 
@@ -133,7 +134,7 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
   const int M = m.stack.numTexels();
   const int latent = r.decoder.inputSize() - 4;
   double sse = 0;
-  Mlp::RowMatrix in(static_cast<Eigen::Index>(imageSet.size()), r.decoder.inputSize());
+  RowMatrix in(static_cast<Eigen::Index>(imageSet.size()), r.decoder.inputSize());
   for (int t = 0; t < M; ++t) {
     int g = ids.empty() ? t : ids[t];
     for (std::size_t j = 0; j < imageSet.size(); ++j) {
@@ -143,7 +144,7 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
       auto v = stereographic(m.stack.views()[img % m.stack.numViews()]);
       in(j, latent) = l[0], in(j, latent + 1) = l[1], in(j, latent + 2) = v[0], in(j, latent + 3) = v[1];
     }
-    Mlp::RowMatrix out = r.decoder.forward(in);
+    RowMatrix out = mlpForward(r.decoder, in);
     for (std::size_t j = 0; j < imageSet.size(); ++j)
       for (int c = 0; c < 3; ++c) sse += std::pow(out(j, c) - m.stack.sample(imageSet[j], t, c) / m.alpha, 2);
   }

@@ -1,7 +1,7 @@
 // The PCA baseline's compression: exact on rank-C data, error falling with C, clear errors
 // for impossible component counts, hold-out images kept out of the fit (the neural
 // methods' choice) and interpolated, deterministic bytes.
-#include "codec/pca_compressor.h"
+#include "pipeline/pca_compressor.h"
 
 #include <gtest/gtest.h>
 

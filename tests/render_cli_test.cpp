@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "decoder_fixtures.h"
 #include "io/image_io.h"
 #include "test_util.h"

@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "codec/decoder.h"
-#include "codec/decoder_output.h"
+#include "pipeline/decoder_output.h"
 #include "decoder_fixtures.h"
 #include "render/compare.h"
 #include "render/integrator.h"

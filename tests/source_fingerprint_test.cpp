@@ -1,4 +1,4 @@
-#include "codec/source_fingerprint.h"
+#include "io/source_fingerprint.h"
 
 #include <gtest/gtest.h>
 

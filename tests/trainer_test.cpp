@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "model/torch_reference.h"
+#include "support/torch_reference.h"
 #include "model_test_material.h"
 #include "util/error.h"
 
@@ -173,6 +173,42 @@ TEST(Trainer, ClusteredModeLearnsAndReportsExactPerTexelRmse) {
   EXPECT_LT(r.rmseTrain, floor + 0.1 * (baseline - floor)) << "floor " << floor << " baseline " << baseline;
   // Computed by the trainer from per-cluster sums; recomputed here texel by texel.
   EXPECT_NEAR(testing::decodedRmse(m, r, asInts(m.ids), allImages(m)), r.rmseTrain, 1e-4 + 1e-3 * r.rmseTrain);
+}
+
+// The torch backend (stock modules, autograd, torch::optim::Adam) computes the same model as
+// the fused kernels: from one seed the same initial weights, samples and schedule, so after the
+// same steps both reach the same RMSE. Not bit for bit: float sums run in other orders, and the
+// trajectories drift apart by rounding; 3% of the RMSE is the stated tolerance (measured: the
+// two differ by well under 1% here).
+TEST(Trainer, TorchBackendReachesTheFusedBackendsRmse) {
+  const TestMaterial& m = material();
+  for (bool clustered : {true, false}) {
+    TrainConfig c = quickConfig();
+    c.epochs = clustered ? 300 : 40;
+    TrainResult fused = trainModel(clustered ? m.clustered() : m.perTexel(), c);
+    c.backend = "torch";
+    TrainResult stock = trainModel(clustered ? m.clustered() : m.perTexel(), c);
+    EXPECT_EQ(stock.steps, fused.steps);
+    EXPECT_NEAR(stock.rmseTrain, fused.rmseTrain, 0.03 * fused.rmseTrain)
+        << (clustered ? "clustered" : "per-texel") << ": fused " << fused.rmseTrain << ", torch " << stock.rmseTrain;
+    // And it learned: far below predicting each image's mean.
+    EXPECT_LT(stock.rmseTrain, 0.5 * testing::imageMeanRmse(m));
+    // Deterministic too.
+    EXPECT_EQ(trainModel(clustered ? m.clustered() : m.perTexel(), c).rmseTrain, stock.rmseTrain);
+  }
+}
+
+TEST(Trainer, CudaDeviceIsAClearErrorWithoutCuda) {
+  TrainConfig c = quickConfig();
+  c.device = "cuda";
+  EXPECT_NE(errorOf([&] { validateTrainConfig(c, "test.json"); }).find("needs training.backend \"torch\""),
+            std::string::npos);
+  c.backend = "torch";
+  if (torchCudaAvailable()) GTEST_SKIP() << "this libtorch has CUDA";
+  const TestMaterial& m = material();
+  std::string msg = errorOf([&] { trainModel(m.clustered(), c); });
+  EXPECT_NE(msg.find("training.device \"cuda\""), std::string::npos) << msg;
+  EXPECT_NE(msg.find("CPU only"), std::string::npos) << msg;
 }
 
 TEST(Trainer, SameSeedGivesIdenticalModelOtherSeedDoesNot) {

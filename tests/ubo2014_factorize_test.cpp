@@ -1,4 +1,4 @@
-#include "io/ubo2014_factorize.h"
+#include "preprocess/ubo2014_factorize.h"
 
 #include <gtest/gtest.h>
 

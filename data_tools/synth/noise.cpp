@@ -7,15 +7,6 @@ namespace nbtf::synth {
 
 // ---- Rng ---------------------------------------------------------------------------
 
-std::uint64_t Rng::next() {
-  std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
-double Rng::uniform() { return static_cast<double>(next() >> 11) * (1.0 / 9007199254740992.0); }
-
 double Rng::uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
 
 int Rng::below(int n) { return static_cast<int>(uniform() * n); }

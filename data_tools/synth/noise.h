@@ -7,14 +7,16 @@
 #include <cstdint>
 #include <vector>
 
+#include "util/random.h"
+
 namespace nbtf::synth {
 
-// SplitMix64: tiny, fast, and well-distributed enough for procedural textures.
+// The project's SplitMix64 (util/random.h) with the draws procedural textures use.
 class Rng {
  public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next();
-  double uniform();                           // [0, 1)
+  explicit Rng(std::uint64_t seed) : engine_(seed) {}
+  std::uint64_t next() { return engine_.next(); }
+  double uniform() { return engine_.uniform(); }  // [0, 1)
   double uniform(double lo, double hi);       // [lo, hi)
   double symmetric() { return uniform(-1.0, 1.0); }
   int below(int n);                           // [0, n)
@@ -23,7 +25,7 @@ class Rng {
   Rng fork();
 
  private:
-  std::uint64_t state_;
+  SplitMix64 engine_;
 };
 
 // Value noise on a periodX x periodY lattice with quintic interpolation, values in

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "io/btf_stack.h"
-#include "io/directions.h"
+#include "util/directions.h"
 #include "io/image_io.h"
 
 namespace nbtf::synth {

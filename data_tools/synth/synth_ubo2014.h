@@ -1,10 +1,10 @@
 // A synthetic material written as a Bonn UBO2014 `.btf` file (DFMF, io/ubo2014_btf.h): the
 // material rendered under the 151 x 151 Dome 1 directions, its colours decorrelated and each
-// channel factorized by a truncated SVD (io/ubo2014_factorize.h), factors stored as half floats.
+// channel factorized by a truncated SVD (preprocess/ubo2014_factorize.h), factors stored as half floats.
 #pragma once
 #include <string>
 
-#include "io/ubo2014_factorize.h"
+#include "preprocess/ubo2014_factorize.h"
 #include "synth/synth_material.h"
 
 namespace nbtf::synth {

@@ -12,7 +12,7 @@
 #include <numeric>
 #include <sstream>
 
-#include "cluster/blas.h"
+#include "linalg/blas.h"
 #include "cluster/kmeans_internal.h"
 #include "util/error.h"
 #include "util/parallel.h"

@@ -4,9 +4,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cluster/blas.h"
+#include "linalg/blas.h"
 #include "cluster/kmeans_internal.h"
-#include "cluster/random.h"
+#include "util/random.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 

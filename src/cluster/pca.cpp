@@ -5,8 +5,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "cluster/blas.h"
-#include "cluster/random.h"
+#include "linalg/blas.h"
+#include "util/random.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"

@@ -26,7 +26,7 @@ constexpr std::size_t kMinParallelSamples = 4096;
 
 // Per-thread scratch, so single evaluations allocate nothing after the first.
 float* threadScratch(std::size_t floats) {
-  thread_local detail::AlignedFloats scratch;
+  thread_local AlignedFloats scratch;
   if (scratch.size() < floats) scratch.resize(floats);
   return scratch.data();
 }

@@ -38,7 +38,7 @@
 #include <vector>
 
 #include "codec/nbtf_file.h"
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 

@@ -387,10 +387,8 @@ bool decoderIsaSupported(DecoderIsa isa) {
     case DecoderIsa::Auto:
     case DecoderIsa::Portable: return true;
 #ifdef NBTF_DECODER_X86
-    case DecoderIsa::Avx2: return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    case DecoderIsa::Avx512:
-      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-             __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case DecoderIsa::Avx2: return hasAvx2Fma();
+    case DecoderIsa::Avx512: return hasAvx512Vl() && hasAvx2Fma();
 #endif
     default: return false;
   }

@@ -14,7 +14,8 @@
 #include <vector>
 
 #include "codec/decoder.h"
-#include "model/mlp.h"
+#include "codec/mlp.h"
+#include "util/simd.h"
 
 namespace nbtf::detail {
 
@@ -25,19 +26,6 @@ constexpr int kTileRows = 48;
 constexpr int kRowGranule = 24;
 
 inline int padTo(int n, int m) { return (n + m - 1) / m * m; }
-
-// Cache-line aligned storage: a 64-byte vector load that straddles two lines costs two.
-template <class T> struct CacheAligned {
-  using value_type = T;
-  static constexpr std::align_val_t kAlign{64};
-  CacheAligned() = default;
-  template <class U> CacheAligned(const CacheAligned<U>&) {}
-  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), kAlign)); }
-  void deallocate(T* p, std::size_t) { ::operator delete(p, kAlign); }
-  template <class U> bool operator==(const CacheAligned<U>&) const { return true; }
-  template <class U> bool operator!=(const CacheAligned<U>&) const { return false; }
-};
-using AlignedFloats = std::vector<float, CacheAligned<float>>;
 
 struct PackedLayer {
   int in = 0, out = 0;

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "io/btf_stack.h"
-#include "io/directions.h"
-#include "model/mlp.h"
+#include "util/layout.h"
+#include "util/directions.h"
+#include "codec/mlp.h"
 
 namespace nbtf {
 

@@ -22,7 +22,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 

@@ -125,13 +125,21 @@ Image8 renderDirectionHeatMap(const std::vector<double>& values, const std::vect
 // ---- Line chart
 
 Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
-                       const std::string& yLabel, const std::vector<double>& xTicksGiven) {
+                       const std::string& yLabel, const ChartAxes& axes) {
+  // On a log axis everything below works on log10 x; ticks and labels convert back.
+  auto toAxis = [&](double x) { return axes.logX ? std::log10(x) : x; };
   double xmin = 1e300, xmax = -1e300, ymax = 0;
   for (const auto& s : series) {
     if (s.x.size() != s.y.size()) throw Error("line chart: series '" + s.name + "' has unequal x and y counts");
+    if (!s.labels.empty() && s.labels.size() != s.x.size())
+      throw Error("line chart: series '" + s.name + "' has " + std::to_string(s.labels.size()) + " labels for " +
+                  std::to_string(s.x.size()) + " points");
     for (std::size_t i = 0; i < s.x.size(); ++i) {
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) throw Error("line chart: a value is not finite");
-      xmin = std::min(xmin, s.x[i]), xmax = std::max(xmax, s.x[i]), ymax = std::max(ymax, s.y[i]);
+      if (axes.logX && s.x[i] <= 0)
+        throw Error("line chart: series '" + s.name + "' has x = " + std::to_string(s.x[i]) + " on a log axis");
+      double x = toAxis(s.x[i]);
+      xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymax = std::max(ymax, s.y[i]);
     }
   }
   if (xmin > xmax) xmin = 0, xmax = 1;
@@ -153,11 +161,33 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
     c.line(left, py(t), left + plotW, py(t), kLightGrey);
     c.text(formatTick(t, yStep), left - 8, py(t), 10, kBlack, Align::Right);
   }
-  auto xTicks = xTicksGiven.empty() ? niceTicks(xmin, xmax, 8) : xTicksGiven;
-  double xStep = xTicks.size() > 1 ? xTicks[1] - xTicks[0] : 1;
-  for (double t : xTicks) {
+  // Ticks (in axis units) and their labels (in data units).
+  std::vector<double> xTicks;
+  std::vector<std::string> xTickText;
+  if (!axes.xTicks.empty()) {
+    double step = axes.xTicks.size() > 1 ? axes.xTicks[1] - axes.xTicks[0] : 1;
+    for (double t : axes.xTicks) xTicks.push_back(toAxis(t)), xTickText.push_back(formatTick(t, step));
+  } else if (axes.logX) {
+    // Powers of 10; with less than two decades also 2 and 5 times them.
+    const bool fine = xmax - xmin < 2;
+    for (int e = static_cast<int>(std::floor(x0)); e <= static_cast<int>(std::ceil(x1)); ++e)
+      for (double m : fine ? std::vector<double>{1, 2, 5} : std::vector<double>{1}) {
+        double t = std::log10(m) + e;
+        if (t < x0 || t > x1) continue;
+        xTicks.push_back(t);
+        const double value = m * std::pow(10.0, e);
+        xTickText.push_back(formatTick(value, value));
+      }
+  } else {
+    xTicks = niceTicks(xmin, xmax, 8);
+    double step = xTicks.size() > 1 ? xTicks[1] - xTicks[0] : 1;
+    for (double t : xTicks) xTickText.push_back(formatTick(t, step));
+  }
+  for (std::size_t i = 0; i < xTicks.size(); ++i) {
+    const double t = xTicks[i];
+    if (axes.logX) c.line(px(t), top, px(t), top + plotH, kLightGrey);
     c.line(px(t), top + plotH, px(t), top + plotH + 5, kBlack);
-    c.text(formatTick(t, xStep), px(t), top + plotH + 16, 10, kBlack, Align::Center);
+    c.text(axes.xTickPrefix + xTickText[i], px(t), top + plotH + 16, 10, kBlack, Align::Center);
   }
   c.line(left, top, left, top + plotH, kBlack);
   c.line(left, top + plotH, left + plotW, top + plotH, kBlack);
@@ -165,8 +195,12 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
 
   for (const auto& s : series) {
-    for (std::size_t i = 1; i < s.x.size(); ++i) c.line(px(s.x[i - 1]), py(s.y[i - 1]), px(s.x[i]), py(s.y[i]), s.color, 2);
-    for (std::size_t i = 0; i < s.x.size(); ++i) c.circle(px(s.x[i]), py(s.y[i]), 4, s.color);
+    for (std::size_t i = 1; i < s.x.size(); ++i)
+      c.line(px(toAxis(s.x[i - 1])), py(s.y[i - 1]), px(toAxis(s.x[i])), py(s.y[i]), s.color, 2);
+    for (std::size_t i = 0; i < s.x.size(); ++i) {
+      c.circle(px(toAxis(s.x[i])), py(s.y[i]), 4, s.color);
+      if (!s.labels.empty()) c.text(s.labels[i], px(toAxis(s.x[i])) + 6, py(s.y[i]) - 10, 9, s.color);
+    }
   }
   // Legend.
   int legendW = 0;

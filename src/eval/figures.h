@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "eval/canvas.h"
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 
@@ -36,11 +36,19 @@ struct ChartSeries {
   std::string name;
   std::vector<double> x, y;
   Color8 color;
+  std::vector<std::string> labels;  // optional: one per point, written beside it (e.g. "k=500")
 };
 
-// y axis from 0; x ticks where given (else nice ticks); legend in the top-right corner.
+struct ChartAxes {
+  std::vector<double> xTicks;  // where given (else nice ticks, or powers of 10 on a log axis)
+  bool logX = false;           // log10 x axis (every x must be > 0)
+  std::string xTickPrefix;     // before every x tick label (e.g. "1:" for ratios)
+};
+
+// y axis from 0; legend in the top-right corner. The one plotting path of nbtf: report
+// figures and the sweep's rate-distortion plots (no external program).
 Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
-                       const std::string& yLabel, const std::vector<double>& xTicks = {});
+                       const std::string& yLabel, const ChartAxes& axes = {});
 
 // ---- Comparison strip
 

@@ -16,7 +16,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 

@@ -520,13 +520,13 @@ ReportPaths writeReport(const EvalResult& r, const std::string& dir) {
                                        marks);
   images[kHeatMapFile] = writePng(path(kHeatMapFile), heat);
 
-  ChartSeries byLight{"by light elevation", {}, {}, {224, 123, 57}}, byView{"by view elevation", {}, {}, {42, 111, 151}};
+  ChartSeries byLight{"by light elevation", {}, {}, {224, 123, 57}, {}}, byView{"by view elevation", {}, {}, {42, 111, 151}, {}};
   std::vector<double> ticks;
   for (const auto& e : r.byLightElevation) byLight.x.push_back(e.thetaDeg), byLight.y.push_back(e.error.rmse);
   for (const auto& e : r.byViewElevation) byView.x.push_back(e.thetaDeg), byView.y.push_back(e.error.rmse);
   for (const auto& e : r.byViewElevation) ticks.push_back(std::round(e.thetaDeg));
   Image8 chart = renderLineChart({byLight, byView}, "RMSE by elevation", "elevation theta (degrees)",
-                                 "RMSE (linear RGB / alpha)", ticks.size() > 1 ? ticks : std::vector<double>{});
+                                 "RMSE (linear RGB / alpha)", ChartAxes{ticks.size() > 1 ? ticks : std::vector<double>{}, false, ""});
   images[kElevationFile] = writePng(path(kElevationFile), chart);
   images[kMeanMapFile] = writePng(path(kMeanMapFile), r.meanMapFigure);
   if (r.render.present()) {

@@ -52,13 +52,6 @@ std::string slug(const std::string& s) {
   return out;
 }
 
-// Inside a single-quoted gnuplot string, a quote is written twice.
-std::string gnuplotQuoted(const std::string& s) {
-  std::string out;
-  for (char c : s) out += c == '\'' ? std::string("''") : std::string(1, c);
-  return out;
-}
-
 // Family order in tables and plots: the baseline first, then the paper's methods.
 int familyRank(const std::string& f) {
   if (f == "pca") return 0;
@@ -164,42 +157,13 @@ std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entriesIn) {
   return md.str();
 }
 
-std::string rateDistortionScript(const std::string& material, const std::vector<std::string>& families,
-                                 const std::vector<std::string>& dataFiles, const std::string& pngFile) {
-  static const char* colors[] = {"#555555", "#e07b39", "#2a6f97", "#6a994e", "#9d4edd"};
-  std::ostringstream gp;
-  gp << "# Rate-distortion plot for " << material << " (written by nbtf eval --summarize; run: gnuplot "
-     << "<this file>)\n"
-     << "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
-     << "  set terminal pngcairo size 960,620 noenhanced font 'DejaVu Sans,12'\n"
-     << "} else {\n"
-     << "  set terminal png size 960,620 noenhanced\n"
-     << "}\n"
-     << "set output '" << gnuplotQuoted(pngFile) << "'\n"
-     << "set title 'Rate-distortion: " << gnuplotQuoted(material) << "'\n"
-     << "set logscale x 10\n"
-     << "set xlabel 'compression ratio (raw float32 / total), log scale'\n"
-     << "set ylabel 'RMSE (linear RGB / alpha, eq. 10)'\n"
-     << "set format x '1:%g'\n"
-     << "set grid xtics mxtics ytics\n"
-     // Below the plot: an opaque key inside it hid points (the per-texel one, top right).
-     << "set key below center horizontal box\n"
-     << "set bmargin 6\n"  // room for the x label and the key under it
-     << "set yrange [0:*]\n"
-     << "set offsets graph 0.08, graph 0.08, graph 0.1, 0\n"
-     << "plot \\\n";
-  for (std::size_t i = 0; i < families.size(); ++i) {
-    int rank = familyRank(families[i]);
-    const char* color = colors[rank < 3 ? rank : 3 + i % 2];
-    gp << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2 with linespoints lw 2 pt 7 ps 1.2 lc rgb '" << color << "' title '"
-       << gnuplotQuoted(familyTitle(families[i])) << "', \\\n"
-       << "  '" << gnuplotQuoted(dataFiles[i]) << "' using 1:2:5 with labels rotate by 35 left offset 0.6,0.6 tc rgb '" << color << "' notitle"
-       << (i + 1 < families.size() ? ", \\\n" : "\n");
-  }
-  return gp.str();
+namespace {
+// "k=500" on a clustered point, "C=16" on a PCA point; empty without a parameter.
+std::string pointLabel(const SweepEntry& e) {
+  if (std::isnan(e.parameter)) return "";
+  return (e.family == "clustered-neural" ? "k=" : e.family == "pca" ? "C=" : "") + fmt("%g", e.parameter);
 }
 
-namespace {
 Color8 familyColor(const std::string& family, std::size_t i) {
   static const Color8 colors[] = {{0x55, 0x55, 0x55}, {0xe0, 0x7b, 0x39}, {0x2a, 0x6f, 0x97}, {0x6a, 0x99, 0x4e},
                                   {0x9d, 0x4e, 0xdd}};
@@ -219,11 +183,17 @@ Image8 rateDistortionChart(const std::string& material, const std::vector<SweepE
     for (const auto& e : entries)
       if (e.family == families[i]) pts.push_back(&e);
     std::sort(pts.begin(), pts.end(), [](const SweepEntry* a, const SweepEntry* b) { return a->ratio < b->ratio; });
-    for (const auto* e : pts) s.x.push_back(std::log10(std::max(e->ratio, 1e-12))), s.y.push_back(e->rmse);
+    for (const auto* e : pts) {
+      s.x.push_back(std::max(e->ratio, 1e-12)), s.y.push_back(e->rmse);
+      s.labels.push_back(pointLabel(*e));
+    }
     series.push_back(std::move(s));
   }
-  return renderLineChart(series, "Rate-distortion: " + material, "compression ratio, log10 (raw float32 / total)",
-                         "RMSE (linear RGB / alpha, eq. 10)");
+  ChartAxes axes;
+  axes.logX = true;
+  axes.xTickPrefix = "1:";
+  return renderLineChart(series, "Rate-distortion: " + material, "compression ratio (raw float32 / total), log scale",
+                         "RMSE (linear RGB / alpha, eq. 10)", axes);
 }
 }  // namespace
 
@@ -245,7 +215,7 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
     for (const auto& e : entries)
       if (e.material == mat) mine.push_back(e);
     std::stable_sort(mine.begin(), mine.end(), methodBefore);
-    std::vector<std::string> families, files;
+    std::vector<std::string> families;
     for (const auto& e : mine)
       if (std::find(families.begin(), families.end(), e.family) == families.end()) families.push_back(e.family);
     for (const auto& fam : families) {
@@ -258,7 +228,7 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
       dat << "# " << mat << ", " << fam
           << ": ratio (raw/total)  rmse (linear/alpha)  rmse_holdout (NaN = none)  parameter  label\n";
       for (const auto* e : pts) {
-        std::string label = std::isnan(e->parameter) ? "" : (fam == "clustered-neural" ? "k=" : fam == "pca" ? "C=" : "") + fmt("%g", e->parameter);
+        std::string label = pointLabel(*e);
         dat << fmt("%.6g", e->ratio) << ' ' << fmt("%.8g", e->rmse) << ' '
             << (std::isnan(e->rmseHoldout) ? std::string("NaN") : fmt("%.8g", e->rmseHoldout)) << ' '
             << (std::isnan(e->parameter) ? std::string("NaN") : fmt("%g", e->parameter)) << " \""
@@ -267,12 +237,8 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
       std::string name = "rd_" + slug(mat) + "_" + slug(fam) + ".dat";
       writeFileAtomic(path(name), dat.str());
       out.dataFiles.push_back(path(name));
-      files.push_back(name);
     }
-    std::string png = "rd_" + slug(mat) + ".png", gpName = "rd_" + slug(mat) + ".gp";
-    writeFileAtomic(path(gpName), rateDistortionScript(mat, families, files, png));
-    out.scripts.push_back(path(gpName));
-    // Drawn now, without an external program; the gnuplot script redraws it with a true log axis.
+    std::string png = "rd_" + slug(mat) + ".png";
     writeImage8(path(png), ImageFormat::Png, rateDistortionChart(mat, mine, families));
     out.plots.push_back(path(png));
   }

@@ -1,8 +1,8 @@
 // Sweep summaries: many evaluation reports (report.json) of one or more materials, each
 // compressed with several methods and settings, turned into the paper's Table 2 layout
 // (rows: materials, columns: methods) as Markdown, and a rate-distortion plot per material
-// (RMSE vs compression ratio, log-scale x, one curve per method family) as gnuplot data files
-// and a script. scripts/sweep.sh runs gnuplot on the script.
+// (RMSE vs compression ratio, log-scale x, one curve per method family) as a PNG drawn by
+// nbtf's own chart code (eval/figures.h), with the points as data files for other tools.
 #pragma once
 #include <nlohmann/json.hpp>
 #include <string>
@@ -34,17 +34,11 @@ std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entries);
 struct SweepFiles {
   std::string table;                   // sweep.md
   std::vector<std::string> dataFiles;  // rd_<material>_<family>.dat
-  std::vector<std::string> scripts;    // rd_<material>.gp -> rd_<material>.png
-  std::vector<std::string> plots;      // rd_<material>.png, drawn by nbtf (the scripts redraw them)
+  std::vector<std::string> plots;      // rd_<material>.png (log ratio axis, drawn by nbtf)
 };
-// Writes sweep.md, the data files, one rate-distortion PNG (drawn here, no external program)
-// and one gnuplot script that redraws it with a log axis per material into `dir` (atomic
-// writes; the folder is created if missing).
+// Writes sweep.md, the data files (for other plotting tools) and one rate-distortion PNG per
+// material (log ratio axis, points labelled k= / C=; drawn here, no external program) into
+// `dir` (atomic writes; the folder is created if missing).
 SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir);
-
-// The gnuplot script for one material: pngcairo when available, else png; x log scale.
-// dataFiles[i] holds family families[i]: columns ratio, rmse, rmse_holdout, parameter.
-std::string rateDistortionScript(const std::string& material, const std::vector<std::string>& families,
-                                 const std::vector<std::string>& dataFiles, const std::string& pngFile);
 
 }  // namespace nbtf

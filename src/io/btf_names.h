@@ -8,7 +8,7 @@
 #include <string>
 
 #include "io/btf_stack.h"
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 

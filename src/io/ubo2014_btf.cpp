@@ -1,6 +1,5 @@
 #include "io/ubo2014_btf.h"
 
-#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -308,25 +307,32 @@ void Ubo2014Btf::toRgb(float* v, int lightIndex) const {
   }
 }
 
+namespace {
+float dotK(const float* a, const float* b, int k) {
+  float s = 0;
+  for (int j = 0; j < k; ++j) s += a[j] * b[j];
+  return s;
+}
+}  // namespace
+
 void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
-  using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const int pairs = numImages();
-  std::vector<RowMat> values(3);  // per channel: file rows x texels
-  for (int c = 0; c < 3; ++c) {
-    const Ubo2014Channel& ch = channels_[c];
-    const float* angular = abrdfsInU_ ? ch.u.data() : ch.sxv.data();
-    const float* spatial = abrdfsInU_ ? ch.sxv.data() : ch.u.data();
-    Eigen::Map<const RowMat> a(angular, pairs, ch.components);
-    RowMat s(count, ch.components);
-    for (int k = 0; k < count; ++k)
-      s.row(k) = Eigen::Map<const Eigen::RowVectorXf>(spatial + static_cast<std::size_t>(texels[k]) * ch.components,
-                                                      ch.components);
-    values[c].noalias() = a * s.transpose();
-  }
   for (int k = 0; k < count; ++k) {
+    const std::size_t texel = static_cast<std::size_t>(texels[k]);
+    const float* spatial[3];
+    const float* angular[3];
+    for (int c = 0; c < 3; ++c) {
+      const Ubo2014Channel& ch = channels_[c];
+      angular[c] = abrdfsInU_ ? ch.u.data() : ch.sxv.data();
+      spatial[c] = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + texel * ch.components;
+    }
     for (int image = 0; image < pairs; ++image) {
-      const int row = fileRow(image);
-      float v[3] = {values[0](row, k), values[1](row, k), values[2](row, k)};
+      const std::size_t row = static_cast<std::size_t>(fileRow(image));
+      float v[3];
+      for (int c = 0; c < 3; ++c) {
+        const int kc = channels_[c].components;
+        v[c] = dotK(angular[c] + row * kc, spatial[c], kc);
+      }
       toRgb(v, image / numViews());
       float* o = out + (static_cast<std::size_t>(k) * pairs + image) * 3;
       o[0] = v[0], o[1] = v[1], o[2] = v[2];
@@ -337,19 +343,16 @@ void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
 void Ubo2014Btf::abrdfLinear(int texel, float* out) const { abrdfsLinear(&texel, 1, out); }
 
 void Ubo2014Btf::imageLinear(int image, float* out) const {
-  using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  const int row = fileRow(image), texels = numTexels();
-  std::vector<Eigen::VectorXf> values(3);
-  for (int c = 0; c < 3; ++c) {
-    const Ubo2014Channel& ch = channels_[c];
-    const float* angular = abrdfsInU_ ? ch.u.data() : ch.sxv.data();
-    const float* spatial = abrdfsInU_ ? ch.sxv.data() : ch.u.data();
-    Eigen::Map<const RowMat> s(spatial, texels, ch.components);
-    Eigen::Map<const Eigen::VectorXf> a(angular + static_cast<std::size_t>(row) * ch.components, ch.components);
-    values[c].noalias() = s * a;
-  }
+  const std::size_t row = static_cast<std::size_t>(fileRow(image));
+  const int texels = numTexels();
   for (int t = 0; t < texels; ++t) {
-    float v[3] = {values[0][t], values[1][t], values[2][t]};
+    float v[3];
+    for (int c = 0; c < 3; ++c) {
+      const Ubo2014Channel& ch = channels_[c];
+      const float* angular = (abrdfsInU_ ? ch.u.data() : ch.sxv.data()) + row * ch.components;
+      const float* spatial = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + static_cast<std::size_t>(t) * ch.components;
+      v[c] = dotK(angular, spatial, ch.components);
+    }
     toRgb(v, image / numViews());
     std::copy_n(v, 3, out + static_cast<std::size_t>(t) * 3);
   }

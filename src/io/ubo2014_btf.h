@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "io/btf_stack.h"
-#include "io/directions.h"
+#include "util/directions.h"
 
 namespace nbtf {
 
@@ -105,7 +105,7 @@ class Ubo2014Btf {
   // nbtf's order everywhere: image = light * numViews + view, texel = y * width + x.
   // One texel's ABRDF, linear RGB: out[3 * image + channel].
   void abrdfLinear(int texel, float* out) const;
-  // Several texels at once (faster): out[(k * numImages + image) * 3 + channel] for texels[k].
+  // Several texels at once: out[(k * numImages + image) * 3 + channel] for texels[k].
   void abrdfsLinear(const int* texels, int count, float* out) const;
   // One image, linear RGB, width * height * 3 floats.
   void imageLinear(int image, float* out) const;

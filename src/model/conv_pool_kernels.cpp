@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "model/simd_clones.h"
+#include "util/simd.h"
 
 namespace nbtf::detail::phases {
 namespace {

@@ -5,7 +5,7 @@
 #include <algorithm>
 
 #include "model/dynamic_items.h"
-#include "model/simd_clones.h"
+#include "util/simd.h"
 
 namespace nbtf::detail {
 namespace {
@@ -86,10 +86,10 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   const float* tileBase = perTile_.data_ptr<float>();
   const float scale = static_cast<float>(2.0 / (static_cast<double>(O) * rows));  // d(mean squared error)/d(out)
   const std::size_t chunkFloats = static_cast<std::size_t>(kChunkRows) * S;
-  if (k.hidden.size() != (L - 1) * chunkFloats) k.hidden.assign((L - 1) * chunkFloats);
+  if (k.hidden.size() != (L - 1) * chunkFloats) k.hidden.assign((L - 1) * chunkFloats, 0.0f);
   if (k.grad.size() != chunkFloats) {
-    k.grad.assign(chunkFloats);
-    k.grad2.assign(chunkFloats);
+    k.grad.assign(chunkFloats, 0.0f);
+    k.grad2.assign(chunkFloats, 0.0f);
   }
   k.out.resize(static_cast<std::size_t>(kChunkRows) * O);
   auto hidden = [&](int l) { return k.hidden.data() + l * chunkFloats; };
@@ -107,7 +107,7 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
 
   // This chunk's sums, zeroed here, on the thread that fills them.
   ChunkSums& sums = chunkSums_[c];
-  sums.weightGrad.assign(gradOffset_.back());
+  sums.weightGrad.assign(gradOffset_.back(), 0.0f);
   sums.dirGrad.assign(4 * static_cast<std::size_t>(W), 0.0f);
   sums.firstTile = r0 / rowsPerTile;
   sums.tileGrad.assign(static_cast<std::size_t>((r0 + n - 1) / rowsPerTile - sums.firstTile + 1) * W, 0.0f);
@@ -158,15 +158,15 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
     const float* bl = lin->bias.data_ptr<float>();
     AlignedFloats& f = forward_[l];
     AlignedFloats& b = backward_[l];
-    b.assign(static_cast<std::size_t>(out) * S);
+    b.assign(static_cast<std::size_t>(out) * S, 0.0f);
     for (int i = 0; i < out; ++i) std::copy_n(wl + static_cast<std::size_t>(i) * W, W, b.data() + static_cast<std::size_t>(i) * S);
     if (l + 1 == L) {  // rowDots: W padded, with the bias in the 1 column
-      f.assign(static_cast<std::size_t>(out) * S);
+      f.assign(static_cast<std::size_t>(out) * S, 0.0f);
       std::copy_n(b.data(), b.size(), f.data());
       for (int i = 0; i < out; ++i) f.data()[static_cast<std::size_t>(i) * S + W] = bl[i];
       continue;
     }
-    f.assign(static_cast<std::size_t>(W + 1) * S);
+    f.assign(static_cast<std::size_t>(W + 1) * S, 0.0f);
     for (int q = 0; q < W; ++q)
       for (int i = 0; i < out; ++i) f.data()[static_cast<std::size_t>(q) * S + i] = wl[static_cast<std::size_t>(i) * W + q];
     for (int i = 0; i < out; ++i) f.data()[static_cast<std::size_t>(W) * S + i] = bl[i];

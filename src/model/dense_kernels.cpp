@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
-#include "model/simd_clones.h"
+#include "util/simd.h"
 
 // The vector type below is passed between inlined helpers only; GCC's note that its ABI
 // differs without AVX-512 does not concern us.

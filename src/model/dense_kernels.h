@@ -15,29 +15,12 @@
 #include <cstddef>
 #include <vector>
 
+#include "util/simd.h"
+
 namespace nbtf::detail {
 
 constexpr int kDenseLanes = 16;
 inline int paddedWidth(int width) { return (width + kDenseLanes - 1) / kDenseLanes * kDenseLanes; }
-
-// A zero-filled float buffer whose data starts on a 64-byte boundary (a cache line, an
-// AVX-512 vector): the kernels' rows then never straddle two cache lines.
-class AlignedFloats {
- public:
-  void assign(std::size_t n) {
-    storage_.assign(n + 16, 0.0f);
-    const auto address = reinterpret_cast<std::size_t>(storage_.data());
-    offset_ = ((64 - address % 64) % 64) / sizeof(float);
-    size_ = n;
-  }
-  float* data() { return storage_.data() + offset_; }
-  const float* data() const { return storage_.data() + offset_; }
-  std::size_t size() const { return size_; }
-
- private:
-  std::vector<float> storage_;
-  std::size_t offset_ = 0, size_ = 0;
-};
 
 // y[r][j] = max(0, sum_{q<k} x[r * ldx + q] b[q][j]) for r < n, j < cols.
 void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y);

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "model/simd_clones.h"
+#include "util/simd.h"
 
 namespace nbtf::detail {
 namespace {

@@ -79,6 +79,12 @@ torch::Tensor EncoderImpl::forward(const torch::Tensor& x) {
   return smallLinear(h.flatten(1), toLatent->weight, toLatent->bias);
 }
 
+torch::Tensor EncoderImpl::forwardStock(const torch::Tensor& x) {
+  torch::Tensor h = x;
+  for (int b = 0; b < blocks; ++b) h = norms[b]->forward(torch::max_pool1d(convs[b]->forward(h), 3, 3));
+  return toLatent->forward(h.flatten(1));
+}
+
 DecoderImpl::DecoderImpl(const ModelConfig& model) {
   Mlp shape = decoderShape(model);
   for (std::size_t l = 0; l < shape.layers.size(); ++l)

@@ -3,7 +3,7 @@
 #pragma once
 #include <torch/torch.h>
 
-#include "model/mlp.h"
+#include "codec/mlp.h"
 #include "model/trainer.h"
 
 namespace nbtf::detail {
@@ -16,6 +16,9 @@ namespace nbtf::detail {
 struct EncoderImpl : torch::nn::Module {
   EncoderImpl(int imageCount, const ModelConfig& model);
   torch::Tensor forward(const torch::Tensor& x);
+  // The same function through stock torch modules (Conv1d, max_pool1d, BatchNorm1d, Linear):
+  // what the torch training backend differentiates by autograd, on any device.
+  torch::Tensor forwardStock(const torch::Tensor& x);
 
   int blocks = 0;
   std::vector<torch::nn::Conv1d> convs;

@@ -152,6 +152,8 @@ TrainConfig loadTrainConfig(const std::string& path) {
   tr.read("checkpoint_path", c.checkpointPath);
   tr.read("resume", c.resume);
   tr.read("progress", c.progress);
+  tr.read("backend", c.backend);
+  tr.read("device", c.device);
   tr.rejectUnknown();
 
   Section mod(root, "modulation", path);
@@ -183,6 +185,12 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
   if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
+  if (c.backend != "fused" && c.backend != "torch")
+    bad(source, "training.backend", "must be \"fused\" or \"torch\", got \"" + c.backend + "\"");
+  if (c.device != "cpu" && c.device != "cuda")
+    bad(source, "training.device", "must be \"cpu\" or \"cuda\", got \"" + c.device + "\"");
+  if (c.device == "cuda" && c.backend != "torch")
+    bad(source, "training.device", "\"cuda\" needs training.backend \"torch\" (the fused kernels are CPU code)");
   if (c.imagesPerInput < 1) bad(source, "training.images_per_input", "must be >= 1");
   if (c.epochs < 0) bad(source, "training.epochs", "must be >= 0");
   if (!finite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)

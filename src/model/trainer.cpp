@@ -86,8 +86,10 @@ class EncoderInputSource {
 };
 
 // Latents of every encoder input in eval mode (BatchNorm running statistics), in chunks
-// so the first conv block's activations stay small.
-torch::Tensor encodeAll(Encoder& encoder, const MatrixXfCol& x) {
+// so the first conv block's activations stay small; on the CPU. `stock`: through the stock
+// torch modules (the torch backend), on the encoder's device.
+torch::Tensor encodeAll(Encoder& encoder, const MatrixXfCol& x, bool stock = false,
+                        const torch::Device& device = torch::kCPU) {
   torch::NoGradGuard noGrad;
   encoder->eval();
   const std::int64_t rows = x.rows();
@@ -98,9 +100,34 @@ torch::Tensor encodeAll(Encoder& encoder, const MatrixXfCol& x) {
     std::int64_t n = std::min(chunk, rows - r0);
     index.resize(n);
     for (std::int64_t j = 0; j < n; ++j) index[j] = static_cast<int>(r0 + j);
-    parts.push_back(encoder->forward(gatherEncoderInputs(x, index.data(), n)));
+    torch::Tensor in = gatherEncoderInputs(x, index.data(), n);
+    parts.push_back(stock ? encoder->forwardStock(in.to(device)).to(torch::kCPU) : encoder->forward(in));
   }
   return torch::cat(parts, 0).contiguous();
+}
+
+// The device of the torch backend; a clear error where this libtorch cannot run there.
+torch::Device trainingDevice(const TrainConfig& config) {
+  if (config.device != "cuda") return torch::kCPU;
+  if (!torch::cuda::is_available())
+    throw Error("training.device \"cuda\": this libtorch has no usable CUDA device (Debian's libtorch is built "
+                "for the CPU only); use \"cpu\"");
+  return torch::Device(torch::kCUDA, 0);
+}
+
+// One step of the torch backend: stock modules, autograd, torch::optim. z: [tiles, latent]
+// (from the encoder, with its graph, or the frozen polish latents); dirs and targets on the
+// CPU. Gradients are reset to undefined, not zero, so parameters outside the graph (the
+// frozen encoder while polishing) are not moved by the optimizer's momentum.
+double stockTrainStep(Decoder& decoder, torch::optim::Optimizer& optimizer, const std::vector<torch::Tensor>& params,
+                      const torch::Tensor& z, const torch::Tensor& dirs, const torch::Tensor& targets, int perTile,
+                      const torch::Device& device) {
+  for (const torch::Tensor& p : params) const_cast<torch::Tensor&>(p).mutable_grad() = torch::Tensor();
+  torch::Tensor inputs = torch::cat({z.repeat_interleave(perTile, 0), dirs.to(device)}, 1);
+  torch::Tensor loss = torch::mse_loss(decoder->forward(inputs), targets.to(device));
+  loss.backward();
+  optimizer.step();
+  return loss.item<double>();
 }
 
 // Learning-rate factor at training progress p in [0, 1].
@@ -172,6 +199,9 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   torch::manual_seed(config.seed);
   Encoder encoder(set.images(), config.model);
   Decoder decoder(config.model);
+  const bool stock = config.backend == "torch";
+  const torch::Device device = trainingDevice(config);
+  if (!device.is_cpu()) encoder->to(device), decoder->to(device);
   std::vector<torch::Tensor> params = encoder->parameters();
   for (auto& p : decoder->parameters()) params.push_back(p);
   auto optimizer = makeOptimizer(config, params);
@@ -299,28 +329,44 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     if (!polish) {
       torch::Tensor in = inputSource.rows(plan.distinctGroups.data(),
                                              static_cast<std::int64_t>(plan.distinctGroups.size()));
-      for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
-      torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
-      lap(prof.encoder);
-      loss = backprop.trainStep(z.detach(), dirs, targets, perTile, dz);
-      lap(prof.decoder);
-      z.backward(dz);
-      lap(prof.encoder);
+      if (stock) {
+        // Autograd through encoder and decoder; the whole step is timed as the decoder's.
+        torch::Tensor z = encoder->forwardStock(in.to(device)).index_select(0, tileSlot.to(device));
+        loss = stockTrainStep(decoder, *optimizer, params, z, dirs, targets, perTile, device);
+        lap(prof.decoder);
+      } else {
+        for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
+        torch::Tensor z = encoder->forward(in).index_select(0, tileSlot);
+        lap(prof.encoder);
+        loss = backprop.trainStep(z.detach(), dirs, targets, perTile, dz);
+        lap(prof.decoder);
+        z.backward(dz);
+        lap(prof.encoder);
+      }
     } else {
       if (!polishLatents.defined()) {
         // Freeze the encoder: from here on the decoder fits the latents that will be stored.
-        polishLatents = encodeAll(encoder, x);
+        polishLatents = encodeAll(encoder, x, stock, device);
         for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
       }
       lap(prof.encoder);
-      loss = backprop.trainStep(polishLatents.index_select(0, tileGroup), dirs, targets, perTile, dz);
+      if (stock)
+        loss = stockTrainStep(decoder, *optimizer, params, polishLatents.index_select(0, tileGroup).to(device), dirs,
+                              targets, perTile, device);
+      else
+        loss = backprop.trainStep(polishLatents.index_select(0, tileGroup), dirs, targets, perTile, dz);
       lap(prof.decoder);
     }
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
                   " (loss is not finite); lower optimizer.learning_rate");
-    if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer.get())) detail::fusedAdamStep(*adam);
-    else optimizer->step();
+    if (stock) {
+      // stockTrainStep stepped the optimizer.
+    } else if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer.get())) {
+      detail::fusedAdamStep(*adam);
+    } else {
+      optimizer->step();
+    }
     lap(prof.optimizer);
     ++step;
     emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;
@@ -356,7 +402,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
   result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample / 1e9;
   result.holdoutImages = set.holdoutImages();
-  torch::Tensor latents = encodeAll(encoder, x);
+  torch::Tensor latents = encodeAll(encoder, x, stock, device);
+  if (!device.is_cpu()) encoder->to(torch::kCPU), decoder->to(torch::kCPU);  // export and evaluate on the CPU
   result.latentRows = set.groups();
   result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());
   result.decoder = detail::exportDecoder(decoder);

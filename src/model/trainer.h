@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "io/btf_stack.h"
-#include "model/mlp.h"
+#include "codec/mlp.h"
 #include "preprocess/abrdf_matrix.h"
 
 namespace nbtf {
@@ -102,6 +102,14 @@ struct TrainConfig {
   std::string checkpointPath;      // "" = no checkpoints
   bool resume = false;             // continue from checkpointPath if it exists
   bool progress = true;
+  // ---- backend (docs/model.md, *Training backends*)
+  // "fused": the hand-written CPU kernels (decoder pass, conv + pool, BatchNorm, Adam), fast
+  // and checked against torch in tests. "torch": stock libtorch modules, autograd and
+  // torch::optim; the place to try a model change before writing its gradients by hand.
+  std::string backend = "fused";
+  // "cpu" | "cuda". cuda needs the torch backend and a libtorch built with CUDA (Debian's is
+  // CPU-only: a clear error there).
+  std::string device = "cpu";
   // ---- run control (not in config files)
   std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
   std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done

@@ -17,36 +17,13 @@
 
 #include "model/trainer.h"
 
+#include "util/random.h"
+
 namespace nbtf {
 
 // The hold-out split of `images` images: a deterministic random subset of round(fraction x
 // images) (at least 1 when fraction > 0, at most images - 1); 1 = held out.
 std::vector<std::uint8_t> holdoutImageMask(int images, double fraction, std::uint64_t seed);
-
-// SplitMix64: tiny, fast, and fully specified (unlike std:: distributions), so a seed
-// gives the same samples on every platform. Streams are derived by hashing.
-class SplitMix64 {
- public:
-  explicit SplitMix64(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-  }
-  // Uniform integer in [0, n), n > 0 (Lemire's multiply-shift; bias < n / 2^64).
-  std::uint64_t below(std::uint64_t n) {
-    return static_cast<std::uint64_t>((static_cast<unsigned __int128>(next()) * n) >> 64);
-  }
-  static std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
-    SplitMix64 r(a ^ (b * 0xd1342543de82ef95ull + 0x2545f4914f6cdd1dull));
-    r.next();
-    return r.next();
-  }
-
- private:
-  std::uint64_t state_;
-};
 
 class TrainingSet {
  public:

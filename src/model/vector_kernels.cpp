@@ -1,6 +1,6 @@
 #include "model/vector_kernels.h"
 
-#include "model/simd_clones.h"
+#include "util/simd.h"
 
 namespace nbtf::detail {
 

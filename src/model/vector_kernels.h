@@ -1,5 +1,5 @@
 // Contiguous float vector kernels shared by the hand-written encoder layers (conv_pool.cpp,
-// small_linear.cpp). Torch-free; each has per-instruction-set clones (simd_clones.h).
+// small_linear.cpp). Torch-free; each has per-instruction-set clones (util/simd.h).
 #pragma once
 
 namespace nbtf::detail {

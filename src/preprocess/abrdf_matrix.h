@@ -8,10 +8,9 @@
 #include <cstdint>
 
 #include "io/btf_stack.h"
+#include "linalg/blas.h"
 
 namespace nbtf {
-
-using MatrixXfCol = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor>;
 
 // Linear ABRDF matrix of the stack (M x 3N). The only float32 copy of the data.
 MatrixXfCol abrdfMatrix(const BtfStack& stack, bool progress = true);

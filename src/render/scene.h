@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "io/directions.h"
+#include "util/directions.h"
 #include "render/camera.h"
 #include "render/shapes.h"
 

@@ -1,4 +1,10 @@
 // Thread count and a small parallel-for used by every CPU stage.
+//
+// Two pools, on purpose: these helpers start their own threads (no dependency, so the
+// decoder library stays std-only), while the model's kernels (src/model/) run on libgomp's
+// OpenMP pool through at::parallel_for, because libtorch's own operators in the same training
+// step run there: a second pool beside it would oversubscribe the cores. The two never run at
+// once, and both take their size from threadCount() (the model sets torch's from it).
 #pragma once
 #include <cstddef>
 #include <functional>

@@ -1,0 +1,497 @@
+#include "pipeline/compressor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <tuple>
+#include <utility>
+#include <nlohmann/json.hpp>
+
+#include "cluster/cluster_values.h"
+#include "cluster/clustering.h"
+#include "codec/decoder.h"
+#include "pipeline/pca_compressor.h"
+#include "io/source_fingerprint.h"
+#include "codec/texel_modulation.h"
+#include "model/training_set.h"
+#include "preprocess/abrdf_matrix.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace nbtf {
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kDefaultPcaComponents = 32;
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+bool stopRequested(const CompressOptions& o) { return o.stopFlag && o.stopFlag->load(); }
+
+json nullable(double v) { return v < 0 ? json(nullptr) : json(v); }
+
+std::string checkpointPathFor(const std::string& output, const CompressOptions& o) {
+  if (!o.checkpointPath.empty()) return o.checkpointPath;
+  if (!o.train.checkpointPath.empty()) return o.train.checkpointPath;
+  return defaultCheckpointPath(output);
+}
+
+// Rejects k larger than the texel count, as early as the texel count is known.
+void checkClusterCount(int clusters, std::int64_t texels, const std::string& what) {
+  if (clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(clusters));
+  if (clusters > texels)
+    throw Error("--clusters " + std::to_string(clusters) + " is larger than the " + std::to_string(texels) +
+                " texels of " + what + " (k must be at most the texel count; 0 = per-texel)");
+}
+
+// Provenance stored in the file. Only what does not vary between identical runs: no
+// timings, no output or checkpoint paths, so the same seed gives the same bytes.
+std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const TrainConfig& config,
+                         const TrainResult& train, const ClusteringResult* clustering, int pcaComponents,
+                         const CompressStats& stats) {
+  json meta;
+  meta["config"] = json::parse(trainConfigJson(config));
+  meta["seed"] = config.seed;
+  meta["threads"] = config.threads > 0 ? config.threads : threadCount();
+  meta["source"] = json::parse(sourceMetadataJson(stack));
+  json t;
+  t["rmse_train"] = train.rmseTrain;
+  t["rmse_holdout"] = nullable(train.rmseHoldout);
+  t["rmse_space"] = "linear RGB / alpha (eq. 10)";
+  t["epochs"] = train.epochsRun;
+  t["steps"] = train.steps;
+  t["holdout_fraction"] = config.holdoutFraction;
+  t["encoder_blocks"] = train.encoderBlocks;
+  meta["training"] = t;
+  if (clustering) {
+    json c;
+    c["k"] = o.clusters;
+    c["pca_components"] = pcaComponents;
+    c["pca_explained_variance_ratio"] = clustering->explainedVarianceRatio;
+    c["kmeans_iterations"] = clustering->iterations;
+    c["kmeans_inertia"] = clustering->inertia;
+    c["representative"] = "median";
+    c["floor_rmse"] = nullable(stats.rmseFloor);
+    if (stats.rmseFloorModulated >= 0) c["floor_rmse_modulated"] = stats.rmseFloorModulated;
+    meta["clustering"] = c;
+  }
+  return meta.dump();
+}
+
+// RMSE (eq. 10, linear / alpha) of a compressed material against its stack, on the training
+// and the held-out images, measured through the decoder: what the file will decode to.
+// Per-image sums added in image order, so the result does not depend on the thread count.
+std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack& stack, float alpha,
+                                      const std::vector<std::uint8_t>& holdout) {
+  const int images = stack.numImages(), views = stack.numViews();
+  const std::size_t values = 3 * static_cast<std::size_t>(stack.numTexels());
+  std::vector<double> sse(images, 0.0);
+  const float invAlpha = 1.0f / alpha;
+  parallelFor(images, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> decoded(values), reference(values);
+    for (std::size_t i = begin; i < end; ++i) {
+      decoder.decodeImage(stack.lights()[i / views], stack.views()[i % views], decoded.data(), OutputScale::Normalized);
+      stack.imageLinear(static_cast<int>(i), reference.data());
+      double s = 0;
+      for (std::size_t j = 0; j < values; ++j) {
+        double d = static_cast<double>(decoded[j]) - static_cast<double>(reference[j] * invAlpha);
+        s += d * d;
+      }
+      sse[i] = s;
+    }
+  });
+  double sums[2] = {0, 0};
+  int counts[2] = {0, 0};
+  for (int i = 0; i < images; ++i) sums[holdout[i]] += sse[i], ++counts[holdout[i]];
+  auto rmse = [&](int k) { return counts[k] ? std::sqrt(sums[k] / (static_cast<double>(counts[k]) * values)) : -1.0; };
+  return {rmse(0), rmse(1)};
+}
+
+}  // namespace
+
+std::string defaultCheckpointPath(const std::string& output) { return output + ".ckpt"; }
+
+CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha) {
+  CompressedBtf b;
+  b.method = method;
+  b.width = stack.width();
+  b.height = stack.height();
+  b.crop = stack.crop;
+  // In-memory stacks (tests, benchmarks) may not say where they came from.
+  b.sourceWidth = stack.sourceWidth > 0 ? stack.sourceWidth : stack.width();
+  b.sourceHeight = stack.sourceHeight > 0 ? stack.sourceHeight : stack.height();
+  b.layout = stack.layout;
+  b.sourceSampleType = stack.sampleType();
+  b.lights = stack.lights();
+  b.views = stack.views();
+  b.alpha = alpha;
+  return b;
+}
+
+std::string sourceMetadataJson(const BtfStack& stack) {
+  json source;
+  source["path"] = stack.source;
+  source["layout"] = layoutName(stack.layout);
+  source["sample_type"] = sampleTypeName(stack.sampleType());
+  source["crop"] = stack.crop.empty() ? json(nullptr)
+                                      : json::array({stack.crop.x, stack.crop.y, stack.crop.width, stack.crop.height});
+  // What `nbtf eval` checks its reference against (io/source_fingerprint.h).
+  source["fingerprint"] = json::parse(sourceFingerprintJson(sourceFingerprint(stack)));
+  return source.dump();
+}
+
+std::string trainConfigJson(const TrainConfig& c) {
+  json j;
+  j["model"] = {{"latent_dim", c.model.latentDim},
+                {"encoder_channels", c.model.encoderChannels},
+                {"decoder_width", c.model.decoderWidth},
+                {"decoder_layers", c.model.decoderLayers}};
+  j["optimizer"] = {{"name", c.optimizer}, {"learning_rate", c.learningRate}, {"momentum", c.momentum}};
+  j["training"] = {{"batch_size", c.batchSize},
+                   {"images_per_input", c.imagesPerInput},
+                   {"epochs", c.epochs},
+                   {"min_steps", c.minSteps},
+                   {"max_steps", c.maxSteps},
+                   {"time_budget_seconds", c.timeBudgetSeconds},
+                   {"schedule", c.schedule},
+                   {"warmup_fraction", c.warmupFraction},
+                   {"polish_fraction", c.polishFraction},
+                   {"holdout_fraction", c.holdoutFraction},
+                   {"seed", c.seed},
+                   {"threads", c.threads}};
+  j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
+  j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids}};
+  return j.dump();
+}
+
+CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
+  if (o.pcaBaseline) return compressPcaStack(stack, o, stats);
+  const int texels = stack.numTexels();
+  stats.texels = texels;
+  stats.images = stack.numImages();
+  stats.clusters = o.clusters;
+  stats.method = o.clusters > 0 ? CodecMethod::ClusteredNeural : CodecMethod::PerTexelNeural;
+  checkClusterCount(o.clusters, texels, stack.source.empty() ? "the material" : stack.source);
+
+  // ---- Preprocess: linear ABRDF matrix, log + standardize (eq. 1-4), alpha (eq. 5)
+  auto t = Clock::now();
+  const float alpha = targetAlpha(stack);
+  stats.alpha = alpha;
+  MatrixXfCol x = abrdfMatrix(stack, o.progress);
+  standardizeInPlace(x);
+  stats.seconds.preprocess = secondsSince(t);
+
+  // ---- Cluster (PCA + k-means++ + per-cluster medians), or per-texel: X itself
+  TrainInputs inputs;
+  inputs.stack = &stack;
+  inputs.alpha = alpha;
+  ClusteringResult clustering;
+  int pcaComponents = 0;
+  t = Clock::now();
+  if (o.clusters > 0) {
+    ClusteringOptions co;
+    co.clusters = o.clusters;
+    int maxComponents = static_cast<int>(std::min<Eigen::Index>(x.rows(), x.cols()));
+    if (o.pcaComponents > maxComponents)
+      throw Error("--components " + std::to_string(o.pcaComponents) + " exceeds the " +
+                  std::to_string(maxComponents) + " the data allows (min of texels and 3 x images)");
+    pcaComponents = o.pcaComponents > 0 ? o.pcaComponents : std::min(kDefaultPcaComponents, maxComponents);
+    co.pca.components = pcaComponents;
+    co.pca.seed = o.train.seed;
+    if (o.kmeansIterations > 0) co.kmeans.maxIterations = o.kmeansIterations;
+    co.kmeans.seed = o.train.seed;
+    co.seed = o.train.seed;
+    co.progress = o.progress;
+    clustering = clusterAbrdfs(x, co);
+    x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
+    stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+    stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
+    inputs.encoderInputs = &clustering.representatives;
+    inputs.ids = clustering.ids;
+  } else {
+    inputs.encoderInputs = &x;
+  }
+
+  // ---- Per-texel modulation (beyond the paper): factors from the training images, quantized
+  // as the file stores them; training sees exactly what decoding will apply.
+  const std::vector<std::uint8_t> holdout =
+      holdoutImageMask(stack.numImages(), o.train.holdoutFraction, o.train.seed);
+  std::vector<int> trainImages;
+  for (int i = 0; i < stack.numImages(); ++i)
+    if (!holdout[i]) trainImages.push_back(i);
+  const ModulationConfig& mc = o.train.modulation;
+  const bool modulated = o.clusters > 0 && mc.mode != "none";
+  stats.modulationMode = o.clusters > 0 ? mc.mode : "none";
+  if (modulated) {
+    // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
+    // the stored ones are refit to the trained terms afterwards.
+    std::vector<std::uint8_t> useImage(holdout.size());
+    for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
+    std::vector<float> coefficients =
+        texelCoefficients(stack, alpha, inputs.ids, o.clusters, useImage, mc.terms, o.progress);
+    inputs.texelCoefficients = orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, inputs.ids, o.clusters);
+    inputs.coefficientTerms = mc.terms;
+    stats.modulationTerms = mc.terms;
+    stats.modulationBits = mc.bits;
+    stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
+                          .floorRmse(trainImages, texels);
+  }
+  stats.seconds.cluster = secondsSince(t);
+  if (stopRequested(o)) {
+    stats.interrupted = true;
+    return {};
+  }
+
+  // ---- Train
+  TrainConfig config = o.train;
+  config.model.outputTerms = modulated ? mc.terms : 1;
+  config.progress = config.progress && o.progress;
+  config.stopFlag = o.stopFlag;
+  config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
+  stats.checkpointPath = config.checkpointPath;
+  t = Clock::now();
+  TrainResult train = trainModel(inputs, config);
+  stats.seconds.train = secondsSince(t);
+  stats.epochs = train.epochsRun;
+  stats.steps = train.steps;
+  stats.samplesPerSecond = train.samplesPerSecond;
+  stats.decoderGflops = train.decoderGflops;
+  if (train.interrupted) {
+    stats.interrupted = true;
+    return {};
+  }
+  stats.rmseTrain = train.rmseTrain;
+  stats.rmseHoldout = train.rmseHoldout;
+  if (o.clusters > 0) {
+    if (!modulated) stats.rmseFloor = train.rmseFloor;
+    else stats.rmseFloorModulated = train.rmseFloor;
+  }
+
+  // ---- Assemble the compressed material
+  CompressedBtf b = compressedFrame(stack, stats.method, alpha);
+  b.decoder = std::move(train.decoder);
+  b.latentDim = config.model.latentDim;
+  b.latentRows = train.latentRows;
+  b.latents = std::move(train.latents);
+  if (o.clusters > 0) b.ids = std::move(inputs.ids);
+  b.holdoutImages = train.holdoutImages;
+  std::sort(b.holdoutImages.begin(), b.holdoutImages.end());
+  b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
+  stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
+  b.encoderState = std::move(train.encoderState);
+  b.storage.decoderHalf = config.storage.decoder == "half";
+  b.storage.latentsHalf = config.storage.latents == "half";
+  b.storage.idsZstd = config.storage.ids == "zstd";
+  roundToStorage(b);
+  if (modulated) {
+    // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
+    // terms over the training images, then quantized as stored.
+    b.modulation = quantizeTexelCoefficients(inputs.texelCoefficients, mc.terms, mc.bits);  // any valid codes
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    const std::size_t k = static_cast<std::size_t>(o.clusters), n = trainImages.size(), outs = 3 * mc.terms;
+    std::vector<float> terms(k * n * outs);
+    const int views = stack.numViews();
+    parallelFor(n, [&](std::size_t begin, std::size_t end) {
+      std::vector<float> rows(k * outs);
+      for (std::size_t i = begin; i < end; ++i) {
+        const int image = trainImages[i];
+        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], rows.data());
+        for (std::size_t g = 0; g < k; ++g)
+          std::copy(&rows[g * outs], &rows[g * outs] + outs, &terms[(g * n + i) * outs]);
+      }
+    });
+    std::vector<float> fitted =
+        fitTexelCoefficients(stack, alpha, b.ids, o.clusters, trainImages, terms, mc.terms, o.progress);
+    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
+  }
+  if (b.storage.decoderHalf || b.storage.latentsHalf || modulated) {
+    // The rounded parts are what the file decodes to: measure those, not the trained floats.
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
+    stats.rmseTrain = train.rmseTrain;
+    stats.rmseHoldout = train.rmseHoldout;
+  }
+  b.metadataJson = metadataJson(stack, o, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents,
+                                stats);
+  b.validate("compressed result");
+  stats.sizes = computeSizes(b);
+  return b;
+}
+
+CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options) {
+  // ---- Fail before hours of work: every output must be creatable now.
+  checkWritable(output);
+  if (!options.saveEncoderPath.empty()) {
+    if (options.saveEncoderPath == output) throw Error("--save-encoder must name a file other than the output");
+    checkWritable(options.saveEncoderPath);
+  }
+  CompressOptions o = options;
+  if (o.pcaBaseline) {
+    if (!o.saveEncoderPath.empty()) throw Error("--save-encoder: the PCA baseline has no encoder");
+    if (o.pcaComponents < 1)
+      throw Error("--method pca needs --components C >= 1 (the principal components kept), got " +
+                  std::to_string(o.pcaComponents));
+  } else {
+    o.checkpointPath = checkpointPathFor(output, options);
+    checkWritable(o.checkpointPath);
+  }
+  if (!o.pcaBaseline && !o.load.crop.empty()) {
+    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
+    checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
+                      "the crop");
+  }
+
+  CompressStats stats;
+  stats.output = output;
+  auto t = Clock::now();
+  LoadOptions load = o.load;
+  load.progress = load.progress && o.progress;
+  BtfStack stack = loadBtfStack(input, load);
+  stats.seconds.load = secondsSince(t);
+  if (stopRequested(o)) {
+    stats.interrupted = true;
+    return stats;
+  }
+
+  CompressedBtf btf = compressStack(stack, o, stats);  // fills the other stages' seconds
+  if (stats.interrupted) return stats;
+
+  // ---- Write (atomic); the encoder copy is the same file plus the encoder section.
+  t = Clock::now();
+  std::vector<std::uint8_t> encoder = std::move(btf.encoderState);
+  btf.encoderState.clear();
+  stats.sizes.fileBytes = writeNbtf(output, btf);
+  if (!o.saveEncoderPath.empty()) {
+    if (encoder.empty()) throw Error("--save-encoder: the trainer returned no encoder state");
+    btf.encoderState = std::move(encoder);
+    writeNbtf(o.saveEncoderPath, btf);
+  }
+  stats.seconds.write = secondsSince(t);
+  // A finished run's default checkpoint is stale: remove it (a configured one is kept).
+  if (!o.pcaBaseline && o.checkpointPath == defaultCheckpointPath(output)) {
+    std::error_code ec;
+    std::filesystem::remove(o.checkpointPath, ec);
+  }
+  return stats;
+}
+
+// ---- Reporting
+
+std::string formatCompressSummary(const CompressStats& s) {
+  std::string out;
+  char line[256];
+  std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
+                          : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
+                                                         : "";
+  std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
+                parameter.c_str());
+  out += line;
+  out += formatSizeTable(s.sizes);
+  std::snprintf(line, sizeof line,
+                "error: RMSE of eq. (10) over texels x images x RGB, on linear RGB / alpha (alpha = %.6g)\n",
+                s.alpha);
+  out += line;
+  int trainImages = s.images - s.holdoutImages;
+  const bool pca = s.method == CodecMethod::Pca;
+  std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images)\n", pca ? "fitted images" : "training images",
+                s.rmseTrain, trainImages);
+  out += line;
+  if (s.rmseHoldout >= 0)
+    std::snprintf(line, sizeof line, "  %-16s %.6f  (%d images%s)\n", "held-out images", s.rmseHoldout, s.holdoutImages,
+                  pca ? ", interpolated from the fitted ones" : "");
+  else
+    std::snprintf(line, sizeof line, "  %-16s none (use --holdout F to measure interpolation)\n", "held-out images");
+  out += line;
+  if (s.rmseFloor >= 0) {
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.6f  (cluster-mean floor: the best any one-value-per-cluster model can do, training "
+                  "images)\n",
+                  "floor", s.rmseFloor);
+    out += line;
+  }
+  if (s.rmseFloorModulated >= 0) {
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.6f  (clusters x per-texel modulation, %s, %d term%s: the floor the terms were trained "
+                  "for; stored: %d-bit refit coefficients)\n",
+                  "modulated floor", s.rmseFloorModulated, s.modulationMode.c_str(), s.modulationTerms,
+                  s.modulationTerms > 1 ? "s" : "", s.modulationBits);
+    out += line;
+  }
+  if (s.rmseTrain >= 0 && s.rmseFloor > 0) {
+    const double floor = s.rmseFloorModulated >= 0 ? s.rmseFloorModulated : s.rmseFloor;
+    std::snprintf(line, sizeof line,
+                  "  %-16s %.0f%% of the training MSE is the floor (clustering%s), %.0f%% the network\n", "split",
+                  100 * std::min(1.0, floor * floor / (s.rmseTrain * s.rmseTrain)),
+                  s.rmseFloorModulated >= 0 ? " + per-texel modulation" : "",
+                  100 * std::max(0.0, 1 - floor * floor / (s.rmseTrain * s.rmseTrain)));
+    out += line;
+  }
+  const StageSeconds& t = s.seconds;
+  if (pca) {
+    std::snprintf(line, sizeof line,
+                  "pca: %d components explain %.2f%% of the variance of the fitted ABRDFs (linear RGB / alpha)\n",
+                  s.pcaComponents, 100 * s.pcaExplainedVarianceRatio);
+    out += line;
+    std::snprintf(line, sizeof line,
+                  "time (wall clock, s): load %.2f | preprocess %.2f | pca (fit, coefficients, RMSE) %.2f | write "
+                  "%.2f | total %.2f\n",
+                  t.load, t.preprocess, t.pca, t.write, t.total());
+    out += line;
+    return out;
+  }
+  std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
+                s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops);
+  out += line;
+  std::snprintf(line, sizeof line,
+                "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | write %.2f | total "
+                "%.2f\n",
+                t.load, t.preprocess, t.cluster, t.train, t.write, t.total());
+  out += line;
+  return out;
+}
+
+std::string compressStatsJson(const CompressStats& s) {
+  json j;
+  j["output"] = s.output;
+  j["method"] = codecMethodName(s.method);
+  j["clusters"] = s.clusters;
+  j["pca_components"] = s.pcaComponents;
+  j["texels"] = s.texels;
+  j["images"] = s.images;
+  j["holdout_images"] = s.holdoutImages;
+  j["alpha"] = s.alpha;
+  j["rmse_train"] = nullable(s.rmseTrain);
+  j["rmse_holdout"] = nullable(s.rmseHoldout);
+  j["rmse_space"] = "linear RGB / alpha (eq. 10)";
+  j["rmse_floor"] = nullable(s.rmseFloor);
+  j["rmse_floor_modulated"] = nullable(s.rmseFloorModulated);
+  j["modulation"] = {{"mode", s.modulationMode}, {"terms", s.modulationTerms}, {"bits", s.modulationBits}};
+  j["ratio"] = s.sizes.ratio;
+  if (s.method == CodecMethod::Pca)
+    j["bytes"] = {{"pca_mean", s.sizes.pcaMean},
+                  {"pca_basis", s.sizes.pcaBasis},
+                  {"pca_coefficients", s.sizes.pcaCoefficients},
+                  {"total", s.sizes.total},
+                  {"raw_float32", s.sizes.rawFloat32},
+                  {"file", s.sizes.fileBytes}};
+  else
+    j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
+                  {"per_texel", s.sizes.modulation},
+                  {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
+  j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
+                  {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
+                  {"total", s.seconds.total()}};
+  j["epochs"] = s.epochs;
+  j["steps"] = s.steps;
+  j["samples_per_second"] = s.samplesPerSecond;
+  j["decoder_gflops"] = s.decoderGflops;
+  j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
+  j["interrupted"] = s.interrupted;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace nbtf

@@ -1,0 +1,97 @@
+// The compression pipeline behind `nbtf compress`: load -> ABRDF matrix -> standardize ->
+// (clustered) PCA + k-means++ + representatives | (per-texel) the standardized matrix
+// itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
+// The PCA baseline (pcaBaseline) replaces everything after loading: pipeline/pca_compressor.h.
+// Deterministic for a seed and thread count.
+#pragma once
+#include <atomic>
+#include <string>
+
+#include "codec/nbtf_file.h"
+#include "io/btf_loader.h"
+#include "model/trainer.h"
+
+namespace nbtf {
+
+struct CompressOptions {
+  LoadOptions load;             // layout, crop
+  TrainConfig train;            // the recipe, with command-line overrides already applied
+  int clusters = 500;           // k; 0 = per-texel mode (one latent per texel)
+  // The classic PCA baseline instead of a neural method: pcaComponents components (>= 1),
+  // no training; uses train.seed and train.holdoutFraction only.
+  bool pcaBaseline = false;
+  int pcaComponents = 0;        // PCA components (before k-means, or of the baseline); 0 = default (32, capped by the data)
+  int kmeansIterations = 0;     // Lloyd rounds at most; 0 = the clustering library's default
+  std::string saveEncoderPath;  // also write this .nbtf with the encoder inside ("" = no)
+  // Where training checkpoints go; "" = the config's training.checkpoint_path, else
+  // defaultCheckpointPath(output), which is removed once the output is written.
+  std::string checkpointPath;
+  bool progress = true;
+  std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
+};
+
+// Wall-clock seconds per stage.
+struct StageSeconds {
+  double load = 0, preprocess = 0, cluster = 0, train = 0, write = 0;
+  double pca = 0;  // PCA baseline: fit, coefficients, hold-out interpolation and the RMSE measurement
+  double total() const { return load + preprocess + cluster + train + write + pca; }
+};
+
+struct CompressStats {
+  std::string output;
+  CodecMethod method = CodecMethod::ClusteredNeural;
+  int clusters = 0;           // k; 0 in per-texel mode and for PCA
+  int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
+  int texels = 0, images = 0, holdoutImages = 0;
+  float alpha = 1;
+  // RMSE of eq. (10) over texels x images x channels, on linear RGB divided by alpha.
+  double rmseTrain = -1;      // on the training images
+  double rmseHoldout = -1;    // on the held-out images; -1 when there are none
+  // Clustered: the floors on the training images (same space): the RMSE of the best model with
+  // one value per cluster and image (the cluster means), and with the per-texel modulation too
+  // (the coefficients the terms were trained with).
+  double rmseFloor = -1, rmseFloorModulated = -1;
+  std::string modulationMode = "none";  // modulation.mode of the config
+  int modulationTerms = 0, modulationBits = 0;
+  NbtfSizes sizes;            // fileBytes filled once written
+  StageSeconds seconds;
+  int epochs = 0;
+  std::int64_t steps = 0;
+  double samplesPerSecond = 0, decoderGflops = 0;
+  // Clustered: of the standardized log ABRDFs; PCA baseline: of the fitted linear ABRDFs / alpha.
+  double pcaExplainedVarianceRatio = -1;  // -1 in per-texel mode
+  bool interrupted = false;   // stopped by stopFlag: nothing written, checkpoint kept
+  std::string checkpointPath;
+};
+
+// The in-memory part: stack -> compressed material (no file I/O except checkpoints).
+// Fills `stats` (all but the write stage and fileBytes).
+CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& options, CompressStats& stats);
+
+// The whole pipeline. Checks that `output` (and the encoder file) can be written before
+// any work is done. When interrupted, returns with stats.interrupted set and writes nothing.
+CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options);
+
+// "<output>.ckpt": where training checkpoints go unless configured otherwise.
+std::string defaultCheckpointPath(const std::string& output);
+
+// The config as a JSON object in the config-file format (reloadable by loadTrainConfig),
+// without run-control and path keys, which do not change the result.
+std::string trainConfigJson(const TrainConfig& config);
+
+// The final summary table (sizes, ratio, RMSE and its space, time per stage).
+std::string formatCompressSummary(const CompressStats& stats);
+// The same as JSON: rmse_train, rmse_holdout (null when none), ratio,
+// bytes {decoder, latents, ids, total, raw_float32, file} (PCA: {pca_mean, pca_basis,
+// pca_coefficients, total, raw_float32, file}), seconds {load, preprocess, cluster, train,
+// pca, write, total}, and context keys (method, clusters, pca_components, texels, ...).
+std::string compressStatsJson(const CompressStats& stats);
+
+// The "source" object of the file's metadata (path, layout, sample type, crop) as JSON text.
+std::string sourceMetadataJson(const BtfStack& stack);
+
+// A compressed material's description of its source, common to every method: size, crop,
+// source size, layout, sample type, directions, alpha. The method's own parts are left empty.
+CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha);
+
+}  // namespace nbtf

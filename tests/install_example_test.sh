@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# The installed package works for an outside project: `cmake --install` the build into a
+# fresh prefix, build examples/decode_texel against it with find_package(nbtf) and
+# nbtf::decode alone, check that it links neither torch nor OpenCV nor OpenEXR, and that it
+# decodes committed files to exactly what `nbtf query` prints.
+#   tests/install_example_test.sh BUILD_DIR SOURCE_DIR
+set -euo pipefail
+build=$1 src=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cmake --install "$build" --prefix "$work/prefix" >/dev/null
+cmake -S "$src/examples/decode_texel" -B "$work/example" -DCMAKE_PREFIX_PATH="$work/prefix" \
+  -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$work/example" -- --no-print-directory >/dev/null
+example=$work/example/decode_texel
+if ldd "$example" | grep -Ei 'torch|opencv|openexr|imath|c10'; then
+  echo "FAIL: the decode example links a training or image library (above)" >&2
+  exit 1
+fi
+status=0
+for file in legacy_v1_0 compact_v1_2; do
+  nbtf=$src/tests/data/$file.nbtf
+  query=(5 3 30 60 45 180)
+  got=$("$example" "$nbtf" "${query[@]}" "$work/$file.pfm")
+  want=$("$build/bin/nbtf" query "$nbtf" --texel "${query[0]},${query[1]}" --light "${query[2]},${query[3]}" \
+         --view "${query[4]},${query[5]}")
+  if [[ "$got" != "$want" ]]; then
+    echo "FAIL: $file: the example printed '$got', nbtf query '$want'" >&2
+    status=1
+  fi
+  # A PFM of the whole material: header, then width x height x 3 floats.
+  read -r w h < <(sed -n 2p "$work/$file.pfm")
+  header=$(head -c 100 "$work/$file.pfm" | head -n 3 | wc -c)
+  size=$(stat -c %s "$work/$file.pfm")
+  if (( size != header + w * h * 12 )); then
+    echo "FAIL: $file: the image has $size bytes, expected $header + $w x $h x 12" >&2
+    status=1
+  fi
+  echo "$file: example and nbtf query agree ($got); image $w x $h"
+done
+exit $status
