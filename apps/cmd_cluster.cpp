@@ -129,7 +129,7 @@ int clusterMain(int argc, char** argv) {
   return runGuarded("cluster", [&] {
     cxxopts::Options options("nbtf cluster", "Cluster a BTF's ABRDFs (log + standardize, PCA, k-means++)");
     options.positional_help("<input> --clusters K -o <dir>");
-    options.add_options()("input", "BTF stack folder", cxxopts::value<std::string>())(
+    options.add_options()("input", "BTF stack folder or UBO2014 .btf file", cxxopts::value<std::string>())(
         "k,clusters", "Number of clusters", cxxopts::value<int>())(
         "components", "PCA components", cxxopts::value<int>()->default_value("32"))(
         "power-iterations", "PCA power iterations (more: closer to the exact PCA, one more read of the data each)",

@@ -114,7 +114,7 @@ int compressMain(int argc, char** argv) {
   return runGuarded("compress", [&] {
     cxxopts::Options options("nbtf compress", "Compress a BTF image stack into a .nbtf file");
     options.positional_help("<input> -o <out.nbtf>");
-    options.add_options()("input", "BTF stack folder (UBO2003 or UTIA layout)", cxxopts::value<std::string>())(
+    options.add_options()("input", "BTF stack folder (UBO2003 or UTIA layout) or UBO2014 .btf file", cxxopts::value<std::string>())(
         "o,output", "Output .nbtf file", cxxopts::value<std::string>())(
         "method",
         "clustered (the paper's clustered neural BTF), per-texel (neural, one latent per texel; = --clusters 0) or "

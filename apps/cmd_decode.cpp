@@ -17,8 +17,13 @@ int decodeMain(int argc, char** argv) {
                              "Reconstruct a BTF image stack from a .nbtf file (all images, a subset, or any angles)");
     options.positional_help("<file.nbtf> -o <dir>");
     options.add_options()("file", "Compressed material (.nbtf)", cxxopts::value<std::string>())(
-        "o,output", "Output folder (created if missing; existing images are replaced)", cxxopts::value<std::string>())(
-        "layout", "Output layout and names: ubo2003 or utia (default: the source's)", cxxopts::value<std::string>())(
+        "o,output", "Output folder (created if missing; existing images are replaced); ubo2014: the .btf file",
+        cxxopts::value<std::string>())(
+        "layout",
+        "Output layout and names: ubo2003 or utia (default: the source's), or ubo2014: one Bonn .btf file at -o",
+        cxxopts::value<std::string>())(
+        "components", "ubo2014: SVD components per colour channel", cxxopts::value<int>()->default_value("32"))(
+        "color-model", "ubo2014: 11 (log Y, U/Y, V/Y) or 0 (RGB)", cxxopts::value<int>()->default_value("11"))(
         "format", "png or jpg (8-bit sRGB) or exr (linear half float) (default: exr for half-float sources, else png)",
         cxxopts::value<std::string>())(
         "lights", "Lights to decode: 'all' or comma-separated N, N-M, tTHETApPHI (e.g. 0-5,t37.5p200)",
@@ -60,6 +65,16 @@ int decodeMain(int argc, char** argv) {
     o.jpegQuality = args["jpeg-quality"].as<int>();
     o.progress = !quiet;
 
+    if (o.layout == Layout::Ubo2014) {
+      Ubo2014FactorizeOptions f;
+      f.components = args["components"].as<int>();
+      f.colorModel = args["color-model"].as<int>();
+      DecodeUbo2014Result r = writeDecodedUbo2014(decoder, args["output"].as<std::string>(), o, f);
+      std::fputs(formatDecodeUbo2014Summary(r).c_str(), stdout);
+      return 0;
+    }
+    for (const char* only : {"components", "color-model"})
+      if (args.count(only)) throw Error(std::string("--") + only + " applies to --layout ubo2014 only");
     DecodeStackResult result = writeDecodedStack(decoder, args["output"].as<std::string>(), o);
     std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);  // -q hides progress only, as everywhere
     return 0;

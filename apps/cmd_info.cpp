@@ -8,6 +8,7 @@
 #include "codec/nbtf_file.h"
 #include "commands.h"
 #include "io/btf_loader.h"
+#include "io/ubo2014_btf.h"
 #include "util/atomic_file.h"
 #include "util/progress.h"
 
@@ -97,6 +98,79 @@ int infoStack(const std::string& path, const cxxopts::ParseResult& args) {
   return 0;
 }
 
+// A UBO2014 .btf file: described from its header and factors, never expanded.
+int infoBtf(const std::string& path, const cxxopts::ParseResult& args) {
+  if (args.count("layout")) throw Error("--layout applies to image stacks, not to .btf files");
+  Ubo2014Btf btf = Ubo2014Btf::read(path);
+  Crop crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : Crop{};
+  if (!crop.empty()) {
+    LoadOptions o;
+    o.crop = crop;
+    checkCrop(path, o);
+  }
+  const int w = crop.empty() ? btf.width() : crop.width, h = crop.empty() ? btf.height() : crop.height;
+  const std::size_t expandedHalf = static_cast<std::size_t>(btf.numImages()) * w * h * 3 * 2;
+  const bool json = args.count("json") > 0;
+  if (args.count("directions")) {
+    printDirections(btf.meta().lights, btf.meta().views, json);
+    return 0;
+  }
+  const Ubo2014Meta& m = btf.meta();
+  std::string components;
+  for (const Ubo2014Channel& ch : btf.channels())
+    components += (components.empty() ? "" : ", ") + std::to_string(ch.components);
+  if (json) {
+    nlohmann::json j;
+    j["kind"] = "ubo2014";
+    j["source"] = path;
+    j["layout"] = "ubo2014";
+    j["signature"] = m.signature;
+    j["lights"] = btf.numLights();
+    j["views"] = btf.numViews();
+    j["images"] = btf.numImages();
+    j["image_size"] = {btf.width(), btf.height()};
+    j["crop"] = crop.empty() ? nlohmann::json(nullptr) : nlohmann::json{crop.x, crop.y, crop.width, crop.height};
+    j["width"] = w;
+    j["height"] = h;
+    j["texels"] = w * h;
+    j["color_model"] = {{"code", m.colorModel}, {"name", uboColorModelName(m.colorModel)}};
+    nlohmann::json ch = nlohmann::json::array();
+    for (const Ubo2014Channel& c : btf.channels())
+      ch.push_back({{"components", c.components}, {"scalar_bytes", c.scalarSize}, {"u_rows", c.uRows},
+                    {"sxv_rows", c.sxvRows}});
+    j["channels"] = ch;
+    j["abrdfs_in_u"] = btf.abrdfsInU();
+    j["cosine_flag"] = m.cosineFlag != 0;
+    j["measurement_setup"] = m.measurementSetup;
+    j["bytes_factors_in_memory"] = btf.factorBytes();
+    j["bytes_expanded_half"] = expandedHalf;
+    j["bytes_raw_float32"] = static_cast<std::size_t>(btf.numImages()) * w * h * 3 * 4;
+    std::printf("%s\n", j.dump(2).c_str());
+    return 0;
+  }
+  std::printf("source         %s\n", path.c_str());
+  std::printf("layout         ubo2014 (signature %s)\n", m.signature.c_str());
+  std::printf("lights         %d\n", btf.numLights());
+  std::printf("views          %d\n", btf.numViews());
+  std::printf("images         %d\n", btf.numImages());
+  std::printf("image size     %d x %d in the file\n", btf.width(), btf.height());
+  if (!crop.empty())
+    std::printf("crop           %d,%d,%d,%d -> %d x %d texels\n", crop.x, crop.y, crop.width, crop.height, w, h);
+  std::printf("texels         %d\n", w * h);
+  std::printf("colour model   %d (%s)\n", m.colorModel, uboColorModelName(m.colorModel).c_str());
+  std::printf("components     %s per channel (%s floats; ABRDF = U row x SxV^T, %s)\n", components.c_str(),
+              btf.channels()[0].scalarSize == 2 ? "half" : btf.channels()[0].scalarSize == 4 ? "32-bit" : "64-bit",
+              btf.abrdfsInU() ? "U rows are light/view pairs" : "U rows are texels");
+  if (m.cosineFlag) std::printf("cosine         the file holds cos(theta_light) x reflectance; nbtf divides it out\n");
+  if (!m.measurementSetup.empty()) std::printf("measured with  %s\n", m.measurementSetup.c_str());
+  std::printf("in memory      %s (%zu bytes: the factors as floats; nothing is expanded to describe it)\n",
+              humanBytes(btf.factorBytes()).c_str(), btf.factorBytes());
+  std::printf("expanded       %s (%zu bytes: half floats, what compress/cluster/eval load%s)\n",
+              humanBytes(expandedHalf).c_str(), expandedHalf, crop.empty() ? "; --crop loads less" : " for this crop");
+  std::printf("raw float32    %s (%zu bytes)\n", humanBytes(2.0 * expandedHalf).c_str(), 2 * expandedHalf);
+  return 0;
+}
+
 // A .nbtf file: recognised by its magic bytes, or by its extension (so a damaged file
 // still gets the reader's precise error instead of "not a folder").
 bool looksLikeNbtf(const std::string& path) {
@@ -154,9 +228,9 @@ int infoNbtf(const std::string& path, const cxxopts::ParseResult& args) {
 
 int infoMain(int argc, char** argv) {
   return runGuarded("info", [&] {
-    cxxopts::Options options("nbtf info", "Describe a BTF image stack folder or a compressed .nbtf file");
+    cxxopts::Options options("nbtf info", "Describe a BTF image stack folder, a UBO2014 .btf file or a compressed .nbtf file");
     options.positional_help("<path>");
-    options.add_options()("path", "BTF stack folder or .nbtf file", cxxopts::value<std::string>())(
+    options.add_options()("path", "BTF stack folder, UBO2014 .btf file or .nbtf file", cxxopts::value<std::string>())(
         "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "json", "Print the description as JSON")(
@@ -168,7 +242,8 @@ int infoMain(int argc, char** argv) {
     applyCommonOptions(args, options.program());
     if (!args.count("path")) throw Error("missing <path> (see 'nbtf info --help')");
     std::string path = args["path"].as<std::string>();
-    return looksLikeNbtf(path) ? infoNbtf(path, args) : infoStack(path, args);
+    if (looksLikeNbtf(path)) return infoNbtf(path, args);
+    return looksLikeUbo2014(path) ? infoBtf(path, args) : infoStack(path, args);
   });
 }
 

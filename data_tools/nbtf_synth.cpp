@@ -1,11 +1,13 @@
 // nbtf-synth: renders a synthetic BTF material under all 81 x 81 light/view pairs and
-// writes it in the UBO2003 or UTIA layout, with its linear float ground truth.
+// writes it in the UBO2003 or UTIA layout, with its linear float ground truth; or under the
+// 151 x 151 pairs of Bonn's Dome 1 as a UBO2014 .btf file (factorized, half floats).
 #include <cstdio>
 #include <cxxopts.hpp>
 #include <iostream>
 #include <sstream>
 
 #include "synth/synth_material.h"
+#include "synth/synth_ubo2014.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -32,10 +34,14 @@ int run(int argc, char** argv) {
   cxxopts::Options options("nbtf-synth", "Render a synthetic BTF material (81 x 81 light/view images) with its ground truth");
   options.add_options()("preset", "Material preset (see --list-presets)", cxxopts::value<std::string>()->default_value("fabric"))(
       "size", "Texels WxH (or N for N x N), 8 to 1024 each", cxxopts::value<std::string>()->default_value("100x100"))(
-      "layout", "ubo2003 (JPEG) or utia (PNG or EXR)", cxxopts::value<std::string>()->default_value("ubo2003"))(
+      "layout", "ubo2003 (JPEG), utia (PNG or EXR) or ubo2014 (one .btf file, 151 x 151 directions)",
+      cxxopts::value<std::string>()->default_value("ubo2003"))(
+      "components", "ubo2014: SVD components per colour channel", cxxopts::value<int>()->default_value("32"))(
+      "color-model", "ubo2014: 11 (log Y, U/Y, V/Y) or 0 (RGB)", cxxopts::value<int>()->default_value("11"))(
       "format", "jpg (ubo2003), png or exr (utia); default: jpg for ubo2003, png for utia", cxxopts::value<std::string>())(
       "seed", "Random seed: the same seed gives the same material", cxxopts::value<std::uint64_t>()->default_value("1"))(
-      "o,output", "Output folder (new, empty, or an earlier nbtf-synth output to replace)", cxxopts::value<std::string>())(
+      "o,output", "Output folder (new, empty, or an earlier nbtf-synth output to replace); ubo2014: the .btf file",
+      cxxopts::value<std::string>())(
       "no-parallax", "Shade the texel below instead of the one seen along the view ray (masking only)")(
       "no-ground-truth", "Do not write the float ground truth")(
       "supersampling", "Fine samples per texel along each axis (1 to 4)", cxxopts::value<int>()->default_value("2"))(
@@ -68,6 +74,30 @@ int run(int argc, char** argv) {
   o.preset = args["preset"].as<std::string>();
   parseSize(args["size"].as<std::string>(), o.width, o.height);
   o.layout = parseLayout(args["layout"].as<std::string>());
+  if (o.layout != Layout::Ubo2014)
+    for (const char* only : {"components", "color-model"})
+      if (args.count(only)) throw Error(std::string("--") + only + " applies to --layout ubo2014 only");
+  if (o.layout == Layout::Ubo2014) {
+    for (const char* imagesOnly : {"format", "no-ground-truth"})
+      if (args.count(imagesOnly))
+        throw Error(std::string("--") + imagesOnly + " does not apply to --layout ubo2014 (one .btf file, no images)");
+    o.seed = args["seed"].as<std::uint64_t>();
+    o.render.parallax = !args.count("no-parallax");
+    o.render.supersampling = args["supersampling"].as<int>();
+    Ubo2014FactorizeOptions f;
+    f.components = args["components"].as<int>();
+    f.colorModel = args["color-model"].as<int>();
+    const std::string out = args["output"].as<std::string>();
+    synth::SynthUbo2014Summary s = synth::writeSynthUbo2014(o, out, f);
+    std::printf("wrote %s (ubo2014, !DFMF08FCR, %d images = 151 x 151, %d x %d texels, %d components per channel, "
+                "colour model %d, %zu bytes, preset %s, seed %llu) in %.1f s\n",
+                out.c_str(), s.images, o.width, o.height, s.factorization.components, f.colorModel, s.fileBytes,
+                o.preset.c_str(), static_cast<unsigned long long>(o.seed), s.seconds);
+    std::printf("factorization (stored half floats vs the rendered values, linear sRGB): RMSE %.4g (mean value %.4g), "
+                "max abs error %.4g\n",
+                s.factorization.rmseLinear, s.factorization.inputMean, s.factorization.maxAbsError);
+    return 0;
+  }
   o.format = args.count("format") ? parseImageFormat(args["format"].as<std::string>())
                                   : (o.layout == Layout::Utia ? ImageFormat::Png : ImageFormat::Jpg);
   o.seed = args["seed"].as<std::uint64_t>();

@@ -14,6 +14,8 @@
 #include "codec/decoder_query.h"
 #include "decoder_fixtures.h"
 #include "io/image_io.h"
+#include "io/ubo2014_btf.h"
+#include "pipeline/decoder_output.h"
 #include "test_util.h"
 #include "util/atomic_file.h"
 
@@ -140,6 +142,51 @@ TEST_F(NbtfCommand, DecodeRejectsBadInput) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("give one of them"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "x"));
+}
+
+// --layout ubo2014: one Bonn .btf file that the loader and `nbtf info` read, holding the
+// decoded values (here 6 components: the full rank of 3 x 2 images, so only half precision
+// separates them).
+TEST_F(NbtfCommand, DecodeUbo2014WritesABtfThatLoadsBack) {
+  const std::string out = dir / "m.btf";
+  CommandRun r = runNbtf("decode '" + file + "' --layout ubo2014 --components 6 -o '" + out + "' -q", dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("wrote " + out + " (ubo2014, !DFMF08FCR, 3 lights x 2 views = 6 images, 7 x 5 texels, 6 "
+                                        "components per channel"),
+            std::string::npos)
+      << r.out;
+  Ubo2014Btf btf = Ubo2014Btf::read(out);
+  EXPECT_EQ(btf.meta().lights, material.lights);
+  EXPECT_EQ(btf.meta().views, material.views);
+  EXPECT_EQ(btf.meta().colorModel, 11);
+  NbtfDecoder decoder(material);
+  BtfStack want = decodeStack(decoder, SampleType::Half, {}, {}, false);
+  std::vector<float> abrdf(btf.numImages() * 3);
+  double worst = 0, mean = 0;
+  for (int t = 0; t < btf.numTexels(); ++t) {
+    btf.abrdfLinear(t, abrdf.data());
+    for (int i = 0; i < btf.numImages(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        worst = std::max(worst, static_cast<double>(std::abs(abrdf[i * 3 + c] - want.sample(i, t, c))));
+        mean += want.sample(i, t, c) / (3.0 * btf.numImages() * btf.numTexels());
+      }
+  }
+  EXPECT_LT(worst, 5e-3 * mean) << "mean " << mean;
+  CommandRun info = runNbtf("info '" + out + "'", dir);
+  ASSERT_EQ(info.status, 0) << info.err;
+  EXPECT_NE(info.out.find("layout         ubo2014 (signature !DFMF08FCR)"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("components     6, 6, 6 per channel"), std::string::npos) << info.out;
+
+  r = runNbtf("decode '" + file + "' --layout ubo2014 -o '" + (dir / "x.btf") + "' --format exr", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("--format does not apply to --layout ubo2014"), std::string::npos) << r.err;
+  r = runNbtf("decode '" + file + "' --layout ubo2014 -o '" + dir.path() + "'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(dir.path() + ": is a folder; --layout ubo2014 writes one .btf file"), std::string::npos) << r.err;
+  r = runNbtf("decode '" + file + "' -o '" + (dir / "imgs") + "' --components 4", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("--components applies to --layout ubo2014 only"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "x.btf"));
 }
 
 TEST_F(NbtfCommand, QueryPrintsTheLibrarysValue) {

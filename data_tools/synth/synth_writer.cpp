@@ -278,7 +278,8 @@ void validateSynthOptions(const SynthOptions& o) {
   if (o.layout == Layout::Utia && o.format == ImageFormat::Jpg)
     throw Error("layout utia is written as png or exr (as the UTIA data set ships); got format jpg - use "
                 "--layout ubo2003 for JPEG");
-  if (o.layout == Layout::Unknown) throw Error("layout must be ubo2003 or utia");
+  if (o.layout == Layout::Unknown || o.layout == Layout::Ubo2014)
+    throw Error("layout must be ubo2003 or utia (ubo2014 files are written by writeSynthUbo2014)");
 }
 
 // ---- Writing ------------------------------------------------------------------------------------

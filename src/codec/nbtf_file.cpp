@@ -87,8 +87,12 @@ std::string hex32(std::uint32_t v) {
 }
 
 // Stored enum codes: independent of the in-memory enums so those can change freely.
-std::uint8_t layoutCode(Layout l) { return l == Layout::Ubo2003 ? 1 : l == Layout::Utia ? 2 : 0; }
-Layout layoutFromCode(std::uint8_t c) { return c == 1 ? Layout::Ubo2003 : c == 2 ? Layout::Utia : Layout::Unknown; }
+std::uint8_t layoutCode(Layout l) {
+  return l == Layout::Ubo2003 ? 1 : l == Layout::Utia ? 2 : l == Layout::Ubo2014 ? 3 : 0;
+}
+Layout layoutFromCode(std::uint8_t c) {
+  return c == 1 ? Layout::Ubo2003 : c == 2 ? Layout::Utia : c == 3 ? Layout::Ubo2014 : Layout::Unknown;
+}
 std::uint8_t sampleTypeCode(SampleType t) { return t == SampleType::Srgb8 ? 1 : 2; }
 
 // ---- Validation helpers
@@ -765,7 +769,7 @@ void parseInfo(const SectionRef& s, CompressedBtf& btf, const std::string& name)
   btf.directionEncoding = static_cast<DirectionEncoding>(r.u8());
   btf.valueSpace = static_cast<ValueSpace>(r.u8());
   std::uint8_t layout = r.u8();
-  if (layout > 2) throw r.fail("unknown layout code " + std::to_string(layout));
+  if (layout > 3) throw r.fail("unknown layout code " + std::to_string(layout));
   btf.layout = layoutFromCode(layout);
   std::uint8_t sampleType = r.u8();
   if (sampleType != 1 && sampleType != 2) throw r.fail("unknown sample type code " + std::to_string(sampleType));

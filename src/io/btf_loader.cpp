@@ -9,6 +9,7 @@
 
 #include "io/btf_names.h"
 #include "io/image_io.h"
+#include "io/ubo2014_btf.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -50,7 +51,18 @@ std::string describe(const Direction& d) {
 StackListing listBtfStack(const std::string& path, Layout forced) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw fileError(path, "no such file or folder");
-  if (!fs::is_directory(path, ec)) throw fileError(path, "not a folder (expected a folder of BTF images)");
+  if (looksLikeUbo2014(path)) {
+    // The directions are the file's own; reading the factors is the check that they fit.
+    Ubo2014Btf btf = Ubo2014Btf::read(path);
+    StackListing listing;
+    listing.layout = Layout::Ubo2014;
+    listing.lights = btf.meta().lights;
+    listing.views = btf.meta().views;
+    return listing;
+  }
+  if (!fs::is_directory(path, ec))
+    throw fileError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)");
+  if (forced == Layout::Ubo2014) forced = Layout::Unknown;  // a folder's layout is detected from its names
 
   // Collect candidate image files: the folder itself and its view folders.
   std::vector<fs::path> candidates;
@@ -167,11 +179,24 @@ Crop cropFor(const std::string& path, const StackListing& listing, const LoadOpt
 }  // namespace
 
 Crop checkCrop(const std::string& path, const LoadOptions& options) {
+  if (looksLikeUbo2014(path)) {
+    Ubo2014Btf btf = Ubo2014Btf::read(path);
+    Crop crop = options.crop.empty() ? Crop{0, 0, btf.width(), btf.height()} : options.crop;
+    if (crop.x + crop.width > btf.width() || crop.y + crop.height > btf.height()) {
+      std::ostringstream s;
+      s << "crop " << crop.x << "," << crop.y << "," << crop.width << "," << crop.height << " lies outside the "
+        << btf.width() << " x " << btf.height() << " material";
+      throw fileError(path, s.str());
+    }
+    return crop;
+  }
   int srcW = 0, srcH = 0;
   return cropFor(path, listBtfStack(path, options.layout), options, srcW, srcH);
 }
 
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
+  // A UBO2014 file: the factors are read, and only the crop's texels are expanded.
+  if (looksLikeUbo2014(path)) return Ubo2014Btf::read(path).toStack(options.crop, options.progress);
   StackListing listing = listBtfStack(path, options.layout);
   const std::string& first = listing.files.front();
   bool exr = imageFormatFromName(first) == ImageFormat::Exr;

@@ -1,4 +1,5 @@
-// Loading UBO2003 and UTIA image stacks from disk.
+// Loading UBO2003 and UTIA image stacks from disk, and UBO2014 `.btf` files (io/ubo2014_btf.h):
+// every function here takes a `.btf` file path where it takes a stack folder.
 #pragma once
 #include <string>
 

@@ -18,6 +18,20 @@ int encoderBlockCount(int imageCount, int configured) {
   return blocks;
 }
 
+std::vector<int> encoderWidths(int imageCount, const std::vector<int>& configured) {
+  const int blocks = encoderBlockCount(imageCount, static_cast<int>(configured.size()));
+  std::vector<int> widths(configured.begin(), configured.begin() + blocks);
+  constexpr int kPaperImages = 6561, kPaperPooledLength = 243;
+  if (imageCount <= kPaperImages || blocks < static_cast<int>(configured.size()) || widths.empty()) return widths;
+  int length = imageCount;
+  for (int b = 0; b < blocks; ++b) length /= 3;
+  while (length / 3 >= kPaperPooledLength) {
+    widths.push_back(2 * widths.back());
+    length /= 3;
+  }
+  return widths;
+}
+
 Mlp decoderShape(const ModelConfig& model) {
   Mlp mlp;
   int in = model.latentDim + 4;
@@ -39,10 +53,11 @@ namespace detail {
 
 EncoderImpl::EncoderImpl(int imageCount, const ModelConfig& model) {
   namespace nn = torch::nn;
-  blocks = encoderBlockCount(imageCount, static_cast<int>(model.encoderChannels.size()));
+  const std::vector<int> widths = encoderWidths(imageCount, model.encoderChannels);
+  blocks = static_cast<int>(widths.size());
   int channels = 3, length = imageCount;
   for (int b = 0; b < blocks; ++b) {
-    int out = model.encoderChannels[b];
+    int out = widths[b];
     convs.push_back(register_module("conv" + std::to_string(b),
                                     nn::Conv1d(nn::Conv1dOptions(channels, out, 3).stride(1).padding(1))));
     norms.push_back(register_module("norm" + std::to_string(b), nn::BatchNorm1d(out)));

@@ -31,6 +31,13 @@ struct ModelConfig {
 // Conv blocks actually used for N images: as many of `configured` as keep the pooled
 // length >= 2 (6561 -> 2187 -> 729 -> 243 with 3 blocks; 4 images -> 0 blocks).
 int encoderBlockCount(int imageCount, int configured);
+// The channel widths of the blocks actually used: the configured ones, fewer for short
+// ABRDFs (encoderBlockCount), and for more images than the 81 x 81 sampling (6561) the recipe
+// was made for, more blocks, each twice as wide as the one before, as long as the next block
+// still leaves at least 243 positions (what 6561 images pool to with the default 3 blocks). UBO2014's
+// 22,801 images: 7600 -> 2533 -> 844 -> 281 with {4, 8, 16, 32}, the 4 blocks the paper's
+// predecessor used there; 6561 images or fewer: unchanged.
+std::vector<int> encoderWidths(int imageCount, const std::vector<int>& configured);
 // The decoder as an Mlp shape (input latent + 4, RGB out), weights zero; 24,383 parameters
 // for the defaults.
 Mlp decoderShape(const ModelConfig& model);

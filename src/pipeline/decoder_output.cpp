@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -370,6 +371,8 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   DecodeStackResult r;
   r.folder = folder;
   r.layout = resolvedLayout(decoder, options);
+  if (r.layout == Layout::Ubo2014)
+    throw Error("the ubo2014 layout is one .btf file, not a folder of images (writeDecodedUbo2014)");
   r.format = resolvedFormat(decoder, options);
   const std::vector<DirectionChoice> lights = options.lights.empty() ? allDirections(decoder.lights()) : options.lights;
   const std::vector<DirectionChoice> views = options.views.empty() ? allDirections(decoder.views()) : options.views;
@@ -555,6 +558,47 @@ BtfStack decodeStack(const NbtfDecoder& decoder, SampleType type, const std::vec
   });
   progress.finish();
   return stack;
+}
+
+DecodeUbo2014Result writeDecodedUbo2014(const NbtfDecoder& decoder, const std::string& path,
+                                        const DecodeStackOptions& options, const Ubo2014FactorizeOptions& factorize) {
+  const auto start = std::chrono::steady_clock::now();
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw fileError(path, "is a folder; --layout ubo2014 writes one .btf file (e.g. -o material.btf)");
+  if (options.format) throw Error("--format does not apply to --layout ubo2014 (the .btf file stores half floats)");
+  if (options.width || options.height) throw Error("--size does not apply to --layout ubo2014");
+  checkUbo2014FactorizeOptions(factorize);
+  checkWritable(path);
+  BtfStack stack = decodeStack(decoder, SampleType::Half, options.lights, options.views, options.progress);
+  Ubo2014FactorizeOptions f = factorize;
+  f.progress = options.progress;
+  if (f.xml.empty()) {
+    std::string name;
+    for (char c : decoder.name()) name += c == '"' ? std::string("&quot;") : c == '&' ? std::string("&amp;") : c == '<' ? std::string("&lt;") : std::string(1, c);
+    f.xml = "<nbtf-decode source=\"" + name + "\"/>";
+  }
+  DecodeUbo2014Result r;
+  Ubo2014Btf btf = factorizeUbo2014(stack, f, &r.factorization);
+  btf.write(path);
+  r.file = path;
+  r.lights = stack.numLights(), r.views = stack.numViews(), r.images = stack.numImages();
+  r.width = stack.width(), r.height = stack.height();
+  r.fileBytes = fs::file_size(path, ec);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+std::string formatDecodeUbo2014Summary(const DecodeUbo2014Result& r) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "wrote %s (ubo2014, !DFMF08FCR, %d lights x %d views = %d images, %d x %d texels, %d components per "
+                "channel, %zu bytes) in %.1f s\n"
+                "factorization (stored half floats vs the decoded values, linear RGB): RMSE %.4g (mean value %.4g), "
+                "max abs error %.4g\n",
+                r.file.c_str(), r.lights, r.views, r.images, r.width, r.height, r.factorization.components, r.fileBytes,
+                r.seconds, r.factorization.rmseLinear, r.factorization.inputMean, r.factorization.maxAbsError);
+  return buf;
 }
 
 }  // namespace nbtf

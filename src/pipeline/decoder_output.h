@@ -20,6 +20,7 @@
 #include "codec/decoder.h"
 #include "io/btf_stack.h"
 #include "io/image_io.h"
+#include "preprocess/ubo2014_factorize.h"
 
 namespace nbtf {
 
@@ -83,6 +84,20 @@ std::string decodedImagePath(Layout layout, ImageFormat format, const DirectionC
 DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::string& folder,
                                     const DecodeStackOptions& options);
 std::string formatDecodeSummary(const DecodeStackResult& result, const NbtfDecoder& decoder);
+
+// `nbtf decode --layout ubo2014`: the selected images decoded into a half-float stack in
+// memory (texels x images x 6 bytes), factorized per colour channel (preprocess/ubo2014_factorize.h)
+// and written as one UBO2014 .btf file (atomically) that Bonn's reader and nbtf's loader read.
+struct DecodeUbo2014Result {
+  std::string file;
+  int lights = 0, views = 0, images = 0, width = 0, height = 0;
+  std::size_t fileBytes = 0;
+  Ubo2014FactorizeReport factorization;  // stored factors vs the decoded values
+  double seconds = 0;
+};
+DecodeUbo2014Result writeDecodedUbo2014(const NbtfDecoder& decoder, const std::string& path,
+                                        const DecodeStackOptions& options, const Ubo2014FactorizeOptions& factorize);
+std::string formatDecodeUbo2014Summary(const DecodeUbo2014Result& result);
 
 // The same images in memory, as the loader would return them: 8-bit sRGB or half float
 // (linear), lights x views in the order given (empty = all measured), the material's size.

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "io/btf_loader.h"
+#include "io/ubo2014_btf.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -96,8 +97,8 @@ void StackMaterial::evaluate(const UvQuery* queries, std::size_t count, float* r
 std::unique_ptr<MaterialSource> openMaterial(const std::string& path, const Crop& crop, bool progress) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
-    throw fileError(path, "no such file or folder (expected a .nbtf file or an image stack folder)");
-  if (std::filesystem::is_directory(path, ec)) {
+    throw fileError(path, "no such file or folder (expected a .nbtf file, an image stack folder or a UBO2014 .btf file)");
+  if (std::filesystem::is_directory(path, ec) || looksLikeUbo2014(path)) {  // a stack, or a UBO2014 .btf file
     LoadOptions options;
     options.crop = crop;
     options.progress = progress;

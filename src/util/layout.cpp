@@ -12,6 +12,7 @@ std::string layoutName(Layout l) {
   switch (l) {
     case Layout::Ubo2003: return "ubo2003";
     case Layout::Utia: return "utia";
+    case Layout::Ubo2014: return "ubo2014";
     default: return "unknown";
   }
 }
@@ -19,7 +20,8 @@ std::string layoutName(Layout l) {
 Layout parseLayout(const std::string& text) {
   if (text == "ubo2003" || text == "ubo") return Layout::Ubo2003;
   if (text == "utia") return Layout::Utia;
-  throw Error("unknown layout '" + text + "' (expected ubo2003 or utia)");
+  if (text == "ubo2014") return Layout::Ubo2014;
+  throw Error("unknown layout '" + text + "' (expected ubo2003, utia or ubo2014)");
 }
 
 Crop parseCrop(const std::string& text) {

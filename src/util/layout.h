@@ -8,9 +8,9 @@ namespace nbtf {
 enum class SampleType { Srgb8, Half };
 std::string sampleTypeName(SampleType t);
 
-enum class Layout { Ubo2003, Utia, Unknown };
+enum class Layout { Ubo2003, Utia, Unknown, Ubo2014 };  // Ubo2014: a Bonn .btf file (io/ubo2014_btf.h)
 std::string layoutName(Layout l);
-Layout parseLayout(const std::string& text);  // "ubo2003" | "utia"; throws otherwise
+Layout parseLayout(const std::string& text);  // "ubo2003" | "utia" | "ubo2014"; throws otherwise
 
 // A rectangle of texels (x, y, width, height) in the source images; empty = whole image.
 struct Crop {
