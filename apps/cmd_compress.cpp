@@ -58,7 +58,7 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
   if (args.count("epochs")) {
     c.epochs = args["epochs"].as<int>();
     if (c.epochs < 1) throw Error("--epochs must be >= 1, got " + std::to_string(c.epochs));
-    c.minSteps = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
+    c.minSteps = c.minStepsPerInput = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
   }
   if (args.count("time-budget")) {
     c.timeBudgetSeconds = args["time-budget"].as<double>();

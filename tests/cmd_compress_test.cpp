@@ -66,7 +66,8 @@ class CmdCompress : public ::testing::Test {
     TrainConfig c = testing::quickConfig();
     std::string text = R"({"optimizer": {"name": "adam", "learning_rate": )" + std::to_string(c.learningRate) +
                        R"(}, "training": {"batch_size": )" + std::to_string(c.batchSize) +
-                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) + R"(, "min_steps": 0, "epochs": )" +
+                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) +
+                       R"(, "min_steps": 0, "min_steps_per_input": 0, "epochs": )" +
                        std::to_string(epochs) + R"(, "checkpoint_seconds": )" + std::to_string(checkpointSeconds) +
                        "}}";
     writeFileAtomic(path("quick.json"), text);
