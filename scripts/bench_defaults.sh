@@ -23,7 +23,7 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=${1:-$root/build/bench_defaults}
-grid=${NBTF_BENCH_GRID:-"view1:16:16 view1:32:32 sub9x9:64:500 view1:128:2000 sub9x9:128:16 view1:256:16"}
+grid=${NBTF_BENCH_GRID:-"view1:16:16 view1:32:32 sub9x9:64:500 view1:128:2000 sub9x9:128:16 view1:256:125"}
 runs=${NBTF_BENCH_RUNS:-default long}
 threads=${NBTF_BENCH_THREADS:-1}
 bin=$root/build/bin
