@@ -67,12 +67,14 @@ inline void addCommonOptions(cxxopts::Options& options) {
 }
 
 // More threads than cores only slow the work down (each stage splits its work per thread
-// and waits for the slowest): cap with a warning.
-inline int cappedThreads(int threads, const std::string& program) {
-  if (threads < 0) throw Error("--threads must be >= 0, got " + std::to_string(threads));
+// and waits for the slowest): cap with a warning. One rule wherever a thread count comes from:
+// `--threads` (what = "--threads") or a config file's training.threads (what names the key and
+// the file).
+inline int cappedThreads(int threads, const std::string& program, const std::string& what = "--threads") {
+  if (threads < 0) throw Error(what + " must be >= 0, got " + std::to_string(threads));
   const int cores = static_cast<int>(std::thread::hardware_concurrency());
   if (cores > 0 && threads > cores) {
-    std::cerr << program << ": warning: --threads " << threads << " is more than the " << cores
+    std::cerr << program << ": warning: " << what << " " << threads << " is more than the " << cores
               << " cores of this machine; using " << cores << std::endl;
     return cores;
   }

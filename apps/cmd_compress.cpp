@@ -48,8 +48,14 @@ std::string number(double v) {
 
 // Config file (or the compiled-in defaults, identical to configs/default.json), then the
 // command-line options on top.
-TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string& output) {
+TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string& output, const std::string& program) {
   TrainConfig c = args.count("config") ? loadTrainConfig(args["config"].as<std::string>()) : TrainConfig{};
+  // Threads: --threads (capped, with its warning, by applyCommonOptions) over the config file's
+  // training.threads, which is capped by the same rule.
+  if (args.count("threads"))
+    c.threads = args["threads"].as<int>() > 0 ? threadCount() : 0;
+  else if (c.threads > 0)
+    c.threads = cappedThreads(c.threads, program, "training.threads in " + args["config"].as<std::string>() + ":");
   if (args.count("holdout")) {
     c.holdoutFraction = args["holdout"].as<double>();
     if (!(c.holdoutFraction >= 0 && c.holdoutFraction < 1))
@@ -58,7 +64,7 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
   if (args.count("epochs")) {
     c.epochs = args["epochs"].as<int>();
     if (c.epochs < 1) throw Error("--epochs must be >= 1, got " + std::to_string(c.epochs));
-    c.minSteps = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
+    c.minSteps = c.minStepsPerInput = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
   }
   if (args.count("time-budget")) {
     c.timeBudgetSeconds = args["time-budget"].as<double>();
@@ -70,10 +76,6 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
     long long seed = args["seed"].as<long long>();
     if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
     c.seed = static_cast<std::uint64_t>(seed);
-  }
-  if (args.count("threads")) {  // capped at the cores, as applyCommonOptions did (with its warning)
-    const int cores = static_cast<int>(std::thread::hardware_concurrency());
-    c.threads = cores > 0 ? std::min(args["threads"].as<int>(), cores) : args["threads"].as<int>();
   }
   if (args.count("resume")) c.resume = true;
   if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
@@ -153,7 +155,7 @@ int compressMain(int argc, char** argv) {
     const std::string output = args["output"].as<std::string>();
 
     CompressOptions o;
-    o.train = buildTrainConfig(args, output);
+    o.train = buildTrainConfig(args, output, options.program());
     if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
     o.clusters = args["clusters"].as<int>();
     if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));

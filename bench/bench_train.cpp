@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
     }
     TrainConfig config;
     if (args.count("config")) config = loadTrainConfig(args["config"].as<std::string>());
-    if (args.count("epochs")) config.epochs = args["epochs"].as<int>(), config.minSteps = config.maxSteps = 0;
+    if (args.count("epochs")) config.epochs = args["epochs"].as<int>(), config.minSteps = config.minStepsPerInput = config.maxSteps = 0;
     config.threads = threads;
     config.progress = progress;
     const double traceEvery = args["trace"].as<double>();
@@ -225,6 +225,7 @@ int main(int argc, char** argv) {
         TrainConfig longer = config;
         longer.epochs = config.epochs * factor;
         longer.minSteps = config.minSteps * factor, longer.maxSteps = config.maxSteps * factor;
+        longer.minStepsPerInput = config.minStepsPerInput * factor;
         if (config.timeBudgetSeconds > 0) longer.timeBudgetSeconds = config.timeBudgetSeconds * factor;
         TrainResult rl = trainModel(in, longer);
         printResult("long", rl);

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <thread>
 #include <nlohmann/json.hpp>
 
 #include "codec/nbtf_file.h"
@@ -62,13 +63,13 @@ class CmdCompress : public ::testing::Test {
   std::string writeStack() { return testing::writeTestStack(path("stack")); }
 
   // A config file for a quick run (the test recipe of the model tests).
-  std::string writeQuickConfig(int epochs, double checkpointSeconds = 300) {
+  std::string writeQuickConfig(int epochs, double checkpointSeconds = 300, const std::string& extra = "") {
     TrainConfig c = testing::quickConfig();
     std::string text = R"({"optimizer": {"name": "adam", "learning_rate": )" + std::to_string(c.learningRate) +
                        R"(}, "training": {"batch_size": )" + std::to_string(c.batchSize) +
-                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) + R"(, "min_steps": 0, "epochs": )" +
-                       std::to_string(epochs) + R"(, "checkpoint_seconds": )" + std::to_string(checkpointSeconds) +
-                       "}}";
+                       R"(, "images_per_input": )" + std::to_string(c.imagesPerInput) +
+                       R"(, "min_steps": 0, "min_steps_per_input": 0, "epochs": )" + std::to_string(epochs) +
+                       R"(, "checkpoint_seconds": )" + std::to_string(checkpointSeconds) + extra + "}}";
     writeFileAtomic(path("quick.json"), text);
     return path("quick.json");
   }
@@ -151,6 +152,28 @@ TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
   EXPECT_TRUE(contains(r.output, "--resume: no checkpoint at " + again + ".ckpt, starting from the beginning"))
       << r.output;
   EXPECT_EQ(readFileBytes(again), readFileBytes(out));
+}
+
+// A config file's training.threads is capped at the cores like --threads, with the same
+// warning (it was taken as given: 1000 threads ran, and the file recorded 1000).
+TEST_F(CmdCompress, ConfigThreadsAreCappedLikeTheOption) {
+  const int cores = static_cast<int>(std::thread::hardware_concurrency());
+  if (cores < 1) GTEST_SKIP() << "the number of cores is unknown here";
+  std::string stack = writeStack();
+  std::string out = path("m.nbtf"), stats = path("stats.json");
+  std::string config = writeQuickConfig(4, 300, R"(, "threads": 100000)");
+  RunResult r = run("compress " + stack + " -o " + out + " --clusters 4 -q --config " + config);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "nbtf compress: warning: training.threads in " + config + ": 100000 is more than the " +
+                                     std::to_string(cores) + " cores of this machine; using " + std::to_string(cores)))
+      << r.output;
+  nlohmann::json meta = nlohmann::json::parse(readNbtf(out).metadataJson);
+  EXPECT_EQ(meta["threads"].get<int>(), cores);
+  // --threads still wins over the file, with its own warning.
+  r = run("compress " + stack + " -o " + out + " --clusters 4 -q --threads 1 --config " + config);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_FALSE(contains(r.output, "warning")) << r.output;
+  EXPECT_EQ(nlohmann::json::parse(readNbtf(out).metadataJson)["threads"].get<int>(), 1);
 }
 
 // Issue 15's command-line rough edges, each as a new user met it.

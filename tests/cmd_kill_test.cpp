@@ -111,7 +111,7 @@ TEST(KillCompress, RandomSigkillsLeaveNoPartialFileAndResumeMatchesAnUninterrupt
                   R"({"optimizer": {"name": "adam", "learning_rate": )" + std::to_string(q.learningRate) +
                       R"(}, "training": {"batch_size": )" + std::to_string(q.batchSize) +
                       R"(, "images_per_input": )" + std::to_string(q.imagesPerInput) +
-                      R"(, "epochs": 400, "min_steps": 0, "checkpoint_seconds": 0.05}})");
+                      R"(, "epochs": 400, "min_steps": 0, "min_steps_per_input": 0, "checkpoint_seconds": 0.05}})");
   auto compressArgs = [&](const std::string& out, const std::string& stats) {
     return std::vector<std::string>{"compress", stack, "-o", out, "--clusters", "5", "--seed", "3", "--threads", "1",
                                     "--config", dir / "quick.json", "--stats-json", stats, "-q", "--resume"};

@@ -159,7 +159,7 @@ inline TrainConfig quickConfig() {
   c.batchSize = 1024;
   c.imagesPerInput = 64;
   c.epochs = 150;
-  c.minSteps = c.maxSteps = 0;  // the tests count in epochs
+  c.minSteps = c.minStepsPerInput = c.maxSteps = 0;  // the tests count in epochs
   c.polishFraction = 0.1;
   c.threads = 1;
   c.progress = false;

@@ -307,26 +307,55 @@ TEST(Trainer, ResumedTimeBudgetSpendsTheRemainingBudget) {
 }
 
 // The default amount of training does not collapse when an epoch is small (few encoder
-// inputs, few images): epochs x steps per epoch is bounded below by min_steps, above by
-// max_steps; --epochs (bounds 0) means exactly that many epochs.
+// inputs, few images), and grows with the latents to fit: epochs x steps per epoch is bounded
+// below by max(min_steps, min_steps_per_input x encoder inputs), above by max_steps; --epochs
+// (all bounds 0) means exactly that many epochs. (docs/model.md, *How much training the
+// default does*; measured in docs/BENCHMARKS.md, *Default amount of training*.)
 TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
-  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 16000 steps, 16384 samples per step
+  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 16000 steps, 16 steps per input, 16384 samples per step
+  EXPECT_EQ(c.minSteps, 2000);
+  EXPECT_EQ(c.minStepsPerInput, 16);
+  EXPECT_EQ(c.maxSteps, 16000);
   TrainPlan small = planTraining(c, 16, 81);  // k = 16, one view: an epoch is one step
   EXPECT_EQ(small.stepsPerEpoch, 1);
-  EXPECT_EQ(small.totalSteps, c.minSteps);
-  TrainPlan paper = planTraining(c, 500, 6561);  // k = 500, full stack: 20 epochs, unchanged
-  EXPECT_EQ(paper.stepsPerEpoch, 201);
-  EXPECT_EQ(paper.totalSteps, 20 * 201);
+  EXPECT_EQ(small.totalSteps, 2000);                         // min_steps decides up to k = 125
+  EXPECT_EQ(planTraining(c, 125, 81).totalSteps, 2000);
+  EXPECT_EQ(planTraining(c, 126, 81).totalSteps, 16 * 126);  // then 16 steps per encoder input
+  TrainPlan sub = planTraining(c, 500, 81);                  // k = 500, 9 x 9 subset
+  EXPECT_EQ(sub.stepsPerEpoch, 3);
+  EXPECT_EQ(sub.totalSteps, 8000);
+  EXPECT_EQ(planTraining(c, 2000, 81).totalSteps, 16000);    // k = 2000, one view: max_steps
+  // k = 500 on a full stack: 20 epochs are 4,020 steps, the minimum per input 8,000.
+  TrainPlan full = planTraining(c, 500, 6561);
+  EXPECT_EQ(full.stepsPerEpoch, 201);
+  EXPECT_EQ(full.totalSteps, 8000);
+  EXPECT_EQ(planTraining(c, 2000, 6561).totalSteps, 16000);  // 20 epochs = 16,020 steps, capped
   EXPECT_EQ(planTraining(c, 65536, 6561).totalSteps, c.maxSteps);  // per-texel 256 x 256
+  // Epochs decide where they are more than the minimum: k = 500 on 151 x 151 = 22,801 images.
+  TrainPlan dense = planTraining(c, 500, 22801);
+  EXPECT_EQ(dense.stepsPerEpoch, 696);
+  EXPECT_EQ(dense.totalSteps, 20 * 696);
+  // configs/converged.json is 4x every bound.
+  TrainConfig longer = c;
+  longer.epochs = 80, longer.minSteps = 8000, longer.minStepsPerInput = 64, longer.maxSteps = 64000;
+  for (std::int64_t k : {16, 32, 500, 2000})
+    for (int images : {81, 6561})
+      EXPECT_EQ(planTraining(longer, k, images).totalSteps, 4 * planTraining(c, k, images).totalSteps)
+          << "k " << k << ", " << images << " images";
   TrainConfig exact = c;
-  exact.minSteps = exact.maxSteps = 0;
+  exact.minSteps = exact.minStepsPerInput = exact.maxSteps = 0;
   EXPECT_EQ(planTraining(exact, 16, 81).totalSteps, 20);
+  EXPECT_EQ(planTraining(exact, 2000, 81).totalSteps, 20 * 10);
   TrainConfig budget = c;
   budget.epochs = 0, budget.timeBudgetSeconds = 10;
   EXPECT_EQ(planTraining(budget, 16, 81).totalSteps, 0);
   TrainConfig bad = c;
   bad.minSteps = 5, bad.maxSteps = 4;
   EXPECT_NE(errorOf([&] { validateTrainConfig(bad, "x.json"); }).find("'training.min_steps'"), std::string::npos);
+  bad = c;
+  bad.minStepsPerInput = -1;
+  EXPECT_NE(errorOf([&] { validateTrainConfig(bad, "x.json"); }).find("'training.min_steps_per_input'"),
+            std::string::npos);
 }
 
 TEST(Trainer, MinStepsAppliesToSmallEpochs) {
@@ -339,6 +368,8 @@ TEST(Trainer, MinStepsAppliesToSmallEpochs) {
   EXPECT_EQ(r.epochsRun, 12);
   c.epochs = 30, c.maxSteps = 20;
   EXPECT_EQ(trainModel(m.clustered(), c).steps, 20);
+  c.epochs = 2, c.maxSteps = 0, c.minStepsPerInput = 4;  // 4 steps per cluster: 16 > 12
+  EXPECT_EQ(trainModel(m.clustered(), c).steps, 16);
 }
 
 TEST(Trainer, StopFlagWritesACheckpoint) {
@@ -407,6 +438,9 @@ TEST(TrainConfig, ShippedConfigsLoad) {
   // converged.json is the default recipe run 4x as long (the convergence benchmark's recipe).
   TrainConfig converged = loadTrainConfig(std::string(NBTF_SOURCE_DIR) + "/configs/converged.json");
   EXPECT_EQ(converged.epochs, 4 * def.epochs);
+  EXPECT_EQ(converged.minSteps, 4 * def.minSteps);
+  EXPECT_EQ(converged.minStepsPerInput, 4 * def.minStepsPerInput);
+  EXPECT_EQ(converged.maxSteps, 4 * def.maxSteps);
   EXPECT_EQ(converged.model.encoderChannels, def.model.encoderChannels);
   EXPECT_EQ(converged.optimizer, def.optimizer);
   EXPECT_DOUBLE_EQ(converged.learningRate, def.learningRate);
@@ -422,7 +456,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
     "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3},
     "optimizer": {"name": "sgd", "learning_rate": 0.05, "momentum": 0.9},
     "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
-                 "min_steps": 100, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
+                 "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
                  "resume": true, "progress": false}
   })");
@@ -437,6 +471,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.imagesPerInput, 16);
   EXPECT_EQ(c.epochs, 7);
   EXPECT_EQ(c.minSteps, 100);
+  EXPECT_EQ(c.minStepsPerInput, 3);
   EXPECT_EQ(c.maxSteps, 900);
   EXPECT_DOUBLE_EQ(c.timeBudgetSeconds, 60);
   EXPECT_EQ(c.schedule, "step");

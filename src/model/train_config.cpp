@@ -140,6 +140,7 @@ TrainConfig loadTrainConfig(const std::string& path) {
   tr.read("images_per_input", c.imagesPerInput);
   tr.read("epochs", c.epochs);
   tr.read("min_steps", c.minSteps);
+  tr.read("min_steps_per_input", c.minStepsPerInput);
   tr.read("max_steps", c.maxSteps);
   tr.read("time_budget_seconds", c.timeBudgetSeconds);
   tr.read("schedule", c.schedule);
@@ -196,6 +197,8 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (!finite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)
     bad(source, "training.time_budget_seconds", "must be >= 0 (0 = no limit)");
   if (c.minSteps < 0) bad(source, "training.min_steps", "must be >= 0 (0 = no minimum)");
+  if (c.minStepsPerInput < 0)
+    bad(source, "training.min_steps_per_input", "must be >= 0 (0 = no minimum per encoder input)");
   if (c.maxSteps < 0) bad(source, "training.max_steps", "must be >= 0 (0 = no maximum)");
   if (c.minSteps > 0 && c.maxSteps > 0 && c.minSteps > c.maxSteps)
     bad(source, "training.min_steps", "(" + std::to_string(c.minSteps) + ") must not exceed training.max_steps (" +
@@ -239,7 +242,9 @@ TrainPlan planTraining(const TrainConfig& c, std::int64_t encoderInputs, int tra
   p.stepsPerEpoch = std::max<std::int64_t>(1, std::llround(std::ceil(samplesPerEpoch / p.batch)));
   if (c.epochs <= 0) return p;  // bounded by the time budget only
   p.totalSteps = p.stepsPerEpoch * c.epochs;
-  if (c.minSteps > 0) p.totalSteps = std::max<std::int64_t>(p.totalSteps, c.minSteps);
+  // At least min_steps, and min_steps_per_input per encoder input (k, or texels per-texel):
+  // the steps a decoder needs grow with the latents it fits. max_steps bounds both.
+  p.totalSteps = std::max<std::int64_t>({p.totalSteps, c.minSteps, c.minStepsPerInput * encoderInputs});
   if (c.maxSteps > 0) p.totalSteps = std::min<std::int64_t>(p.totalSteps, c.maxSteps);
   return p;
 }

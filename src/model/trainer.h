@@ -86,11 +86,14 @@ struct TrainConfig {
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
   int imagesPerInput = 512;        // images per encoder input in a step (a "tile"); clamped to the training images
   int epochs = 20;                 // one epoch = (encoder inputs) x (training images) decoder samples
-  // Bounds on epochs x steps per epoch (0 = no bound; `nbtf compress --epochs E` sets both to 0).
-  // An epoch's size follows k x images, so 20 epochs is 4,000 steps at k = 500 on 6561 images
-  // but 2 at k = 16 on 81 images: the decoder needs a number of optimizer steps whatever the
-  // data (min), and huge encoder-input counts (per-texel, k >> 2000) must stay affordable (max).
+  // Bounds on epochs x steps per epoch (0 = no bound; `nbtf compress --epochs E` sets all three
+  // to 0). An epoch's size follows k x images, so 20 epochs is 4,000 steps at k = 500 on 6561
+  // images but 2 at k = 16 on 81 images. The lower bound is max(minSteps, minStepsPerInput x
+  // encoder inputs): the decoder needs a number of optimizer steps whatever the data (minSteps),
+  // and more as it has more distinct latents to fit (minStepsPerInput: 16 x k, 8,000 steps at
+  // k = 500); huge encoder-input counts (per-texel, k >> 1000) must stay affordable (maxSteps).
   int minSteps = 2000;
+  int minStepsPerInput = 16;
   int maxSteps = 16000;
   double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
   std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
@@ -127,8 +130,9 @@ TrainConfig loadTrainConfig(const std::string& path);
 void validateTrainConfig(const TrainConfig& config, const std::string& source);
 
 // The step geometry of a run: decoder samples per step and per epoch, steps per epoch, and
-// the planned optimizer steps: epochs x steps per epoch bounded by min_steps / max_steps
-// (0 when training is bounded by the time budget only).
+// the planned optimizer steps: epochs x steps per epoch, at least max(min_steps,
+// min_steps_per_input x encoder inputs), at most max_steps (0 when training is bounded by the
+// time budget only).
 struct TrainPlan {
   std::int64_t batch = 0, stepsPerEpoch = 0, totalSteps = 0;
   int perTile = 0, tiles = 0;

@@ -155,6 +155,7 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"images_per_input", c.imagesPerInput},
                    {"epochs", c.epochs},
                    {"min_steps", c.minSteps},
+                   {"min_steps_per_input", c.minStepsPerInput},
                    {"max_steps", c.maxSteps},
                    {"time_budget_seconds", c.timeBudgetSeconds},
                    {"schedule", c.schedule},
