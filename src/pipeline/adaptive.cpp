@@ -17,6 +17,7 @@
 #include "pipeline/compressor_internal.h"
 #include "util/error.h"
 #include "util/parallel.h"
+#include "util/progress.h"
 #include "util/random.h"
 
 #if defined(__unix__)
@@ -228,6 +229,7 @@ std::string adaptiveMetadataJson(const CompressOptions& o, const std::vector<Ada
 CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, MatrixXfCol x,
                                ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats) {
   const AdaptiveOptions& a = o.adaptive;
+  const bool say = o.progress && !Progress::quiet();  // stage lines, as the progress bars
   const std::int64_t texels = stack.numTexels();
   const int images = stack.numImages();
   if (o.train.resume)
@@ -346,7 +348,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     stages.push_back(st);
     b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));
     stages.back().bytes = writtenBytes(b);
-    if (o.progress)
+    if (say)
       std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  steps %lld/%lld  rmse %.6f  %llu bytes\n",
                    static_cast<int>(stages.size()), stagesPlanned, k, static_cast<long long>(stepsDone),
                    static_cast<long long>(totalSteps), st.rmseTrain,
@@ -371,7 +373,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   };
 
   for (int stage = 0; stage < stagesPlanned; ++stage) {
-    if (o.progress)
+    if (say)
       std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training steps %lld..%lld\n", stage + 1, stagesPlanned, k,
                    static_cast<long long>(stepsDone), static_cast<long long>(stageEnd[stage]));
     if (!runStage(stageEnd[stage], stage == 0)) {
@@ -473,7 +475,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     st.splits = splits;
     st.merges = static_cast<int>(merges.size());
     st.pruned = pruned;
-    if (o.progress)
+    if (say)
       std::fprintf(stderr, "adaptive: after stage %d: %d merges, %d pruned, %d splits: k %d -> %d\n", stage + 1,
                    st.merges, pruned, splits, kBefore, k);
     if (splits < wanted && stopReason == "stages done") stopReason = "no cluster left to split";
@@ -496,7 +498,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     applyMerges(merges);
     representatives = clusterRepresentatives(x, ids, k, Representative::Median);
     stages.back().merges += static_cast<int>(merges.size());
-    if (o.progress)
+    if (say)
       std::fprintf(stderr, "adaptive: %llu bytes > --size-budget %llu: %d merges, k = %d\n",
                    static_cast<unsigned long long>(stages.back().bytes),
                    static_cast<unsigned long long>(a.sizeBudget), static_cast<int>(merges.size()), k);
