@@ -110,6 +110,41 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
   }
 }
 
+// --adaptive and its targets; the targets without --adaptive are errors.
+void applyAdaptive(const cxxopts::ParseResult& args, CompressOptions& o) {
+  const bool adaptive = args.count("adaptive") > 0;
+  for (const char* key : {"target-rmse", "max-clusters", "size-budget", "stages", "initial-clusters"})
+    if (args.count(key) && !adaptive) throw Error(std::string("--") + key + " needs --adaptive");
+  if (!adaptive) return;
+  if (o.pcaBaseline || o.clusters == 0) throw Error("--adaptive needs the clustered method (--clusters > 0)");
+  if (o.train.resume) throw Error("--resume does not apply to --adaptive (its stages change the clusters)");
+  AdaptiveOptions& a = o.adaptive;
+  a.enabled = true;
+  if (args.count("target-rmse")) {
+    a.targetRmse = args["target-rmse"].as<double>();
+    if (!(a.targetRmse > 0 && std::isfinite(a.targetRmse)))
+      throw Error("--target-rmse must be a positive number, got " + number(a.targetRmse));
+  }
+  if (args.count("max-clusters")) {
+    a.maxClusters = args["max-clusters"].as<int>();
+    if (a.maxClusters < 1) throw Error("--max-clusters must be >= 1, got " + std::to_string(a.maxClusters));
+  }
+  if (args.count("size-budget")) {
+    const long long bytes = args["size-budget"].as<long long>();
+    if (bytes < 1) throw Error("--size-budget must be a positive number of bytes, got " + std::to_string(bytes));
+    a.sizeBudget = static_cast<std::uint64_t>(bytes);
+  }
+  if (args.count("stages")) {
+    a.stages = args["stages"].as<int>();
+    if (a.stages < 1 || a.stages > 20) throw Error("--stages must be in 1..20, got " + std::to_string(a.stages));
+  }
+  if (args.count("initial-clusters")) {
+    a.initialClusters = args["initial-clusters"].as<int>();
+    if (a.initialClusters < 1)
+      throw Error("--initial-clusters must be >= 1, got " + std::to_string(a.initialClusters));
+  }
+}
+
 }  // namespace
 
 int compressMain(int argc, char** argv) {
@@ -143,7 +178,16 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value("0"))(
         "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1)", cxxopts::value<std::string>())(
         "dist-timeout", "Seconds the rendezvous and every collective may wait for the other ranks",
-        cxxopts::value<double>()->default_value("120"));
+        cxxopts::value<double>()->default_value("120"))(
+        "adaptive",
+        "Adaptive clusters: train in stages, splitting the clusters with the largest share of the error and "
+        "merging near-duplicates between stages (training steps as for fixed k = --clusters)")(
+        "target-rmse", "--adaptive: stop adding clusters once a stage's training RMSE is at most R",
+        cxxopts::value<double>())("max-clusters", "--adaptive: at most K clusters", cxxopts::value<int>())(
+        "size-budget", "--adaptive: the written file is at most BYTES bytes", cxxopts::value<long long>())(
+        "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
+        "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
+        cxxopts::value<int>());
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
@@ -170,6 +214,9 @@ int compressMain(int argc, char** argv) {
     if (dist.enabled() && !args.count("master")) throw Error("--world-size > 1 needs --master HOST:PORT");
     if (dist.enabled() && o.pcaBaseline) throw Error("--world-size: the PCA baseline has no training to distribute");
     validateDistributedConfig(dist);
+    applyAdaptive(args, o);
+    if (dist.enabled() && o.adaptive.enabled)
+      throw Error("--adaptive cannot be used with --world-size > 1 (its stages restart from checkpoints)");
     if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
     if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
@@ -192,7 +239,10 @@ int compressMain(int argc, char** argv) {
     CompressStats stats = compressBtf(input, output, o);
     if (stats.interrupted) {
       std::error_code ec;
-      if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
+      if (o.adaptive.enabled)
+        std::fprintf(stderr, "nbtf compress: interrupted; nothing written to %s (an --adaptive run restarts from the "
+                     "beginning).\n", output.c_str());
+      else if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
         std::fprintf(stderr,
                      "nbtf compress: interrupted; nothing written to %s. Training state is in %s: run the same "
                      "command with --resume to continue.\n",

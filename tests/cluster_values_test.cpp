@@ -5,6 +5,8 @@
 #include <cmath>
 #include <random>
 
+#include <Eigen/SVD>
+
 #include "codec/texel_modulation.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -155,6 +157,41 @@ TEST(ClusterValues, CoefficientsUseOnlyTheGivenImagesAndAnyThreadCount) {
   EXPECT_EQ(texelCoefficients(changed, m.alpha, m.ids, m.clusters, use, 2, false), one);
   use[0] = 1;
   EXPECT_NE(texelCoefficients(changed, m.alpha, m.ids, m.clusters, use, 2, false), one);
+}
+
+// Whichever side of a cluster's ABRDF matrix its SVD is taken from (texels x texels when the
+// cluster is smaller than 3 x images, else 3 x images squared), the coefficients are sqrt(n_c)
+// times the top left singular vectors: checked against Eigen's SVD of the matrix itself, with
+// all 81 images (n_c = 16 < 243) and with 2 images (n_c = 16 > 6).
+TEST(ClusterValues, CoefficientsAreTheTopSingularVectorsFromEitherSide) {
+  auto m = makeTestMaterial();
+  const int N = m.stack.numImages();
+  for (int imagesUsed : {N, 2}) {
+    std::vector<std::uint8_t> use(N, 0);
+    std::vector<int> used;
+    for (int i = 0; i < N && static_cast<int>(used.size()) < imagesUsed; i += (imagesUsed == N ? 1 : 40))
+      use[i] = 1, used.push_back(i);
+    const int terms = 2;
+    auto coefficients = texelCoefficients(m.stack, m.alpha, m.ids, m.clusters, use, terms, false);
+    for (int g = 0; g < m.clusters; ++g) {
+      std::vector<int> members;
+      for (int t = 0; t < m.stack.numTexels(); ++t)
+        if (m.ids[t] == g) members.push_back(t);
+      const int n = static_cast<int>(members.size());
+      Eigen::MatrixXd y(n, 3 * static_cast<int>(used.size()));
+      for (int k = 0; k < n; ++k)
+        for (std::size_t j = 0; j < used.size(); ++j)
+          for (int c = 0; c < 3; ++c) y(k, 3 * j + c) = m.stack.sample(used[j], members[k], c) / m.alpha;
+      Eigen::JacobiSVD<Eigen::MatrixXd> svd(y, Eigen::ComputeThinU);
+      for (int r = 0; r < terms; ++r) {
+        Eigen::VectorXd u = svd.matrixU().col(r) * std::sqrt(static_cast<double>(n));
+        if (u.sum() < 0) u = -u;
+        for (int k = 0; k < n; ++k)
+          EXPECT_NEAR(coefficients[static_cast<std::size_t>(members[k]) * terms + r], u(k), 2e-3)
+              << imagesUsed << " images, cluster " << g << ", term " << r << ", texel " << k;
+      }
+    }
+  }
 }
 
 }  // namespace

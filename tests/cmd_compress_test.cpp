@@ -380,5 +380,46 @@ TEST_F(CmdCompress, InfoRejectsDamagedFiles) {
   EXPECT_TRUE(contains(r.output, "cut.nbtf: truncated")) << r.output;
 }
 
+// --adaptive: the summary and the stats record the stages, --size-budget holds for the written
+// file, the same seed gives the same file, and the targets need --adaptive.
+TEST_F(CmdCompress, AdaptiveStagesBudgetAndSameSeed) {
+  const std::string stack = writeStack();
+  const std::string common = " --adaptive --clusters 8 --initial-clusters 3 --stages 3 --seed 2 --threads 1 --config " +
+                             writeQuickConfig(60) + " -q";
+  const std::string free = path("free.nbtf"), stats = path("free.json");
+  RunResult r = run("compress " + stack + " -o " + free + common + " --max-clusters 12 --stats-json " + stats);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "adaptive: 3 stages, k 3 -> ")) << r.output;
+  EXPECT_FALSE(fs::exists(free + ".ckpt"));
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  ASSERT_EQ(j["adaptive"]["stages"].size(), 3u);
+  EXPECT_EQ(j["adaptive"]["stages"][2]["bytes"].get<std::uint64_t>(), fs::file_size(free));
+  EXPECT_EQ(j["bytes"]["file"].get<std::uint64_t>(), fs::file_size(free));
+  const int k = j["clusters"].get<int>();
+  EXPECT_GT(k, 3);
+  EXPECT_LE(k, 12);
+  RunResult info = run("info " + free);
+  EXPECT_TRUE(contains(info.output, "k = " + std::to_string(k) + " clusters")) << info.output;
+
+  const std::uint64_t budget = fs::file_size(free) - 50;
+  const std::string a = path("a.nbtf"), b = path("b.nbtf");
+  for (const std::string& out : {a, b}) {
+    r = run("compress " + stack + " -o " + out + common + " --size-budget " + std::to_string(budget));
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_LE(fs::file_size(out), budget);
+  }
+  EXPECT_EQ(readFileBytes(a), readFileBytes(b));
+
+  for (const std::string& bad : {std::string(" --target-rmse 0.1"), std::string(" --max-clusters 9"),
+                                 std::string(" --adaptive --method pca --components 3"),
+                                 std::string(" --adaptive --resume"), std::string(" --adaptive --size-budget 0"),
+                                 std::string(" --adaptive --clusters 0")}) {
+    r = run("compress " + stack + " -o " + path("bad.nbtf") + bad + " -q");
+    EXPECT_NE(r.exitCode, 0) << bad << ": " << r.output;
+  }
+  EXPECT_TRUE(contains(run("compress " + stack + " -o " + path("bad.nbtf") + " --target-rmse 0.1 -q").output,
+                       "--target-rmse needs --adaptive"));
+}
+
 }  // namespace
 }  // namespace nbtf

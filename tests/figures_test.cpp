@@ -8,6 +8,7 @@
 
 #include "io/color.h"
 #include "test_util.h"
+#include "util/error.h"
 
 namespace nbtf {
 namespace {
@@ -118,6 +119,26 @@ TEST(Figures, LineChartLogAxisPlacesPointsByDecade) {
   s.x[0] = 100;
   s.labels = {"k=1"};
   test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y", axes); }, {"1 labels for 3 points"});
+}
+
+// The cluster map: texels of one generation share a hue, generations differ, clusters differ
+// in shade; bad sizes are errors.
+TEST(Figures, ClusterMapColoursTexelsByGeneration) {
+  // 4 x 2 texels: left half cluster 0 (generation 0), right half clusters 1 and 2 (generation 1).
+  std::vector<std::int32_t> ids = {0, 0, 1, 2, 0, 0, 1, 2};
+  Image8 img = renderClusterMap(ids, 4, 2, 3, {0, 1, 1}, "map");
+  ASSERT_GT(img.width, 320);
+  // The map is scaled up and drawn at (16, 40): sample texel centres.
+  const int scale = 320 / 4;
+  auto at = [&](int tx, int ty) { return pixel(img, 16 + tx * scale + scale / 2, 40 + ty * scale + scale / 2); };
+  EXPECT_TRUE(same(at(0, 0), at(1, 1)));    // one cluster, one colour
+  EXPECT_FALSE(same(at(0, 0), at(2, 0)));   // another generation
+  EXPECT_FALSE(same(at(2, 0), at(3, 0)));   // same generation, another cluster: another shade
+  Color8 a = at(2, 0), b = at(3, 0);        // the same hue: channels in the same order
+  EXPECT_EQ(a.r > a.b, b.r > b.b);
+  EXPECT_THROW(renderClusterMap(ids, 3, 2, 3, {}, "map"), Error);
+  EXPECT_THROW(renderClusterMap(ids, 4, 2, 2, {}, "map"), Error);      // id 2 out of range
+  EXPECT_THROW(renderClusterMap(ids, 4, 2, 3, {0, 1}, "map"), Error);  // one generation per cluster
 }
 
 }  // namespace

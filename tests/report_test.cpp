@@ -231,5 +231,32 @@ TEST(Report, UnwritableFolderIsAClearError) {
   test::expectErrorContaining([&] { writeReport(fixture().result, file + "/report"); }, {"a_file", "report folder"});
 }
 
+// Clustered materials get a cluster map; adaptive ones (generations given) say per generation.
+TEST(Report, ClusterMapShowsSplitGenerations) {
+  test::TempDir tmp;
+  const Fixture& f = fixture();
+  EvalInputs in;
+  in.reference = &f.ref;
+  in.alpha = 0.9f;
+  in.reconstruct = testing::blurredReconstruction(f.ref, 0.8, 0.1);
+  in.method = "synthetic";
+  const int texels = f.ref.numTexels();
+  in.clusters = 3;
+  for (int t = 0; t < texels; ++t) in.clusterIds.push_back(t % 16 < 8 ? 0 : (t / 16 < 8 ? 1 : 2));
+  in.clusterGenerations = {0, 1, 1};
+  EvalOptions o;
+  o.progress = false;
+  o.blurSampleImages = 1;
+  ReportPaths p = writeReport(evaluate(in, o), tmp / "report");
+  std::string md = slurp(p.markdown);
+  EXPECT_NE(md.find("## Cluster map"), std::string::npos);
+  EXPECT_NE(md.find("Clusters per generation: 0: 1, 1: 2."), std::string::npos) << md;
+  EXPECT_NE(md.find("](cluster_map.png)"), std::string::npos);
+  json j = json::parse(slurp(p.json));
+  EXPECT_EQ(j["figures"]["cluster_map"], "cluster_map.png");
+  EXPECT_EQ(j["clusters_per_generation"], json::array({1, 2}));
+  EXPECT_TRUE(json::parse(slurp(writeReport(f.result, tmp / "plain").json))["clusters_per_generation"].is_null());
+}
+
 }  // namespace
 }  // namespace nbtf

@@ -106,12 +106,20 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
       for (std::size_t j = 0; j < used.size(); ++j)
         for (Eigen::Index k = 0; k < n; ++k)
           for (int c = 0; c < 3; ++c) y(k, 3 * j + c) = stack.sample(used[j], texelsOf[k], c) * invAlpha;
-      Eigen::MatrixXd gram = (y * y.transpose()).cast<double>();
+      // The left singular vectors of y come from the smaller of its two Gram matrices: the
+      // n x n one (y y^T: its eigenvectors), or, for clusters with more texels than values per
+      // ABRDF (few images, large clusters), the dims x dims one (y^T y: u = y v / sigma).
+      const bool texelSide = n <= dims;
+      Eigen::MatrixXd gram = texelSide ? (y * y.transpose()).cast<double>() : (y.transpose() * y).cast<double>();
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+      const Eigen::Index m = gram.rows();
       const double scale = std::sqrt(static_cast<double>(n));
-      for (int r = 0; r < terms && r < n; ++r) {
-        Eigen::VectorXd u = eig.eigenvectors().col(n - 1 - r);  // eigenvalues ascend
-        if (eig.eigenvalues()(n - 1 - r) <= 1e-12 * std::max(1.0, eig.eigenvalues()(n - 1))) break;
+      for (int r = 0; r < terms && r < m; ++r) {
+        const double lambda = eig.eigenvalues()(m - 1 - r);  // eigenvalues ascend
+        if (lambda <= 1e-12 * std::max(1.0, eig.eigenvalues()(m - 1))) break;
+        Eigen::VectorXd u = texelSide ? Eigen::VectorXd(eig.eigenvectors().col(m - 1 - r))
+                                      : Eigen::VectorXd(y.cast<double>() * eig.eigenvectors().col(m - 1 - r) /
+                                                        std::sqrt(lambda));
         if (u.sum() < 0) u = -u;
         for (Eigen::Index k = 0; k < n; ++k)
           out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * u(k));

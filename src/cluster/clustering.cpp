@@ -165,6 +165,7 @@ ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& op
   result.representativeSeconds = secondsSince(start);
   result.ids = std::move(kmeans.ids);
   result.sizes = std::move(kmeans.sizes);
+  if (options.keepScores) result.scores = std::move(pca.scores);
   return result;
 }
 

@@ -18,6 +18,7 @@ struct ClusteringOptions {
   Representative representative = Representative::Median;
   std::uint64_t seed = 1;
   bool progress = true;
+  bool keepScores = false;  // return the texels' PCA scores (adaptive clustering splits in that space)
 };
 
 struct ClusteringResult {
@@ -30,6 +31,7 @@ struct ClusteringResult {
   int reseeded = 0, emptyClusters = 0;
   double explainedVarianceRatio = 0;
   Eigen::VectorXf explainedVariance;  // C: variance of the standardized ABRDFs along each component
+  MatrixXfCol scores;                 // M x C PCA scores when options.keepScores, else empty
   double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
 };
 

@@ -6,7 +6,25 @@
 #include "codec/texel_modulation.h"
 #include "util/error.h"
 
+#include <nlohmann/json.hpp>
+
 namespace nbtf {
+
+std::vector<int> clusterGenerationsOf(const CompressedBtf& btf) {
+  std::vector<int> out;
+  const nlohmann::json meta = nlohmann::json::parse(btf.metadataJson, nullptr, false);
+  if (!meta.is_object() || !meta.contains("adaptive") || !meta["adaptive"].is_object()) return out;
+  const nlohmann::json& g = meta["adaptive"]["generation"];
+  if (!g.is_string()) return out;
+  const std::string digits = g.get<std::string>();
+  if (static_cast<int>(digits.size()) != btf.latentRows) return out;  // not this file's clusters: ignore
+  for (char ch : digits) {
+    const int v = ch >= '0' && ch <= '9' ? ch - '0' : ch >= 'a' && ch <= 'z' ? ch - 'a' + 10 : -1;
+    if (v < 0) return {};
+    out.push_back(v);
+  }
+  return out;
+}
 namespace {
 
 bool sameDirection(const Direction& a, const Direction& b) {
@@ -106,6 +124,8 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
     in.methodParameter = btf.latentRows;
     in.clusterIds = btf.ids;
     in.clusters = btf.latentRows;
+    in.clusterGenerations = clusterGenerationsOf(btf);
+    if (!in.clusterGenerations.empty()) in.methodFamily += "-adaptive";  // a curve of its own in sweeps
     if (!btf.modulation.empty()) {
       // The floor of any model mixing per-cluster terms with the file's coefficients: their
       // span per cluster, made orthonormal as clusterValues needs.

@@ -19,6 +19,10 @@
 
 namespace nbtf {
 
+// The split generation of each cluster of a file written by `nbtf compress --adaptive`
+// (0 = from the initial k-means, +1 per split; the metadata's adaptive.generation), or empty.
+std::vector<int> clusterGenerationsOf(const CompressedBtf& btf);
+
 class CompressedReconstruction {
  public:
   // Copies `btf` into a decoder. Throws nbtf::Error if the decoder does not take

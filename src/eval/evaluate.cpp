@@ -180,6 +180,17 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
       r.floorRmseModulated = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, in.texelCoefficients.data(),
                                            in.coefficientTerms, false, false)
                                  .floorRmse(everyImage, ref.numTexels());
+    // Where the latents went: the label image by split generation.
+    const bool adaptive = !in.clusterGenerations.empty();
+    r.clusterMapFigure = renderClusterMap(in.clusterIds, r.width, r.height, in.clusters, in.clusterGenerations,
+                                          adaptive ? "Clusters by split generation (adaptive, k = " +
+                                                         std::to_string(in.clusters) + ")"
+                                                   : "Clusters (k = " + std::to_string(in.clusters) + ")");
+    for (int c = 0; c < in.clusters; ++c) {
+      const int g = adaptive ? std::max(0, in.clusterGenerations[c]) : 0;
+      if (static_cast<int>(r.clustersPerGeneration.size()) <= g) r.clustersPerGeneration.resize(g + 1, 0);
+      ++r.clustersPerGeneration[g];
+    }
   }
 
   r.all = r.table.all();

@@ -70,6 +70,9 @@ struct EvalInputs {
   int clusters = 0;
   std::vector<float> texelCoefficients;
   int coefficientTerms = 0;
+  // Adaptive files (nbtf compress --adaptive): each cluster's split generation (empty = none,
+  // every cluster from the initial k-means), for the cluster map.
+  std::vector<int> clusterGenerations;
 };
 
 struct EvalOptions {
@@ -125,6 +128,10 @@ struct EvalResult {
   // Clustered: the cluster-mean floor over all images (the best any one-value-per-cluster
   // model can do) and, with per-texel modulation, the floor of the modulated model; -1 = none.
   double floorRmse = -1, floorRmseModulated = -1;
+  // Clustered: the cluster map (texels coloured by split generation; eval/figures.h) and the
+  // number of clusters per generation; empty when not clustered.
+  Image8 clusterMapFigure;
+  std::vector<int> clustersPerGeneration;
   // A rendered comparison to include (`nbtf eval --render-compare DIR`); empty = none.
   RenderSection render;
   double seconds = 0;

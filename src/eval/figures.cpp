@@ -304,4 +304,57 @@ Image8 renderComparison(const float* reference, const float* reconstruction, int
   return c.release();
 }
 
+Image8 renderClusterMap(const std::vector<std::int32_t>& ids, int width, int height, int clusters,
+                        const std::vector<int>& generation, const std::string& title) {
+  const int texels = width * height;
+  if (width < 1 || height < 1 || static_cast<int>(ids.size()) != texels || clusters < 1 ||
+      (!generation.empty() && static_cast<int>(generation.size()) != clusters))
+    throw Error("cluster map: " + std::to_string(ids.size()) + " ids for " + std::to_string(width) + " x " +
+                std::to_string(height) + " texels, " + std::to_string(clusters) + " clusters, " +
+                std::to_string(generation.size()) + " generations");
+  // Generations: a qualitative palette (Tableau 10).
+  static const Color8 palette[] = {{78, 121, 167}, {242, 142, 43}, {225, 87, 89},  {118, 183, 178}, {89, 161, 79},
+                                   {237, 201, 72}, {176, 122, 161}, {255, 157, 167}, {156, 117, 95}, {186, 176, 172}};
+  auto genOf = [&](int c) { return generation.empty() ? 0 : std::max(0, generation[c]); };
+  int maxGen = 0;
+  std::vector<int> perGen(1, 0);
+  for (int c = 0; c < clusters; ++c) {
+    const int g = genOf(c);
+    maxGen = std::max(maxGen, g);
+    if (static_cast<int>(perGen.size()) <= g) perGen.resize(g + 1, 0);
+    ++perGen[g];
+  }
+  Image8 map;
+  map.width = width, map.height = height;
+  map.rgb.resize(static_cast<std::size_t>(texels) * 3);
+  for (int t = 0; t < texels; ++t) {
+    const int c = ids[t];
+    if (c < 0 || c >= clusters) throw Error("cluster map: texel " + std::to_string(t) + " has cluster id " +
+                                            std::to_string(c) + ", expected 0.." + std::to_string(clusters - 1));
+    const Color8 base = palette[genOf(c) % 10];
+    // A shade per cluster: 0.7 .. 1.15 of the generation's colour, from a hash of the id.
+    const std::uint32_t h = static_cast<std::uint32_t>(c) * 2654435761u;
+    const double shade = 0.7 + 0.45 * ((h >> 24) / 255.0);
+    auto channel = [&](std::uint8_t v) { return static_cast<std::uint8_t>(std::min(255.0, v * shade)); };
+    map.rgb[3 * t] = channel(base.r), map.rgb[3 * t + 1] = channel(base.g), map.rgb[3 * t + 2] = channel(base.b);
+  }
+  Image8 shown = displayScale(map, 320, 480);
+  const int margin = 16, top = 40, legendW = 190;
+  Canvas c(2 * margin + shown.width + legendW, std::max(top + shown.height + 30, top + 24 * (maxGen + 2)));
+  c.text(title, c.width() / 2, 18, 13, kBlack, Align::Center);
+  c.blit(shown, margin, top);
+  c.strokeRect(margin - 1, top - 1, shown.width + 2, shown.height + 2, kGrey);
+  const int lx = margin + shown.width + 20;
+  c.text("split generation", lx, top + 6, 11);
+  for (int g = 0; g <= maxGen; ++g) {
+    const int y = top + 26 + 22 * g;
+    c.fillRect(lx, y - 7, 14, 14, palette[g % 10]);
+    c.strokeRect(lx, y - 7, 14, 14, kGrey);
+    c.text(std::to_string(g) + (g == 0 ? " (initial)" : "") + ": " + std::to_string(perGen[g]) + " clusters", lx + 22, y,
+           10);
+  }
+  c.text("k = " + std::to_string(clusters) + "; shades tell clusters apart", margin, top + shown.height + 16, 9, kGrey);
+  return c.release();
+}
+
 }  // namespace nbtf

@@ -2,6 +2,7 @@
 // colour bar, line charts (RMSE by elevation), and reference | reconstruction | magnified
 // error comparison strips. Every figure carries its axis labels and units in the image.
 #pragma once
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -63,5 +64,14 @@ double chooseErrorMagnification(const float* reference, const float* reconstruct
 // |ref - rec| / alpha) through viridis, with a colour bar in unmagnified units.
 Image8 renderComparison(const float* reference, const float* reconstruction, int width, int height, float alpha,
                         double magnification, const std::string& title);
+
+// ---- Cluster map
+
+// The label image of a clustered material (ids: width x height, row-major), each texel in
+// the colour of its cluster's split generation (generation[c]; empty = all 0, a fixed-k
+// file), every cluster a slightly different shade of it so the boundaries show; with a
+// legend of the generations and their cluster counts. Throws nbtf::Error on bad sizes.
+Image8 renderClusterMap(const std::vector<std::int32_t>& ids, int width, int height, int clusters,
+                        const std::vector<int>& generation, const std::string& title);
 
 }  // namespace nbtf

@@ -192,6 +192,12 @@ json reportJson(const EvalResult& r) {
                {"max_iterations", r.blurOptions.maxIterations}};
 
   j["figures"] = {{"heat_map", kHeatMapFile}, {"elevation", kElevationFile}, {"mean_brightness", kMeanMapFile}};
+  if (!r.clusterMapFigure.rgb.empty()) {
+    j["figures"]["cluster_map"] = kClusterMapFile;
+    j["clusters_per_generation"] = r.clustersPerGeneration;
+  } else {
+    j["clusters_per_generation"] = nullptr;
+  }
   if (r.render.present()) {
     const RenderSection& s = r.render;
     j["render_comparison"] = {{"folder", s.folder},
@@ -367,6 +373,25 @@ Doc reportDoc(const json& j) {
                  fmt("%.3g", j["mean_brightness_display_gain"].get<double>()) + ").",
              "Mean brightness maps");
 
+  // ---- Cluster map
+  if (j["figures"].contains("cluster_map")) {
+    const json& perGen = j["clusters_per_generation"];
+    doc.heading("Cluster map");
+    std::string text = "Every texel in the colour of its cluster (shades tell neighbouring clusters apart). ";
+    if (perGen.size() > 1) {
+      text += "Adaptive clustering (`nbtf compress --adaptive`): the colour is the cluster's split generation, 0 for "
+              "the clusters of the initial k-means, +1 for each split in two; the latents went where the high "
+              "generations are. Clusters per generation:";
+      for (std::size_t g = 0; g < perGen.size(); ++g)
+        text += std::string(g ? "," : "") + " " + std::to_string(g) + ": " + std::to_string(perGen[g].get<int>());
+      text += ".";
+    } else {
+      text += "All clusters come from one k-means (fixed k).";
+    }
+    doc.paragraph(text);
+    doc.figure(j["figures"]["cluster_map"].get<std::string>(), "Cluster map (label image).", "Cluster map");
+  }
+
   // ---- Error by direction
   doc.heading("Error by direction");
   doc.figure(j["figures"]["heat_map"].get<std::string>(),
@@ -529,6 +554,7 @@ ReportPaths writeReport(const EvalResult& r, const std::string& dir) {
                                  "RMSE (linear RGB / alpha)", ChartAxes{ticks.size() > 1 ? ticks : std::vector<double>{}, false, ""});
   images[kElevationFile] = writePng(path(kElevationFile), chart);
   images[kMeanMapFile] = writePng(path(kMeanMapFile), r.meanMapFigure);
+  if (!r.clusterMapFigure.rgb.empty()) images[kClusterMapFile] = writePng(path(kClusterMapFile), r.clusterMapFigure);
   if (r.render.present()) {
     images[kRenderFiles[0]] = writePng(path(kRenderFiles[0]), r.render.referenceImage);
     images[kRenderFiles[1]] = writePng(path(kRenderFiles[1]), r.render.compressedImage);

@@ -18,6 +18,7 @@ namespace nbtf {
 constexpr const char* kHeatMapFile = "rmse_heatmap.png";
 constexpr const char* kElevationFile = "rmse_by_elevation.png";
 constexpr const char* kMeanMapFile = "mean_brightness.png";
+constexpr const char* kClusterMapFile = "cluster_map.png";  // clustered materials only
 constexpr const char* kRenderFiles[3] = {"render_reference.png", "render_compressed.png", "render_error.png"};
 std::string comparisonFile(std::size_t index);  // "comparison_1.png", ...
 

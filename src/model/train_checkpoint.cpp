@@ -1,5 +1,6 @@
 #include "model/train_checkpoint.h"
 
+#include <cstdio>
 #include <filesystem>
 
 #include "util/atomic_file.h"
@@ -58,7 +59,7 @@ void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::
 }
 
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
-                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer) {
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, bool checkFingerprint) {
   CheckpointMeta meta;
   try {
     torch::serialize::InputArchive archive, enc, dec, opt;
@@ -77,7 +78,7 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
       throw fileError(path, "checkpoint version " + std::to_string(version) + ", this nbtf reads " +
                                 std::to_string(kCheckpointVersion));
     meta.fingerprint = static_cast<std::uint64_t>(value("fingerprint").item<std::int64_t>());
-    if (meta.fingerprint != expectedFingerprint)
+    if (checkFingerprint && meta.fingerprint != expectedFingerprint)
       throw fileError(path,
                       "checkpoint is from a different setup (data, clusters, hold-out, model, optimizer or batch "
                       "geometry differ); remove it or rerun with the same inputs and config");
@@ -98,6 +99,78 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
     throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')));
   }
   return meta;
+}
+
+namespace {
+// Every tensor of an archive, depth first, keys joined with '/'.
+void collectTensors(torch::serialize::InputArchive& archive, const std::string& prefix,
+                    std::vector<std::pair<std::string, std::vector<double>>>& out) {
+  for (const std::string& key : archive.keys()) {
+    torch::Tensor t;
+    if (archive.try_read(key, t)) {
+      torch::Tensor d = t.to(torch::kCPU).to(torch::kDouble).contiguous();
+      out.emplace_back(prefix + key, std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel()));
+      continue;
+    }
+    torch::serialize::InputArchive sub;
+    if (archive.try_read(key, sub)) collectTensors(sub, prefix + key + "/", out);
+  }
+}
+}  // namespace
+
+CheckpointState readCheckpointState(const std::string& path) {
+  CheckpointState state;
+  try {
+    torch::serialize::InputArchive archive;
+    archive.load_from(path);
+    torch::Tensor t;
+    archive.read("step", t);
+    state.step = t.item<std::int64_t>();
+    torch::Tensor f;
+    archive.read("fingerprint", f);
+    state.fingerprint = static_cast<std::uint64_t>(f.item<std::int64_t>());
+    for (const char* part : {"encoder", "decoder"}) {
+      torch::serialize::InputArchive sub;
+      archive.read(part, sub);
+      collectTensors(sub, std::string(part) + "/", state.tensors);
+    }
+    // The optimizer's state is keyed by each parameter's address in the process that wrote
+    // it: name it by the parameter's position in the param groups instead.
+    torch::serialize::InputArchive opt, perParam, groupList;
+    archive.read("optimizer", opt);
+    opt.read("param_groups", groupList);
+    torch::Tensor groups;
+    groupList.read("param_groups/size", groups);
+    std::vector<std::string> order;
+    for (std::int64_t g = 0; g < groups.item<std::int64_t>(); ++g) {
+      torch::serialize::InputArchive group;
+      groupList.read("param_groups/" + std::to_string(g), group);
+      torch::Tensor size;
+      group.read("params/size", size);
+      for (std::int64_t i = 0; i < size.item<std::int64_t>(); ++i) {
+        c10::IValue key;
+        group.read("params/" + std::to_string(i), key);
+        order.push_back(key.toStringRef());
+      }
+    }
+    opt.read("state", perParam);
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      torch::serialize::InputArchive one;
+      if (!perParam.try_read(order[i], one)) continue;  // no step taken for this parameter yet
+      char name[32];
+      std::snprintf(name, sizeof name, "param%04zu", i);
+      const std::string prefix = std::string("optimizer/") + name + "/";
+      collectTensors(one, prefix, state.tensors);
+      c10::IValue step;
+      if (one.try_read("step", step) && (step.isInt() || step.isDouble()))
+        state.tensors.emplace_back(prefix + "step", std::vector<double>{step.isInt() ? static_cast<double>(step.toInt())
+                                                                                   : step.toDouble()});
+    }
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')));
+  }
+  return state;
 }
 
 }  // namespace nbtf

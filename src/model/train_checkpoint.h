@@ -25,7 +25,9 @@ bool checkpointExists(const std::string& path);
 void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::nn::Module& encoder,
                     torch::nn::Module& decoder, torch::optim::Optimizer& optimizer);
 // Throws nbtf::Error naming the path if the file is unreadable or from another setup.
+// checkFingerprint = false: a warm start across a change of the clusters (TrainConfig::warmStart).
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
-                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer);
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer,
+                              bool checkFingerprint = true);
 
 }  // namespace nbtf

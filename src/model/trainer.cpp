@@ -237,8 +237,12 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   std::int64_t step = 0;
   double priorSeconds = 0, emaLoss = -1;
   TrainResult result;
-  if (config.resume && checkpointExists(config.checkpointPath)) {
-    CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer);
+  if (config.warmStart && !checkpointExists(config.checkpointPath))
+    throw Error("training: a warm start needs the previous stage's checkpoint, \"" + config.checkpointPath +
+                "\" does not exist");
+  if ((config.resume || config.warmStart) && checkpointExists(config.checkpointPath)) {
+    CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer,
+                                          !config.warmStart);
     step = saved.step;
     priorSeconds = saved.elapsedSeconds;
     emaLoss = saved.emaLoss;

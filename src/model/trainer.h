@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/btf_stack.h"
@@ -105,6 +106,12 @@ struct TrainConfig {
   double checkpointSeconds = 300;  // checkpoint interval (0 = only when stopped)
   std::string checkpointPath;      // "" = no checkpoints
   bool resume = false;             // continue from checkpointPath if it exists
+  // Adaptive clustering (pipeline/adaptive.h): continue from checkpointPath, which must exist,
+  // although the clusters changed since it was written. The encoder's and decoder's weights,
+  // BatchNorm statistics, the Adam moments and step counts and the global step number carry
+  // over exactly; only the fingerprint check that ties a checkpoint to one set of clusters is
+  // skipped. (Weight shapes do not depend on k: latents are the encoder's outputs.)
+  bool warmStart = false;
   bool progress = true;
   // ---- backend (docs/model.md, *Training backends*)
   // "fused": the hand-written CPU kernels (decoder pass, conv + pool, BatchNorm, Adam), fast
@@ -187,5 +194,15 @@ struct TrainResult {
 };
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config);
+
+// The tensors of a training checkpoint by name ("encoder/...", "decoder/...",
+// "optimizer/..." for Adam's moments and step counts), flattened to doubles, with its step:
+// for tests and tools that compare states bit for bit, without torch in their headers.
+struct CheckpointState {
+  std::int64_t step = 0;
+  std::uint64_t fingerprint = 0;
+  std::vector<std::pair<std::string, std::vector<double>>> tensors;  // in archive key order
+};
+CheckpointState readCheckpointState(const std::string& path);
 
 }  // namespace nbtf

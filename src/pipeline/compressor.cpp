@@ -11,6 +11,8 @@
 #include "cluster/cluster_values.h"
 #include "cluster/clustering.h"
 #include "codec/decoder.h"
+#include "pipeline/adaptive.h"
+#include "pipeline/compressor_internal.h"
 #include "pipeline/pca_compressor.h"
 #include "io/source_fingerprint.h"
 #include "codec/texel_modulation.h"
@@ -48,11 +50,15 @@ void checkClusterCount(int clusters, std::int64_t texels, const std::string& wha
                 " texels of " + what + " (k must be at most the texel count; 0 = per-texel)");
 }
 
+}  // namespace
+
+namespace detail {
+
 // Provenance stored in the file. Only what does not vary between identical runs: no
 // timings, no output or checkpoint paths, so the same seed gives the same bytes.
-std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const TrainConfig& config,
+std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
                          const TrainResult& train, const ClusteringResult* clustering, int pcaComponents,
-                         const CompressStats& stats) {
+                         const CompressStats& stats, const std::string& adaptiveJson) {
   json meta;
   meta["config"] = json::parse(trainConfigJson(config));
   meta["seed"] = config.seed;
@@ -69,7 +75,7 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
   meta["training"] = t;
   if (clustering) {
     json c;
-    c["k"] = o.clusters;
+    c["k"] = stats.clusters;
     c["pca_components"] = pcaComponents;
     c["pca_explained_variance_ratio"] = clustering->explainedVarianceRatio;
     c["kmeans_iterations"] = clustering->iterations;
@@ -79,6 +85,7 @@ std::string metadataJson(const BtfStack& stack, const CompressOptions& o, const 
     if (stats.rmseFloorModulated >= 0) c["floor_rmse_modulated"] = stats.rmseFloorModulated;
     meta["clustering"] = c;
   }
+  if (!adaptiveJson.empty()) meta["adaptive"] = json::parse(adaptiveJson);
   return meta.dump();
 }
 
@@ -111,7 +118,65 @@ std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack
   return {rmse(0), rmse(1)};
 }
 
-}  // namespace
+std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                        int clusters, const std::vector<std::uint8_t>& holdout, int terms,
+                                        bool progress) {
+  std::vector<std::uint8_t> useImage(holdout.size());
+  for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
+  std::vector<float> coefficients = texelCoefficients(stack, alpha, ids, clusters, useImage, terms, progress);
+  return orthonormalizeTexelCoefficients(std::move(coefficients), terms, ids, clusters);
+}
+
+CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
+                                 TrainResult& train, std::vector<std::int32_t> ids, int clusters,
+                                 const std::vector<float>& texelCoefficients, const std::vector<int>& trainImages,
+                                 const std::vector<std::uint8_t>& holdout, bool progress) {
+  const ModulationConfig& mc = config.modulation;
+  const bool modulated = clusters > 0 && mc.mode != "none";
+  CompressedBtf b = compressedFrame(stack, method, alpha);
+  b.decoder = std::move(train.decoder);
+  b.latentDim = config.model.latentDim;
+  b.latentRows = train.latentRows;
+  b.latents = std::move(train.latents);
+  if (clusters > 0) b.ids = std::move(ids);
+  b.holdoutImages = train.holdoutImages;
+  std::sort(b.holdoutImages.begin(), b.holdoutImages.end());
+  b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
+  b.encoderState = std::move(train.encoderState);
+  b.storage.decoderHalf = config.storage.decoder == "half";
+  b.storage.latentsHalf = config.storage.latents == "half";
+  b.storage.idsZstd = config.storage.ids == "zstd";
+  roundToStorage(b);
+  if (modulated) {
+    // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
+    // terms over the training images, then quantized as stored.
+    b.modulation = quantizeTexelCoefficients(texelCoefficients, mc.terms, mc.bits);  // any valid codes
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    const std::size_t k = static_cast<std::size_t>(clusters), n = trainImages.size(), outs = 3 * mc.terms;
+    std::vector<float> terms(k * n * outs);
+    const int views = stack.numViews();
+    parallelFor(n, [&](std::size_t begin, std::size_t end) {
+      std::vector<float> rows(k * outs);
+      for (std::size_t i = begin; i < end; ++i) {
+        const int image = trainImages[i];
+        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], rows.data());
+        for (std::size_t g = 0; g < k; ++g)
+          std::copy(&rows[g * outs], &rows[g * outs] + outs, &terms[(g * n + i) * outs]);
+      }
+    });
+    std::vector<float> fitted =
+        fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress);
+    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
+  }
+  if (b.storage.decoderHalf || b.storage.latentsHalf || modulated) {
+    // The rounded parts are what the file decodes to: measure those, not the trained floats.
+    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
+    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
+  }
+  return b;
+}
+
+}  // namespace detail
 
 std::string defaultCheckpointPath(const std::string& output) { return output + ".ckpt"; }
 
@@ -171,6 +236,7 @@ std::string trainConfigJson(const TrainConfig& c) {
 
 CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
   if (o.pcaBaseline) return compressPcaStack(stack, o, stats);
+  if (o.adaptive.enabled && o.clusters <= 0) throw Error("--adaptive needs the clustered mode (--clusters > 0)");
   const int texels = stack.numTexels();
   stats.texels = texels;
   stats.images = stack.numImages();
@@ -207,7 +273,18 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     co.kmeans.seed = o.train.seed;
     co.seed = o.train.seed;
     co.progress = o.progress;
+    const bool adaptive = o.adaptive.enabled;
+    if (adaptive) {
+      co.clusters = detail::initialAdaptiveClusters(o, texels);
+      co.keepScores = true;  // splits are 2-means in the same PCA space
+    }
     clustering = clusterAbrdfs(x, co);
+    if (adaptive) {
+      stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+      stats.pcaComponents = pcaComponents;
+      stats.seconds.cluster = secondsSince(t);
+      return detail::compressAdaptive(stack, o, std::move(x), std::move(clustering), alpha, pcaComponents, stats);
+    }
     x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
     stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
     stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
@@ -230,11 +307,8 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   if (modulated) {
     // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
     // the stored ones are refit to the trained terms afterwards.
-    std::vector<std::uint8_t> useImage(holdout.size());
-    for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
-    std::vector<float> coefficients =
-        texelCoefficients(stack, alpha, inputs.ids, o.clusters, useImage, mc.terms, o.progress);
-    inputs.texelCoefficients = orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, inputs.ids, o.clusters);
+    inputs.texelCoefficients =
+        detail::trainingCoefficients(stack, alpha, inputs.ids, o.clusters, holdout, mc.terms, o.progress);
     inputs.coefficientTerms = mc.terms;
     stats.modulationTerms = mc.terms;
     stats.modulationBits = mc.bits;
@@ -279,52 +353,14 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     else stats.rmseFloorModulated = train.rmseFloor;
   }
 
-  // ---- Assemble the compressed material
-  CompressedBtf b = compressedFrame(stack, stats.method, alpha);
-  b.decoder = std::move(train.decoder);
-  b.latentDim = config.model.latentDim;
-  b.latentRows = train.latentRows;
-  b.latents = std::move(train.latents);
-  if (o.clusters > 0) b.ids = std::move(inputs.ids);
-  b.holdoutImages = train.holdoutImages;
-  std::sort(b.holdoutImages.begin(), b.holdoutImages.end());
-  b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
+  // ---- Assemble the compressed material (storage rounding, modulation refit, decoded RMSE)
+  CompressedBtf b = detail::assembleCompressed(stack, config, stats.method, alpha, train, std::move(inputs.ids),
+                                               o.clusters, inputs.texelCoefficients, trainImages, holdout, o.progress);
   stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
-  b.encoderState = std::move(train.encoderState);
-  b.storage.decoderHalf = config.storage.decoder == "half";
-  b.storage.latentsHalf = config.storage.latents == "half";
-  b.storage.idsZstd = config.storage.ids == "zstd";
-  roundToStorage(b);
-  if (modulated) {
-    // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
-    // terms over the training images, then quantized as stored.
-    b.modulation = quantizeTexelCoefficients(inputs.texelCoefficients, mc.terms, mc.bits);  // any valid codes
-    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
-    const std::size_t k = static_cast<std::size_t>(o.clusters), n = trainImages.size(), outs = 3 * mc.terms;
-    std::vector<float> terms(k * n * outs);
-    const int views = stack.numViews();
-    parallelFor(n, [&](std::size_t begin, std::size_t end) {
-      std::vector<float> rows(k * outs);
-      for (std::size_t i = begin; i < end; ++i) {
-        const int image = trainImages[i];
-        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], rows.data());
-        for (std::size_t g = 0; g < k; ++g)
-          std::copy(&rows[g * outs], &rows[g * outs] + outs, &terms[(g * n + i) * outs]);
-      }
-    });
-    std::vector<float> fitted =
-        fitTexelCoefficients(stack, alpha, b.ids, o.clusters, trainImages, terms, mc.terms, o.progress);
-    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
-  }
-  if (b.storage.decoderHalf || b.storage.latentsHalf || modulated) {
-    // The rounded parts are what the file decodes to: measure those, not the trained floats.
-    NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
-    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
-    stats.rmseTrain = train.rmseTrain;
-    stats.rmseHoldout = train.rmseHoldout;
-  }
-  b.metadataJson = metadataJson(stack, o, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents,
-                                stats);
+  stats.rmseTrain = train.rmseTrain;
+  stats.rmseHoldout = train.rmseHoldout;
+  b.metadataJson = detail::metadataJson(stack, config, train, o.clusters > 0 ? &clustering : nullptr,
+                                        pcaComponents, stats, "");
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
   return b;
@@ -438,6 +474,19 @@ std::string formatCompressSummary(const CompressStats& s) {
                   100 * std::max(0.0, 1 - floor * floor / (s.rmseTrain * s.rmseTrain)));
     out += line;
   }
+  if (!s.adaptiveStages.empty()) {
+    std::snprintf(line, sizeof line, "adaptive: %zu stages, k %d -> %d (%s)\n", s.adaptiveStages.size(),
+                  s.adaptiveStages.front().clusters, s.clusters, s.adaptiveStopReason.c_str());
+    out += line;
+    out += "  stage      k      steps  rmse (train)        bytes  then: merges pruned splits\n";
+    for (std::size_t i = 0; i < s.adaptiveStages.size(); ++i) {
+      const AdaptiveStage& st = s.adaptiveStages[i];
+      std::snprintf(line, sizeof line, "  %5zu %6d %10lld  %12.6f %12llu  %6d %6d %6d\n", i + 1, st.clusters,
+                    static_cast<long long>(st.steps), st.rmseTrain, static_cast<unsigned long long>(st.bytes),
+                    st.merges, st.pruned, st.splits);
+      out += line;
+    }
+  }
   const StageSeconds& t = s.seconds;
   if (pca) {
     std::snprintf(line, sizeof line,
@@ -509,6 +558,15 @@ std::string compressStatsJson(const CompressStats& s) {
   j["world_size"] = s.worldSize;
   j["all_reduce_bytes_per_step"] = s.allReduceBytesPerStep;
   j["all_reduce_seconds_per_step"] = s.allReduceSecondsPerStep;
+  if (s.adaptiveStages.empty()) {
+    j["adaptive"] = nullptr;
+  } else {
+    json stages = json::array();
+    for (const AdaptiveStage& st : s.adaptiveStages)
+      stages.push_back({{"k", st.clusters}, {"steps", st.steps}, {"rmse_train", st.rmseTrain}, {"bytes", st.bytes},
+                        {"splits", st.splits}, {"merges", st.merges}, {"pruned", st.pruned}});
+    j["adaptive"] = {{"stages", stages}, {"stop_reason", s.adaptiveStopReason}};
+  }
   return j.dump(2) + "\n";
 }
 

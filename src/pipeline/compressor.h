@@ -6,12 +6,39 @@
 #pragma once
 #include <atomic>
 #include <string>
+#include <vector>
 
 #include "codec/nbtf_file.h"
 #include "io/btf_loader.h"
 #include "model/trainer.h"
 
 namespace nbtf {
+
+// Adaptive clusters (pipeline/adaptive.h, docs/compress.md): training runs in stages over
+// one schedule; between stages the clusters with the largest share of the error are split
+// (2-means in PCA space) and clusters whose latents decode to nearly the same values are
+// merged, until the target or the budget is met.
+struct AdaptiveOptions {
+  bool enabled = false;
+  double targetRmse = 0;         // no more splits once a stage's decoded training RMSE is at most this (0 = none)
+  int maxClusters = 0;           // cap on k (0 = none); with neither cap nor budget k at most doubles per stage
+  std::uint64_t sizeBudget = 0;  // the written .nbtf is never larger (bytes; 0 = none)
+  int initialClusters = 0;       // k of the first stage; 0 = (max clusters, else --clusters) / 2^(stages - 1)
+  int stages = 5;                // training stages; the clusters change between them (1..20)
+  double growthFraction = 0.6;   // the stages before the last end at even fractions of this share of the steps
+  // Merge two clusters when merging them costs less than this fraction of the mean cluster's
+  // error (n_c n_d / (n_c + n_d) x their decoded terms' squared difference, training images).
+  double mergeTolerance = 0.02;
+};
+
+// One stage of an adaptive run.
+struct AdaptiveStage {
+  int clusters = 0;             // k trained in this stage
+  std::int64_t steps = 0;       // optimizer steps done at its end (the schedule's step count)
+  double rmseTrain = -1;        // decoded RMSE of this stage's model, training images (eq. 10)
+  std::uint64_t bytes = 0;      // .nbtf size of this stage's model
+  int splits = 0, merges = 0, pruned = 0;  // edits made after this stage
+};
 
 struct CompressOptions {
   LoadOptions load;             // layout, crop
@@ -28,6 +55,7 @@ struct CompressOptions {
   std::string checkpointPath;
   bool progress = true;
   std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
+  AdaptiveOptions adaptive;     // clustered only
 };
 
 // Wall-clock seconds per stage.
@@ -67,6 +95,8 @@ struct CompressStats {
   bool worker = false;
   double allReduceBytesPerStep = 0, allReduceSecondsPerStep = 0;
   std::string checkpointPath;
+  std::vector<AdaptiveStage> adaptiveStages;  // empty unless --adaptive
+  std::string adaptiveStopReason;             // why the clusters stopped growing
 };
 
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).

@@ -10,6 +10,7 @@ std::atomic<bool> g_quiet{false};
 }
 
 void Progress::setQuiet(bool quiet) { g_quiet = quiet; }
+bool Progress::quiet() { return g_quiet; }
 
 Progress::Progress(std::string label, std::size_t total, bool enabled)
     : label_(std::move(label)),

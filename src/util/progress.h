@@ -25,6 +25,7 @@ class Progress {
 
   // Globally silence progress output (tests, --quiet).
   static void setQuiet(bool quiet);
+  static bool quiet();
 
  private:
   void draw(bool final);

@@ -1,0 +1,40 @@
+// Pieces of the compress pipeline shared by the fixed-k path (compressor.cpp) and adaptive
+// clustering (adaptive.cpp). PRIVATE to src/pipeline.
+#pragma once
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cluster/clustering.h"
+#include "codec/decoder.h"
+#include "pipeline/compressor.h"
+
+namespace nbtf::detail {
+
+// Provenance stored in the file (no timings or paths: the same seed gives the same bytes).
+// `adaptiveJson`: the "adaptive" object (stages, generations), "" = none.
+std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
+                         const TrainResult& train, const ClusteringResult* clustering, int pcaComponents,
+                         const CompressStats& stats, const std::string& adaptiveJson);
+
+// RMSE (eq. 10, linear / alpha) of what `decoder` decodes, on the training and the held-out
+// images (-1 when none). Independent of the thread count.
+std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack& stack, float alpha,
+                                      const std::vector<std::uint8_t>& holdout);
+
+// The per-texel coefficients training uses for a clustering: a rank-`terms` SVD per cluster
+// over the training images, orthonormalized per cluster.
+std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
+                                        int clusters, const std::vector<std::uint8_t>& holdout, int terms,
+                                        bool progress);
+
+// The trained parts -> a compressed material: decoder, latents, ids, hold-out list, storage
+// rounding and (modulated) the per-texel coefficients refit to the trained terms. When
+// rounding or modulation changes what the file decodes to, train.rmseTrain / rmseHoldout are
+// replaced by the decoded RMSE. Moves the decoder, latents and encoder state out of `train`.
+CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
+                                 TrainResult& train, std::vector<std::int32_t> ids, int clusters,
+                                 const std::vector<float>& texelCoefficients, const std::vector<int>& trainImages,
+                                 const std::vector<std::uint8_t>& holdout, bool progress);
+
+}  // namespace nbtf::detail

@@ -1,0 +1,137 @@
+#include "pipeline/adaptive.h"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "codec/nbtf_file.h"
+#include "model_test_material.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+// Two clusters, two images (image 1 held out), one RGB output: hand-computed shares.
+TEST(Adaptive, ErrorSharesAddTheModelErrorAndTheWithinClusterLeftover) {
+  // decoded / best: cluster x image x 3
+  std::vector<float> decoded = {1, 1, 1, 9, 9, 9, /**/ 2, 2, 2, 9, 9, 9};
+  std::vector<float> best = {1, 1, 2, 5, 5, 5, /**/ 1, 2, 2, 5, 5, 5};
+  std::vector<std::int32_t> ids = {0, 0, 1};
+  std::vector<int> sizes = {2, 1};
+  // Texels 0 and 1 around best (1, 1, 2): (1, 1, 1) and (1, 1, 3) -> energies 3 and 11;
+  // texel 2 at its best (1, 2, 2) -> 9.
+  std::vector<double> energy = {3, 11, 9};
+  std::vector<double> shares = clusterErrorShares(decoded, best, sizes, ids, energy, {0}, 2, 3);
+  ASSERT_EQ(shares.size(), 2u);
+  EXPECT_DOUBLE_EQ(shares[0], 2 * 1.0 + (14 - 2 * 6.0));  // model 2 x (0 + 0 + 1), leftover 2
+  EXPECT_DOUBLE_EQ(shares[1], 1 * 1.0 + 0.0);
+  EXPECT_THROW(clusterErrorShares(decoded, best, {2}, ids, energy, {0}, 2, 3), Error);
+}
+
+TEST(Adaptive, MergesPairNearDuplicatesCheapestFirst) {
+  // Three clusters, latent dim 2; 0 and 1 decode alike, 2 far away.
+  std::vector<float> latents = {0, 0, 0.1f, 0, 5, 5};
+  std::vector<float> decoded = {1, 1, 1, /**/ 1, 1, 1.01f, /**/ 4, 4, 4};
+  std::vector<int> sizes = {3, 5, 4};
+  auto merges = chooseMerges(latents, 2, decoded, {}, sizes, {0}, 1, 3, 0.01, 0);
+  ASSERT_EQ(merges.size(), 1u);
+  EXPECT_EQ(merges[0], std::make_pair(0, 1));  // the smaller joins the larger
+  EXPECT_TRUE(chooseMerges(latents, 2, decoded, {}, sizes, {0}, 1, 3, 1e-6, 0).empty());
+  // Alike in the model but not in the data: no merge.
+  std::vector<float> best = {1, 1, 1, /**/ 2, 2, 2, /**/ 4, 4, 4};
+  EXPECT_TRUE(chooseMerges(latents, 2, decoded, best, sizes, {0}, 1, 3, 0.01, 0).empty());
+  // Forced (a byte budget): at least one merge even when nothing is a near-duplicate.
+  EXPECT_EQ(chooseMerges(latents, 2, decoded, {}, sizes, {0}, 1, 3, 0, 1).size(), 1u);
+}
+
+CompressOptions adaptiveOptions() {
+  CompressOptions o;
+  o.train = testing::quickConfig();
+  o.train.epochs = 60;
+  o.clusters = 8;
+  o.progress = false;
+  o.adaptive.enabled = true;
+  o.adaptive.stages = 3;
+  o.adaptive.initialClusters = 3;
+  o.adaptive.maxClusters = 12;
+  return o;
+}
+
+TEST(Adaptive, StagesGrowTheClustersAndAreRecordedInTheFile) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = adaptiveOptions();
+  CompressStats stats;
+  CompressedBtf b = compressStack(m.stack, o, stats);
+  b.encoderState.clear();  // as compressBtf writes it
+  ASSERT_EQ(stats.adaptiveStages.size(), 3u);
+  EXPECT_EQ(stats.adaptiveStages[0].clusters, 3);
+  EXPECT_GT(stats.adaptiveStages[1].clusters, 3);
+  EXPECT_LE(stats.clusters, 12);
+  EXPECT_EQ(stats.adaptiveStages.back().clusters, stats.clusters);
+  EXPECT_EQ(b.latentRows, stats.clusters);
+  EXPECT_EQ(stats.adaptiveStages.back().steps, stats.steps);
+  EXPECT_EQ(stats.adaptiveStages.back().rmseTrain, stats.rmseTrain);
+  EXPECT_LT(stats.adaptiveStages.back().rmseTrain, stats.adaptiveStages[0].rmseTrain);
+  // The recorded bytes of the last stage are the file's.
+  EXPECT_EQ(stats.adaptiveStages.back().bytes, serializeNbtf(b).size());
+  nlohmann::json meta = nlohmann::json::parse(b.metadataJson);
+  ASSERT_TRUE(meta.contains("adaptive"));
+  EXPECT_EQ(meta["adaptive"]["stages"].size(), 3u);
+  EXPECT_EQ(meta["clustering"]["k"].get<int>(), stats.clusters);
+  const std::string generation = meta["adaptive"]["generation"].get<std::string>();
+  EXPECT_EQ(generation.size(), static_cast<std::size_t>(stats.clusters));
+  EXPECT_NE(generation.find('1'), std::string::npos);  // some clusters came from splits
+  nlohmann::json j = nlohmann::json::parse(compressStatsJson(stats));
+  EXPECT_EQ(j["adaptive"]["stages"].size(), 3u);
+  EXPECT_NE(formatCompressSummary(stats).find("adaptive: 3 stages, k 3 -> "), std::string::npos)
+      << formatCompressSummary(stats);
+}
+
+TEST(Adaptive, SameSeedSameBytes) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = adaptiveOptions();
+  CompressStats s1, s2;
+  EXPECT_EQ(serializeNbtf(compressStack(m.stack, o, s1)), serializeNbtf(compressStack(m.stack, o, s2)));
+}
+
+TEST(Adaptive, SizeBudgetIsNeverExceeded) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = adaptiveOptions();
+  o.adaptive.maxClusters = 0;
+  CompressStats grown;
+  compressStack(m.stack, o, grown);  // doubling: 3 -> 12
+  const std::uint64_t unboundedBytes = grown.adaptiveStages.back().bytes;
+  ASSERT_GT(grown.clusters, 3);
+  // Budgets below the unbounded file's size, down to about the first stage's (whose entry in
+  // the metadata had one stage, not three).
+  for (std::uint64_t budget : {unboundedBytes - 40, unboundedBytes - 100, grown.adaptiveStages[0].bytes + 300}) {
+    o.adaptive.sizeBudget = budget;
+    CompressStats stats;
+    CompressedBtf b = compressStack(m.stack, o, stats);
+    b.encoderState.clear();  // as compressBtf writes it
+    EXPECT_LE(serializeNbtf(b).size(), budget) << "budget " << budget;
+    EXPECT_EQ(stats.adaptiveStages.back().bytes, serializeNbtf(b).size());
+  }
+  o.adaptive.sizeBudget = 1000;  // less than the decoder alone
+  CompressStats stats;
+  EXPECT_THROW(compressStack(m.stack, o, stats), Error);
+}
+
+TEST(Adaptive, OptionsAreChecked) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = adaptiveOptions();
+  CompressStats stats;
+  o.adaptive.stages = 0;
+  EXPECT_THROW(compressStack(m.stack, o, stats), Error);
+  o = adaptiveOptions();
+  o.train.epochs = 0;
+  o.train.minSteps = o.train.maxSteps = 0;
+  o.train.timeBudgetSeconds = 1;
+  EXPECT_THROW(compressStack(m.stack, o, stats), Error);  // a time budget alone has no stage plan
+  o = adaptiveOptions();
+  o.clusters = 0;
+  EXPECT_THROW(compressStack(m.stack, o, stats), Error);
+}
+
+}  // namespace
+}  // namespace nbtf
