@@ -110,16 +110,26 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
       // n x n one (y y^T: its eigenvectors), or, for clusters with more texels than values per
       // ABRDF (few images, large clusters), the dims x dims one (y^T y: u = y v / sigma).
       const bool texelSide = n <= dims;
-      Eigen::MatrixXd gram = texelSide ? (y * y.transpose()).cast<double>() : (y.transpose() * y).cast<double>();
+      Eigen::MatrixXd gram, yd;
+      if (texelSide) {
+        gram = (y * y.transpose()).cast<double>();
+      } else {
+        yd = y.cast<double>();  // in double: u = y v / sigma divides by small singular values
+        gram = yd.transpose() * yd;
+      }
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
       const Eigen::Index m = gram.rows();
       const double scale = std::sqrt(static_cast<double>(n));
       for (int r = 0; r < terms && r < m; ++r) {
         const double lambda = eig.eigenvalues()(m - 1 - r);  // eigenvalues ascend
         if (lambda <= 1e-12 * std::max(1.0, eig.eigenvalues()(m - 1))) break;
-        Eigen::VectorXd u = texelSide ? Eigen::VectorXd(eig.eigenvectors().col(m - 1 - r))
-                                      : Eigen::VectorXd(y.cast<double>() * eig.eigenvectors().col(m - 1 - r) /
-                                                        std::sqrt(lambda));
+        Eigen::VectorXd u;
+        if (texelSide) {
+          u = eig.eigenvectors().col(m - 1 - r);
+        } else {
+          u = yd * eig.eigenvectors().col(m - 1 - r);
+          u.normalize();  // = y v / sigma, up to rounding
+        }
         if (u.sum() < 0) u = -u;
         for (Eigen::Index k = 0; k < n; ++k)
           out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * u(k));
