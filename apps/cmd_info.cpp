@@ -212,6 +212,7 @@ int infoNbtf(const std::string& path, const cxxopts::ParseResult& args) {
   j["clusters"] = btf.numClusters();
   j["latent_dim"] = btf.latentDim;
   j["latent_rows"] = btf.latentRows;
+  if (!btf.isPca()) j["direction_inputs"] = directionEncodingName(btf.directionEncoding);
   j["pca_components"] = btf.pcaComponents();
   j["alpha"] = btf.alpha;
   j["holdout_images"] = btf.holdoutImages.size();

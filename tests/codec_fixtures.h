@@ -11,10 +11,10 @@
 namespace nbtf::testing {
 
 // An MLP decoder latentDim + 4 -> widths... -> 3 with random weights.
-inline Mlp makeDecoder(int latentDim, std::vector<int> widths, std::mt19937& rng) {
+inline Mlp makeDecoder(int latentDim, std::vector<int> widths, std::mt19937& rng, int directionInputs = 4) {
   std::normal_distribution<float> normal(0.f, 0.5f);
   Mlp mlp;
-  int in = latentDim + 4;
+  int in = latentDim + directionInputs;
   widths.push_back(3);
   for (std::size_t i = 0; i < widths.size(); ++i) {
     DenseLayer l;

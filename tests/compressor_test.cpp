@@ -35,15 +35,16 @@ CompressOptions quickOptions(int clusters) {
 // user of the file gets, independent of the trainer's bookkeeping.
 double fileRmse(const CompressedBtf& b, const BtfStack& stack, const std::vector<int>& images) {
   double sse = 0;
-  RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + 4);
+  const int dirInputs = directionInputCount(b.directionEncoding);
+  RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + dirInputs);
   for (int t = 0; t < b.numTexels(); ++t) {
     const float* z = b.latentOfTexel(t);
     for (std::size_t j = 0; j < images.size(); ++j) {
       for (int d = 0; d < b.latentDim; ++d) in(j, d) = z[d];
-      auto l = stereographic(b.lights[images[j] / b.views.size()]);
-      auto v = stereographic(b.views[images[j] % b.views.size()]);
-      in(j, b.latentDim) = l[0], in(j, b.latentDim + 1) = l[1], in(j, b.latentDim + 2) = v[0],
-                     in(j, b.latentDim + 3) = v[1];
+      float dirs[kMaxDirectionInputs];
+      encodeDirections(b.directionEncoding, b.lights[images[j] / b.views.size()], b.views[images[j] % b.views.size()],
+                       dirs);
+      for (int q = 0; q < dirInputs; ++q) in(j, b.latentDim + q) = dirs[q];
     }
     RowMatrix out = mlpForward(b.decoder, in);
     for (std::size_t j = 0; j < images.size(); ++j)

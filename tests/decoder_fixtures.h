@@ -1,6 +1,6 @@
 // Shared fixtures for the decoder tests: materials built in memory and an independent
 // reference evaluation of the decoder (plain loops in double precision over the layers
-// exactly as the file stores them: input = latent | stereographic light | view).
+// exactly as the file stores them: input = latent | the direction inputs of its encoding).
 #pragma once
 #include <array>
 #include <cmath>
@@ -21,8 +21,9 @@ inline std::array<double, 3> referenceOutput(const CompressedBtf& b, int texel, 
   std::vector<double> x, m;
   const float* z = b.latentOfTexel(texel);
   for (int q = 0; q < b.latentDim; ++q) x.push_back(z[q]);
-  auto l = stereographic(light), v = stereographic(view);
-  x.insert(x.end(), {l[0], l[1], v[0], v[1]});
+  float d[kMaxDirectionInputs];
+  encodeDirections(b.directionEncoding, light, view, d);
+  x.insert(x.end(), d, d + directionInputCount(b.directionEncoding));
   for (double xi : x) m.push_back(std::fabs(xi));
   for (const DenseLayer& layer : b.decoder.layers) {
     std::vector<double> y(layer.out), ym(layer.out);
@@ -50,10 +51,12 @@ inline double decoderTolerance(double magnitude) { return 1e-6 + 2e-6 * magnitud
 // A random material with a decoder of the given hidden widths (ReLU) whose widths are
 // deliberately not multiples of the SIMD width. k = 0: per-texel.
 inline CompressedBtf makeDecoderMaterial(int k, std::vector<int> widths = {37, 21}, int width = 7, int height = 5,
-                                         unsigned seed = 11) {
+                                         unsigned seed = 11,
+                                         DirectionEncoding encoding = DirectionEncoding::Stereographic) {
   CompressedBtf b = makeBtf(k, width, height, 8, seed);
   std::mt19937 rng(seed + 1);
-  b.decoder = makeDecoder(b.latentDim, std::move(widths), rng);
+  b.directionEncoding = encoding;
+  b.decoder = makeDecoder(b.latentDim, std::move(widths), rng, directionInputCount(encoding));
   // He-style scale (makeDecoder draws N(0, 0.5)), so activations stay of order 1.
   for (DenseLayer& l : b.decoder.layers)
     for (float& w : l.weight) w *= static_cast<float>(2.0 * std::sqrt(2.0 / l.in));

@@ -60,14 +60,19 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
   std::vector<std::vector<int>> shapes = {{37, 21}, {130, 5, 17}, {}, {106, 106, 106}};
   for (int k : {5, 0})
     for (const auto& widths : shapes) {
-      CompressedBtf b = makeDecoderMaterial(k, widths);
+      // Every shape with the paper's direction inputs, the default one with the half vector too.
+      for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf}) {
+      if (encoding != DirectionEncoding::Stereographic && widths != shapes[0]) continue;
+      CompressedBtf b = makeDecoderMaterial(k, widths, 7, 5, 11, encoding);
       if (widths.size() == 3 && widths[1] == 5) b.decoder.layers[1].activation = Activation::Sigmoid;
       for (DecoderIsa isa : supportedIsas()) {
         DecoderOptions o;
         o.isa = isa;
         NbtfDecoder dec(b, o);
         EXPECT_EQ(dec.isa(), isa);
+        EXPECT_EQ(dec.directionInputs(), directionInputCount(encoding));
         expectMatchesReference(dec, b);
+      }
       }
     }
 }
@@ -75,17 +80,19 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
 // The plain forward pass (tests/support/mlp_reference.h, Eigen) on the same
 // inputs: decoder input = latent | stereographic light | stereographic view.
 TEST(Decoder, AgreesWithTheModelsForwardPass) {
-  for (int k : {6, 0}) {
-    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4);
+  for (int k : {6, 0})
+  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf}) {
+    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4, 11, encoding);
     NbtfDecoder dec(b);
     std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
-    RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + 4);
+    const int dirInputs = directionInputCount(b.directionEncoding);
+    RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + dirInputs);
     for (std::size_t p = 0; p < pairs.size(); ++p)
       for (int t = 0; t < b.numTexels(); ++t) {
         auto row = in.row(static_cast<Eigen::Index>(p * b.numTexels() + t));
         for (int q = 0; q < b.latentDim; ++q) row(q) = b.latentOfTexel(t)[q];
-        auto d = decoderDirectionInput(pairs[p].first, pairs[p].second);
-        for (int q = 0; q < 4; ++q) row(b.latentDim + q) = d[q];
+        auto d = decoderDirectionInput(b.directionEncoding, pairs[p].first, pairs[p].second);
+        for (int q = 0; q < dirInputs; ++q) row(b.latentDim + q) = d[q];
       }
     RowMatrix out = mlpForward(b.decoder, in);
     for (std::size_t p = 0; p < pairs.size(); ++p) {
@@ -268,8 +275,9 @@ TEST(Decoder, BatchEqualsSingleQueries) {
   // Large enough to run on several threads and many tiles; directions repeat in runs
   // (the batch shares their first-layer work) and also change on every query.
   setThreadCount(2);
-  for (int k : {5, 0}) {
-    CompressedBtf b = makeDecoderMaterial(k);
+  for (int k : {5, 0})
+  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf}) {
+    CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 7, 5, 11, encoding);
     NbtfDecoder dec(b);
     std::mt19937 rng(3);
     std::uniform_int_distribution<int> xs(0, b.width - 1), ys(0, b.height - 1);
@@ -340,7 +348,8 @@ TEST(Decoder, LargerImagesTileTheTexture) {
 }
 
 TEST(Decoder, UnitVectorQueriesMatchAngles) {
-  CompressedBtf b = makeDecoderMaterial(5);
+  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf}) {
+  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5, 11, encoding);
   NbtfDecoder dec(b);
   std::vector<UvQuery> qs;
   std::vector<Rgb> expect;
@@ -362,6 +371,7 @@ TEST(Decoder, UnitVectorQueriesMatchAngles) {
     EXPECT_NEAR(rgb[3 * i + 2], expect[i].b, 1e-4 * std::max(1.0f, std::fabs(expect[i].b))) << i;
     Rgb single = dec.evaluate(qs[i]);
     EXPECT_EQ(single.r, rgb[3 * i]);
+  }
   }
 }
 

@@ -69,3 +69,58 @@ TEST(Directions, NearestDirection) {
 }
 
 }  // namespace nbtf
+
+namespace nbtf {
+namespace {
+
+// The half-vector encoding: the paper's 4 stereographic values first (exactly what the
+// stereographic encoding gives), then the unit half vector and cos(theta_d), computed by hand.
+TEST(Directions, HalfVectorEncodingExtendsTheStereographicOne) {
+  EXPECT_EQ(directionInputCount(DirectionEncoding::Stereographic), 4);
+  EXPECT_EQ(directionInputCount(DirectionEncoding::StereographicHalf), 8);
+  const Direction light{45, 0}, view{45, 180};  // mirror pair: h is the normal, theta_d = 45
+  float paper[kMaxDirectionInputs], half[kMaxDirectionInputs];
+  encodeDirections(DirectionEncoding::Stereographic, light, view, paper);
+  encodeDirections(DirectionEncoding::StereographicHalf, light, view, half);
+  auto l = stereographic(light), v = stereographic(view);
+  EXPECT_EQ(paper[0], l[0]);
+  EXPECT_EQ(paper[1], l[1]);
+  EXPECT_EQ(paper[2], v[0]);
+  EXPECT_EQ(paper[3], v[1]);
+  for (int q = 0; q < 4; ++q) EXPECT_EQ(half[q], paper[q]);
+  EXPECT_NEAR(half[4], 0, 1e-6);
+  EXPECT_NEAR(half[5], 0, 1e-6);
+  EXPECT_NEAR(half[6], 1, 1e-6);
+  EXPECT_NEAR(half[7], std::cos(45 * M_PI / 180), 1e-6);
+
+  // A general pair: h = normalize(l + v), cos(theta_d) = l . h.
+  const Direction a{30, 60}, b{70, 300};
+  encodeDirections(DirectionEncoding::StereographicHalf, a, b, half);
+  auto la = a.unitVector(), vb = b.unitVector();
+  double h[3] = {la[0] + vb[0], la[1] + vb[1], la[2] + vb[2]};
+  double n = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(half[4 + c], h[c] / n, 1e-6);
+  EXPECT_NEAR(half[7], (la[0] * h[0] + la[1] * h[1] + la[2] * h[2]) / n, 1e-6);
+  // The unit-vector form gives the same inputs (the decoder's UV queries use it).
+  float fromVectors[kMaxDirectionInputs];
+  encodeDirections(DirectionEncoding::StereographicHalf, la, vb, fromVectors);
+  for (int q = 0; q < 8; ++q) EXPECT_NEAR(fromVectors[q], half[q], 1e-6) << q;
+}
+
+TEST(Directions, EncodingNamesRoundTripAndUnknownNamesAreRefused) {
+  for (DirectionEncoding e : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf})
+    EXPECT_EQ(parseDirectionEncoding(directionEncodingName(e)), e);
+  EXPECT_TRUE(isDirectionEncoding(1));
+  EXPECT_TRUE(isDirectionEncoding(2));
+  EXPECT_FALSE(isDirectionEncoding(0));
+  EXPECT_FALSE(isDirectionEncoding(3));
+  try {
+    parseDirectionEncoding("half");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("stereographic+half"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace nbtf

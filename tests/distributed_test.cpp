@@ -69,26 +69,8 @@ int freePort() {
   return ntohs(a.sin_port);
 }
 
-struct RunResult {
-  int exitCode = -1;
-  std::string output;
-  double seconds = 0;
-};
-
-RunResult run(const std::string& args) {
-  const auto start = std::chrono::steady_clock::now();
-  std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " 2>&1";
-  RunResult r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  std::size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  int status = pclose(p);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return r;
-}
+using test::RunResult;
+RunResult run(const std::string& args) { return test::runNbtf(args); }
 
 std::string slurp(const std::string& path) {
   std::ifstream in(path);

@@ -452,6 +452,38 @@ TEST(NbtfFile, PaperStyleFilesStayFormat10) {
   EXPECT_NE(findSection(bytes, "DECD"), 0u);
 }
 
+// A decoder with the half-vector direction inputs is format 1.3: the encoding byte of INFO
+// says how many inputs follow the latent, and a reader checks the first layer against it.
+TEST(NbtfFile, HalfVectorDirectionInputsAreFormat13AndChecked) {
+  CompressedBtf b = makeBtf(5);
+  std::mt19937 rng(4);
+  b.directionEncoding = DirectionEncoding::StereographicHalf;
+  b.decoder = makeDecoder(b.latentDim, {6, 5}, rng, 8);
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_EQ(bytes[10], 3);  // format 1.3
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(back.directionEncoding, DirectionEncoding::StereographicHalf);
+  EXPECT_EQ(back.decoder.layers[0].in, b.latentDim + 8);
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  // The same decoder labelled with the paper's encoding: the first layer does not fit.
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    std::size_t at = findSection(bad, "INFO");
+    bad[at + 24 + 1] = 1;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), "takes 16 inputs, expected 12 (latent + 4 direction inputs, stereographic)"))
+        << errorOf(bad);
+  }
+  // An encoding this build does not know.
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    std::size_t at = findSection(bad, "INFO");
+    bad[at + 24 + 1] = 9;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), "unknown direction encoding code 9")) << errorOf(bad);
+  }
+}
+
 // A file written by nbtf before format 1.2 (tests/data/legacy_v1_0.nbtf, made by the
 // commit before it with `nbtf compress`) still reads, and decodes to the values it held.
 TEST(NbtfFile, CommittedFormat10FileStillReads) {

@@ -1,7 +1,11 @@
 // Shared test helpers: temporary folders and tiny on-disk stacks in either layout.
 #pragma once
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <array>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
@@ -77,6 +81,27 @@ void expectErrorContaining(Fn&& fn, const std::vector<std::string>& parts) {
     std::string msg = e.what();
     for (const auto& p : parts) EXPECT_NE(msg.find(p), std::string::npos) << "message '" << msg << "' lacks '" << p << "'";
   }
+}
+
+// Runs the built `nbtf` with `args` (a shell command line); stdout and stderr together.
+struct RunResult {
+  int exitCode = -1;
+  std::string output;
+  double seconds = 0;
+};
+inline RunResult runNbtf(const std::string& args) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " 2>&1";
+  RunResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  std::size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  int status = pclose(p);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
 }
 
 }  // namespace nbtf::test

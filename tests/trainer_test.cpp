@@ -92,6 +92,11 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
     EXPECT_LT(decoderBackpropError(model, 6, 5, 211, threads), 1e-5) << threads << " threads";
     EXPECT_LT(decoderBackpropError(wide, 7, 2, 300, threads), 1e-5) << threads << " threads";
   }
+  // The half-vector direction inputs (8 per row instead of 4), over several chunks too.
+  ModelConfig half;
+  half.directionInputs = DirectionEncoding::StereographicHalf;
+  EXPECT_LT(decoderBackpropError(half, 8, 4, 7), 1e-5);
+  for (int threads : {1, 2}) EXPECT_LT(decoderBackpropError(half, 9, 5, 211, threads), 1e-5) << threads << " threads";
 }
 
 TEST(Trainer, HandWrittenBackpropIsTheSameOnAnyThreadCount) {
@@ -453,7 +458,8 @@ TEST(TrainConfig, ShippedConfigsLoad) {
 
 TEST(TrainConfig, ReadsEveryComponent) {
   std::string path = writeTemp("full.json", R"({
-    "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3},
+    "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3,
+              "direction_inputs": "stereographic+half"},
     "optimizer": {"name": "sgd", "learning_rate": 0.05, "momentum": 0.9},
     "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
                  "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
@@ -465,6 +471,8 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.model.encoderChannels, (std::vector<int>{4, 8}));
   EXPECT_EQ(c.model.decoderWidth, 32);
   EXPECT_EQ(c.model.decoderLayers, 3);
+  EXPECT_EQ(c.model.directionInputs, DirectionEncoding::StereographicHalf);
+  EXPECT_EQ(decoderShape(c.model).inputSize(), 6 + 8);
   EXPECT_EQ(c.optimizer, "sgd");
   EXPECT_DOUBLE_EQ(c.momentum, 0.9);
   EXPECT_EQ(c.batchSize, 512);
@@ -502,6 +510,7 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"training": {"seed": -1}})", "'training.seed' must be a non-negative integer"},
       {R"({"training": {"batch_size": 0}})", "'training.batch_size' must be >= 1"},
       {R"({"model": {"latent_dim": 8,}})", "not valid JSON"},
+      {R"({"model": {"direction_inputs": "half"}})", "'model.direction_inputs' is not valid: unknown direction encoding \"half\""},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

@@ -59,12 +59,13 @@ DecoderIsa parseDecoderIsa(const std::string& text) {
 
 // ---- Direction inputs ---------------------------------------------------------------------
 
-std::array<float, 4> decoderDirectionInput(const Direction& light, const Direction& view) {
-  auto l = stereographic(light), v = stereographic(view);
-  return {l[0], l[1], v[0], v[1]};
+DirectionInput decoderDirectionInput(DirectionEncoding encoding, const Direction& light, const Direction& view) {
+  DirectionInput d{};
+  encodeDirections(encoding, light, view, d.data());
+  return d;
 }
 
-std::array<float, 2> stereographicFromVector(const std::array<float, 3>& dir, const std::string& what) {
+std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what) {
   double x = dir[0], y = dir[1], z = dir[2];
   if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
     throw Error(what + " direction vector is not finite");
@@ -77,8 +78,11 @@ std::array<float, 2> stereographicFromVector(const std::array<float, 3>& dir, co
       << ") points below the horizon (z < 0; z is the surface normal)";
     throw Error(s.str());
   }
-  // tan(theta / 2) (cos phi, sin phi) = (x, y) / (1 + z): eq. (7)-(9) without trigonometry.
-  return {static_cast<float>(x / (1 + z)), static_cast<float>(y / (1 + z))};
+  return {x, y, z};
+}
+
+DirectionInput NbtfDecoder::directionInput(const Direction& light, const Direction& view) const {
+  return decoderDirectionInput(material_.directionEncoding, light, view);
 }
 
 // ---- Construction -------------------------------------------------------------------------
@@ -107,7 +111,8 @@ void NbtfDecoder::build(const DecoderOptions& options) {
   }
   coefficients_ = dequantizeTexelCoefficients(material_.modulation);  // shapes checked by validate()
   terms_ = material_.modulation.empty() ? 1 : material_.modulation.terms;
-  packed_ = std::make_unique<detail::PackedDecoder>(detail::packDecoder(material_.decoder, material_.latentDim));
+  packed_ = std::make_unique<detail::PackedDecoder>(
+      detail::packDecoder(material_.decoder, material_.latentDim, directionInputs()));
   packed_->latents = material_.latents.data();
   // The per-row half of the first layer, once, with the same kernel the evaluation uses
   // (so cached and uncached rows give identical results).
@@ -184,7 +189,8 @@ void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const std::int32_t* 
     detail::TileArgs a;
     a.n = static_cast<int>(std::min<std::size_t>(detail::kTileRows, n - begin));
     a.rows = rows + begin;
-    a.dirs = dirs + 4 * begin;
+    a.dirs = dirs + static_cast<std::size_t>(packed_->dirInputs) * begin;
+    a.dirStride = packed_->dirInputs;
     a.out = modulated() ? terms : rgb + 3 * begin;
     a.scratch = scratch;
     tile(*packed_, a);
@@ -210,7 +216,7 @@ void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std:
   auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
     float* scratch = threadScratch(packed.scratchFloats());
     std::int32_t rows[detail::kTileRows], texels[detail::kTileRows];
-    float dirs[4 * detail::kTileRows];
+    float dirs[kMaxDirectionInputs * detail::kTileRows];
     float terms[3 * kMaxModulationTerms * detail::kTileRows];
     for (std::size_t t = tileBegin; t < tileEnd; ++t) {
       std::size_t begin = t * detail::kTileRows;
@@ -219,6 +225,7 @@ void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std:
       fill(begin, a.n, rows, dirs, texels);
       a.rows = rows;
       a.dirs = dirs;
+      a.dirStride = packed.dirInputs;
       a.prefetchRows = true;
       float* out = rgb + 3 * begin;
       a.out = combine ? terms : out;
@@ -283,7 +290,7 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   int texel = texelOfUv(u, v);
   if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
   std::int32_t row = latentRowOfTexel(texel), texel32 = texel;
-  auto dirs = decoderDirectionInput(light, view);
+  auto dirs = directionInput(light, view);
   Rgb out;
   evaluateSamples(&row, &texel32, dirs.data(), 1, &out.r, scale);
   return out;
@@ -320,17 +327,17 @@ void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* 
   }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
            [&](std::size_t begin, int n, std::int32_t* rows, float* dirs, std::int32_t* texels) {
-             // Consecutive queries often share directions: convert each distinct one once.
-             const Direction* lastLight = nullptr;
-             const Direction* lastView = nullptr;
-             std::array<float, 2> l{}, v{};
+             // Consecutive queries often share directions: convert each distinct pair once.
+             const TexelQuery* last = nullptr;
+             DirectionInput d{};
+             const int width = packed_->dirInputs;
              for (int i = 0; i < n; ++i) {
                const TexelQuery& q = queries[begin + i];
-               texels[i] = q.y * width() + q.x;
+               texels[i] = q.y * this->width() + q.x;
                rows[i] = latentRowOfTexel(texels[i]);
-               if (!lastLight || !(q.light == *lastLight)) l = stereographic(q.light), lastLight = &q.light;
-               if (!lastView || !(q.view == *lastView)) v = stereographic(q.view), lastView = &q.view;
-               dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
+               if (!last || !(q.light == last->light) || !(q.view == last->view))
+                 d = directionInput(q.light, q.view), last = &q;
+               std::copy_n(d.data(), width, dirs + static_cast<std::size_t>(width) * i);
              }
            },
            combinerOf(*this));
@@ -340,8 +347,8 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
   for (std::size_t i = 0; i < count; ++i) {
     try {
       texelOfUv(queries[i].u, queries[i].v);
-      stereographicFromVector(queries[i].light, "light");
-      stereographicFromVector(queries[i].view, "view");
+      unitQueryVector(queries[i].light, "light");
+      unitQueryVector(queries[i].view, "view");
     } catch (const Error& e) {
       throw Error(count == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
     }
@@ -362,13 +369,13 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
   }
   runTiles(*packed_, detail::kernelsFor(isa_).tile, count, rgb, material_.alpha, scale, true,
            [&](std::size_t begin, int n, std::int32_t* rows, float* dirs, std::int32_t* texels) {
+             const int width = packed_->dirInputs;
              for (int i = 0; i < n; ++i) {
                const UvQuery& q = queries[begin + i];
                texels[i] = texelOfUv(q.u, q.v);
                rows[i] = latentRowOfTexel(texels[i]);
-               auto l = stereographicFromVector(q.light, "light");
-               auto v = stereographicFromVector(q.view, "view");
-               dirs[4 * i + 0] = l[0], dirs[4 * i + 1] = l[1], dirs[4 * i + 2] = v[0], dirs[4 * i + 3] = v[1];
+               encodeDirections(directionEncoding(), unitQueryVector(q.light, "light"), unitQueryVector(q.view, "view"),
+                                dirs + static_cast<std::size_t>(width) * i);
              }
            },
            combinerOf(*this));
@@ -400,7 +407,7 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
   }
   if (modulated())
     throw Error(name_ + ": decodeRows: a material with per-texel modulation has no per-row values (use decodeImage)");
-  decodeRowTerms(decoderDirectionInput(light, view), rgb, parallel);
+  decodeRowTerms(directionInput(light, view), rgb, parallel);
   if (scale == OutputScale::Linear)
     for (std::size_t i = 0, n = 3 * static_cast<std::size_t>(latentRows()); i < n; ++i) rgb[i] *= material_.alpha;
 }
@@ -409,10 +416,10 @@ void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, 
   if (pca_) throw Error(name_ + ": decodeRowTerms: a PCA file has no decoder terms");
   checkHemisphere(light, "light");
   checkHemisphere(view, "view");
-  decodeRowTerms(decoderDirectionInput(light, view), terms, parallel);
+  decodeRowTerms(directionInput(light, view), terms, parallel);
 }
 
-void NbtfDecoder::decodeRowTerms(const std::array<float, 4>& dirs, float* out, bool parallel) const {
+void NbtfDecoder::decodeRowTerms(const DirectionInput& dirs, float* out, bool parallel) const {
   const std::size_t count = static_cast<std::size_t>(latentRows());
   const std::size_t outputs = static_cast<std::size_t>(packed_->outputs);
   auto tile = detail::kernelsFor(isa_).tile;
@@ -454,7 +461,7 @@ void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, flo
     checkHemisphere(view, "view");
     const int r = terms_;
     std::vector<float> terms(3 * static_cast<std::size_t>(r) * latentRows());
-    decodeRowTerms(decoderDirectionInput(light, view), terms.data(), parallel);
+    decodeRowTerms(directionInput(light, view), terms.data(), parallel);
     const float factor = scale == OutputScale::Linear ? material_.alpha : 1.0f;
     for (int y = 0; y < outHeight; ++y) {
       const int sy = y % height();

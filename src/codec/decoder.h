@@ -62,6 +62,9 @@ struct TexelQuery {
 // (u, v) wrap (the texture tiles): texel x = floor(u * width) mod width, y likewise with
 // v (v grows downwards, with the image rows). Directions are unit vectors in the local
 // frame (z = surface normal); they are normalized here, and z < 0 is an error.
+// The decoder's direction input of one (light, view) pair (directionInputCount values used).
+using DirectionInput = std::array<float, kMaxDirectionInputs>;
+
 struct UvQuery {
   float u = 0, v = 0;
   std::array<float, 3> light{0, 0, 1}, view{0, 0, 1};
@@ -118,6 +121,8 @@ class NbtfDecoder {
   int modulationTerms() const { return terms_; }
   const std::vector<float>& texelCoefficients() const { return coefficients_; }
   DecoderIsa isa() const { return isa_; }
+  DirectionEncoding directionEncoding() const { return material_.directionEncoding; }
+  int directionInputs() const { return directionInputCount(material_.directionEncoding); }
   // FLOPs of one full decoder evaluation (every layer, multiply-add = 2), the unit
   // throughput figures are quoted in. The split first layer actually does less.
   // PCA: 3 dot products of length C per texel (the per-image basis combination not counted).
@@ -160,8 +165,10 @@ class NbtfDecoder {
 
  private:
   void build(const DecoderOptions& options);
-  void decodeRowTerms(const std::array<float, 4>& dirs, float* terms, bool parallel) const;
-  // The inner evaluation: n samples (latent row, its texel, 4 stereographic coordinates each).
+  void decodeRowTerms(const DirectionInput& dirs, float* terms, bool parallel) const;
+  // The direction input of a pair in this material's encoding.
+  DirectionInput directionInput(const Direction& light, const Direction& view) const;
+  // The inner evaluation: n samples (latent row, its texel, directionInputs() values each).
   void evaluateSamples(const std::int32_t* rows, const std::int32_t* texels, const float* dirs, std::size_t n,
                        float* rgb, OutputScale scale) const;
 
@@ -180,11 +187,11 @@ class NbtfDecoder {
   int terms_ = 1;
 };
 
-// The decoder's direction input for a (light, view) pair: stereographic (x, y) of each,
-// eq. (7)-(9), exactly as training computed it.
-std::array<float, 4> decoderDirectionInput(const Direction& light, const Direction& view);
-// The same from unit vectors (x/(1+z), y/(1+z)); normalizes, throws when z < 0 or the
-// vector is zero or not finite. `what` names the direction in messages.
-std::array<float, 2> stereographicFromVector(const std::array<float, 3>& dir, const std::string& what);
+// The decoder's direction input for a (light, view) pair in `encoding` (util/directions.h),
+// exactly as training computed it; the first directionInputCount(encoding) values are used.
+DirectionInput decoderDirectionInput(DirectionEncoding encoding, const Direction& light, const Direction& view);
+// A query's direction vector normalized; throws when z < 0 or the vector is zero or not
+// finite. `what` names the direction in messages.
+std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what);
 
 }  // namespace nbtf

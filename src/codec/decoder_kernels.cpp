@@ -88,7 +88,7 @@ template <class V> NBTF_INLINE void directionPart(const PackedDecoder& p, const 
   for (int j = 0; j < p.pad0; j += L) {
     V acc{};
 #pragma GCC unroll 4
-    for (int q = 0; q < 4; ++q) acc += d[q] * load<V>(p.dirWeights.data() + static_cast<std::size_t>(q) * p.pad0 + j);
+    for (int q = 0; q < p.dirInputs; ++q) acc += d[q] * load<V>(p.dirWeights.data() + static_cast<std::size_t>(q) * p.pad0 + j);
     store(dst + j, acc);
   }
 }
@@ -223,7 +223,7 @@ template <class V, class B> NBTF_INLINE void evaluateTile(const PackedDecoder& p
   for (int s = 0; s < rows; ++s) {
     const int src = std::min(s, a.n - 1);
     const float* d = a.dirs + static_cast<std::size_t>(src) * a.dirStride;
-    if (d != lastDirs && (!lastDirs || std::memcmp(d, lastDirs, 4 * sizeof(float)) != 0)) directionPart<V>(p, d, dirBuf);
+    if (d != lastDirs && (!lastDirs || std::memcmp(d, lastDirs, p.dirInputs * sizeof(float)) != 0)) directionPart<V>(p, d, dirBuf);
     lastDirs = d;
     const int row = a.rows[src];
     const float* part;
@@ -325,13 +325,14 @@ PackedLayer packOutput(const DenseLayer& l, int inPad) {
 
 }  // namespace
 
-PackedDecoder packDecoder(const Mlp& mlp, int latentDim) {
+PackedDecoder packDecoder(const Mlp& mlp, int latentDim, int dirInputs) {
   if (mlp.layers.empty()) throw Error("decoder has no layers");
   const DenseLayer& first = mlp.layers.front();
-  if (first.in != latentDim + 4)
+  if (first.in != latentDim + dirInputs || dirInputs < 1 || dirInputs > kMaxDirectionInputs)
     throw Error("decoder takes " + std::to_string(first.in) + " inputs, expected latent " + std::to_string(latentDim) +
-                " + 4 direction coordinates");
+                " + " + std::to_string(dirInputs) + " direction inputs");
   PackedDecoder p;
+  p.dirInputs = dirInputs;
   p.latentDim = latentDim;
   p.outputs = mlp.layers.back().out;
   p.width0 = first.out;
@@ -339,12 +340,12 @@ PackedDecoder packDecoder(const Mlp& mlp, int latentDim) {
   p.activation0 = first.activation;
   p.bias0.assign(p.pad0, 0.0f);
   p.latentWeights.assign(static_cast<std::size_t>(latentDim) * p.pad0, 0.0f);
-  p.dirWeights.assign(4 * static_cast<std::size_t>(p.pad0), 0.0f);
+  p.dirWeights.assign(static_cast<std::size_t>(dirInputs) * p.pad0, 0.0f);
   for (int o = 0; o < first.out; ++o) {
     p.bias0[o] = first.bias[o];
     const float* w = first.weight.data() + static_cast<std::size_t>(o) * first.in;
     for (int q = 0; q < latentDim; ++q) p.latentWeights[static_cast<std::size_t>(q) * p.pad0 + o] = w[q];
-    for (int q = 0; q < 4; ++q) p.dirWeights[static_cast<std::size_t>(q) * p.pad0 + o] = w[latentDim + q];
+    for (int q = 0; q < dirInputs; ++q) p.dirWeights[static_cast<std::size_t>(q) * p.pad0 + o] = w[latentDim + q];
   }
   p.maxPad = p.pad0;
   p.singleLayer = mlp.layers.size() == 1;

@@ -45,7 +45,8 @@ struct PackedDecoder {
   Activation activation0 = Activation::None;
   AlignedFloats bias0;          // pad0
   AlignedFloats latentWeights;  // latentDim x pad0 (transposed W0_z)
-  AlignedFloats dirWeights;     // 4 x pad0 (transposed W0_dir)
+  int dirInputs = 4;            // direction inputs per sample (util/directions.h)
+  AlignedFloats dirWeights;     // dirInputs x pad0 (transposed W0_dir)
   const float* latents = nullptr;  // rows x latentDim (the material's), for uncached rows
   AlignedFloats rowPart;        // rows x pad0: b0 + W0_z z, or empty = computed per sample
   // ---- Layers 1 .. L-2 (dense) and L-1 (the output layer); none when L == 1.
@@ -60,11 +61,11 @@ struct PackedDecoder {
   }
 };
 
-// Repacks `mlp` (validated: input latentDim + 4, output 3).
-PackedDecoder packDecoder(const Mlp& mlp, int latentDim);
+// Repacks `mlp` (validated: input latentDim + dirInputs).
+PackedDecoder packDecoder(const Mlp& mlp, int latentDim, int dirInputs);
 
-// One tile: n <= kTileRows samples, each a latent row and 4 direction inputs (dirStride 4;
-// dirStride 0 = every sample shares dirs[0..3]). Writes n x outputs decoder outputs
+// One tile: n <= kTileRows samples, each a latent row and dirInputs direction inputs
+// (dirStride = dirInputs; dirStride 0 = every sample shares the first ones). Writes n x outputs decoder outputs
 // (normalized, not x alpha). Consecutive samples with equal directions share one
 // direction-part computation, so the result never depends on how samples are grouped.
 struct TileArgs {

@@ -327,7 +327,7 @@ void CompressedBtf::validate(const std::string& name) const {
   auto fail = [&](const std::string& m) { return fileError(name, m); };
   if (method != CodecMethod::ClusteredNeural && method != CodecMethod::PerTexelNeural && method != CodecMethod::Pca)
     throw fail("unknown method code " + std::to_string(static_cast<int>(method)));
-  if (directionEncoding != DirectionEncoding::Stereographic)
+  if (!isDirectionEncoding(static_cast<int>(directionEncoding)))
     throw fail("unknown direction encoding code " + std::to_string(static_cast<int>(directionEncoding)));
   if (valueSpace != ValueSpace::LinearOverAlpha)
     throw fail("unknown value space code " + std::to_string(static_cast<int>(valueSpace)));
@@ -412,7 +412,7 @@ void CompressedBtf::validatePca(const std::string& name) const {
 
 void CompressedBtf::validateNeural(const std::string& name) const {
   auto fail = [&](const std::string& m) { return fileError(name, m); };
-  // Decoder: latent + 2 + 2 stereographic coordinates in, RGB out, shapes chained.
+  // Decoder: latent + direction inputs (util/directions.h) in, RGB out, shapes chained.
   if (latentDim < 1 || latentDim > int(kMaxLatentDim)) throw fail("latent dimension " + std::to_string(latentDim) + " is out of range");
   if (decoder.layers.empty()) throw fail("decoder has no layers");
   for (std::size_t i = 0; i < decoder.layers.size(); ++i) {
@@ -420,10 +420,13 @@ void CompressedBtf::validateNeural(const std::string& name) const {
     std::string which = "decoder layer " + std::to_string(i);
     if (l.in < 1 || l.out < 1 || l.in > int(kMaxLayerWidth) || l.out > int(kMaxLayerWidth))
       throw fail(which + " has shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
-    int expectedIn = i == 0 ? latentDim + 4 : decoder.layers[i - 1].out;
+    const int directionInputs = directionInputCount(directionEncoding);
+    int expectedIn = i == 0 ? latentDim + directionInputs : decoder.layers[i - 1].out;
     if (l.in != expectedIn)
       throw fail(which + " takes " + std::to_string(l.in) + " inputs, expected " + std::to_string(expectedIn) +
-                 (i == 0 ? " (latent + 2 + 2 stereographic coordinates)" : " (previous layer's outputs)"));
+                 (i == 0 ? " (latent + " + std::to_string(directionInputs) + " direction inputs, " +
+                              directionEncodingName(directionEncoding) + ")"
+                        : std::string(" (previous layer's outputs)")));
     if (l.weight.size() != static_cast<std::size_t>(l.in) * l.out || l.bias.size() != static_cast<std::size_t>(l.out))
       throw fail(which + " has " + std::to_string(l.weight.size()) + " weights and " + std::to_string(l.bias.size()) +
                  " biases for shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
@@ -538,7 +541,10 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(usesFormat12(btf) ? std::uint16_t(2) : btf.isPca() ? std::uint16_t(1) : std::uint16_t(0));
+  file.u16(btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)
+           : usesFormat12(btf)                                       ? std::uint16_t(2)
+           : btf.isPca()                                             ? std::uint16_t(1)
+                                                                     : std::uint16_t(0));
   file.u32(0);  // header flags (none defined)
   file.u64(0);  // file size, patched below
   file.u32(0);  // body CRC, patched below

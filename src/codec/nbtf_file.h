@@ -25,9 +25,10 @@ namespace nbtf {
 // carry required sections an older reader refuses); a newer major is refused. The writer
 // writes the lowest version that describes the file: 1.0 for the neural methods stored as in
 // 1.0 (float32 parts, raw ids), 1.1 for the PCA baseline (method 3, added in 1.1), 1.2 for
-// files with per-texel modulation or compact parts (half floats, zstd-coded ids).
+// files with per-texel modulation or compact parts (half floats, zstd-coded ids), 1.3 for
+// decoders with a direction encoding other than the paper's stereographic pair.
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 2;
+constexpr std::uint16_t kNbtfFormatMinor = 3;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -39,11 +40,6 @@ enum class CodecMethod : std::uint8_t {
   Pca = 3,              // classic PCA baseline (issue 6): mean + coefficients x basis (format 1.1)
 };
 std::string codecMethodName(CodecMethod m);  // "clustered-neural", "per-texel-neural", "pca"
-
-// How light and view directions are fed to the decoder (after the latent).
-enum class DirectionEncoding : std::uint8_t {
-  Stereographic = 1,  // eq. (7)-(9): (x, y) of the light, then of the view
-};
 
 // What the decoder outputs: linear sRGB-primaries RGB divided by alpha (eq. 5).
 enum class ValueSpace : std::uint8_t { LinearOverAlpha = 1 };
@@ -86,7 +82,7 @@ struct CompressedBtf {
   float alpha = 1;                        // decoder output * alpha = linear value
 
   // ---- The representation
-  Mlp decoder;                            // input: latent, light (x, y), view (x, y); output RGB; empty for PCA
+  Mlp decoder;                            // input: latent, then the direction inputs of directionEncoding; output RGB; empty for PCA
   int latentDim = 8;                      // PCA: the number of components C
   int latentRows = 0;                     // k (clustered) or texels (per-texel, PCA)
   std::vector<float> latents;             // latentRows x latentDim, row-major; PCA: the coefficients

@@ -16,19 +16,30 @@ constexpr int kChunkRows = 512;
 
 // ---- Layer 0 (element-wise, cloned per instruction set). Rows have stride S >= W + 1.
 
-// h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n, then the constant-1
-// column at W and zeros up to S.
-NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, std::int64_t r0, int rowsPerTile,
+// h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n (D direction inputs
+// per row), then the constant-1 column at W and zeros up to S. The paper's D = 4 has its own
+// unrolled loop; wider inputs add theirs 4 at a time in the same order.
+NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, int D, std::int64_t r0, int rowsPerTile,
                                     const float* __restrict tiles, const float* __restrict d,
                                     const float* __restrict w0T, float* __restrict h) {
   for (int r = 0; r < n; ++r) {
     const float* __restrict a = tiles + ((r0 + r) / rowsPerTile) * W;
-    const float* dr = d + 4 * r;
+    const float* dr = d + static_cast<std::size_t>(D) * r;
     float* __restrict hr = h + static_cast<std::size_t>(r) * S;
     const float d0 = dr[0], d1 = dr[1], d2 = dr[2], d3 = dr[3];
-    for (int j = 0; j < W; ++j) {
-      float v = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
-      hr[j] = v > 0 ? v : 0;
+    if (D == 4) {
+      for (int j = 0; j < W; ++j) {
+        float v = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
+        hr[j] = v > 0 ? v : 0;
+      }
+    } else {
+      for (int j = 0; j < W; ++j) hr[j] = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
+      for (int q = 4; q < D; ++q) {
+        const float dq = dr[q];
+        const float* __restrict wq = w0T + static_cast<std::size_t>(q) * W;
+        for (int j = 0; j < W; ++j) hr[j] += dq * wq[j];
+      }
+      for (int j = 0; j < W; ++j) hr[j] = hr[j] > 0 ? hr[j] : 0;
     }
     hr[W] = 1.0f;
     for (int j = W + 1; j < S; ++j) hr[j] = 0.0f;
@@ -38,15 +49,15 @@ NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, std::int64_t r0, int ro
 // Layer 0's gradient: per tile (sum of its rows; tileGrad starts at tile firstTile) and per
 // direction input (transposed). One stream per loop and restrict-qualified pointers, so every
 // loop vectorizes.
-NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
+NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, int D, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
                                      const float* __restrict g, const float* __restrict d,
                                      float* __restrict tileGrad, float* __restrict dirGradT) {
   for (int r = 0; r < n; ++r) {
     const float* __restrict gr = g + static_cast<std::size_t>(r) * S;
     float* __restrict t = tileGrad + ((r0 + r) / rowsPerTile - firstTile) * W;
     for (int j = 0; j < W; ++j) t[j] += gr[j];
-    for (int q = 0; q < 4; ++q) {
-      const float dq = d[4 * r + q];
+    for (int q = 0; q < D; ++q) {
+      const float dq = d[static_cast<std::size_t>(D) * r + q];
       float* __restrict dg = dirGradT + q * W;
       for (int j = 0; j < W; ++j) dg[j] += dq * gr[j];
     }
@@ -59,6 +70,8 @@ DecoderBackprop::DecoderBackprop(Decoder decoder, int latentDim) : decoder_(std:
   layers_ = static_cast<int>(decoder_->layers.size());
   width_ = static_cast<int>(decoder_->layers[0]->weight.size(0));
   outputs_ = static_cast<int>(decoder_->layers[layers_ - 1]->weight.size(0));
+  dirWidth_ = static_cast<int>(decoder_->layers[0]->weight.size(1)) - latentDim_;
+  TORCH_CHECK(dirWidth_ >= 4, "decoder: the first layer needs the latent and at least 4 direction inputs");
   TORCH_CHECK(layers_ >= 2, "decoder: needs at least two layers");
   stride_ = paddedWidth(width_ + 1);
   std::size_t offset = 0;
@@ -96,10 +109,11 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
 
   const std::int64_t r0 = c * kChunkRows;
   const int n = static_cast<int>(std::min<std::int64_t>(kChunkRows, rows - r0));
-  const float* d = dirs + r0 * 4;
+  const int D = dirWidth_;
+  const float* d = dirs + r0 * D;
 
   // ---- Forward. Layer 0: relu(W_d d + (W_z z + b)) with the bracket precomputed per tile.
-  layer0Forward(n, W, S, r0, rowsPerTile, tileBase, d, dirWeightT_.data(), hidden(0));
+  layer0Forward(n, W, S, D, r0, rowsPerTile, tileBase, d, dirWeightT_.data(), hidden(0));
   for (int l = 1; l + 1 < L; ++l) productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
   float* o = train ? k.out.data() : outRows + r0 * O;
   rowDots(n, O, hidden(L - 2), S, forward_[L - 1].data(), o);
@@ -108,7 +122,7 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   // This chunk's sums, zeroed here, on the thread that fills them.
   ChunkSums& sums = chunkSums_[c];
   sums.weightGrad.assign(gradOffset_.back(), 0.0f);
-  sums.dirGrad.assign(4 * static_cast<std::size_t>(W), 0.0f);
+  sums.dirGrad.assign(static_cast<std::size_t>(D) * W, 0.0f);
   sums.firstTile = r0 / rowsPerTile;
   sums.tileGrad.assign(static_cast<std::size_t>((r0 + n - 1) / rowsPerTile - sums.firstTile + 1) * W, 0.0f);
 
@@ -134,22 +148,22 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
     std::swap(g, g2);
   }
   // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
-  layer0Backward(n, W, S, r0, rowsPerTile, sums.firstTile, g, d, sums.tileGrad.data(), sums.dirGrad.data());
+  layer0Backward(n, W, S, D, r0, rowsPerTile, sums.firstTile, g, d, sums.tileGrad.data(), sums.dirGrad.data());
 }
 
 void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile,
                           float* outRows) {
   const std::int64_t tiles = z.size(0), rows = dirs.size(0);
   TORCH_CHECK(rows == tiles * rowsPerTile, "decoder: rows must be tiles x rowsPerTile");
-  TORCH_CHECK(dirs.is_contiguous() && dirs.size(1) == 4, "decoder: dirs must be contiguous [rows, 4]");
-  const int W = width_, S = stride_, L = layers_;
+  const int W = width_, S = stride_, L = layers_, D = dirWidth_;
+  TORCH_CHECK(dirs.is_contiguous() && dirs.size(1) == D, "decoder: dirs must be contiguous [rows, direction inputs]");
   const torch::Tensor& w0 = decoder_->layers[0]->weight;
   // Per-tile part of layer 0 and the direction weights, transposed for row-wise use.
   perTile_ = torch::addmm(decoder_->layers[0]->bias, z, w0.narrow(1, 0, latentDim_).t()).contiguous();
-  dirWeightT_.resize(4 * static_cast<std::size_t>(W));
+  dirWeightT_.resize(static_cast<std::size_t>(D) * W);
   const float* w0p = w0.data_ptr<float>();
   for (int j = 0; j < W; ++j)
-    for (int q = 0; q < 4; ++q) dirWeightT_[q * W + j] = w0p[static_cast<std::size_t>(j) * (latentDim_ + 4) + latentDim_ + q];
+    for (int q = 0; q < D; ++q) dirWeightT_[q * W + j] = w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q];
   // The padded weights of layers 1 .. L - 1 (see the header).
   for (int l = 1; l < L; ++l) {
     const auto& lin = decoder_->layers[l];
@@ -201,7 +215,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
 
   // Add the chunks' sums in chunk order (deterministic): the weight gradients on all threads,
   // each over a range of entries, into chunk 0's.
-  const int W = width_, S = stride_, L = layers_;
+  const int W = width_, S = stride_, L = layers_, D = dirWidth_;
   const std::int64_t tiles = zc.size(0), chunks = static_cast<std::int64_t>(chunkSums_.size());
   float* sumW = chunkSums_[0].weightGrad.data();
   at::parallel_for(0, static_cast<std::int64_t>(gradOffset_.back()), 2048, [&](std::int64_t begin, std::int64_t end) {
@@ -210,7 +224,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
       for (std::int64_t i = begin; i < end; ++i) sumW[i] += w[i];
     }
   });
-  std::vector<float> dirGrad(4 * static_cast<std::size_t>(W), 0.0f), tileGradSum(static_cast<std::size_t>(tiles) * W, 0.0f);
+  std::vector<float> dirGrad(static_cast<std::size_t>(D) * W, 0.0f), tileGradSum(static_cast<std::size_t>(tiles) * W, 0.0f);
   double loss = 0;
   for (const ChunkSums& sums : chunkSums_) {
     for (std::size_t i = 0; i < dirGrad.size(); ++i) dirGrad[i] += sums.dirGrad[i];
@@ -231,7 +245,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
   torch::Tensor tileGrad = torch::from_blob(tileGradSum.data(), {tiles, W});
   float* g0 = weightGrad_[0].data_ptr<float>();
   for (int j = 0; j < W; ++j)
-    for (int q = 0; q < 4; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + 4) + latentDim_ + q] = dirGrad[q * W + j];
+    for (int q = 0; q < D; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q] = dirGrad[q * W + j];
   weightGrad_[0].narrow(1, 0, latentDim_).copy_(torch::mm(tileGrad.t(), zc));
   torch::sum_out(biasGrad_[0], tileGrad, {0});
   dz = torch::mm(tileGrad, decoder_->layers[0]->weight.narrow(1, 0, latentDim_));

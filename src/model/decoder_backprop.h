@@ -25,7 +25,7 @@ class DecoderBackprop {
  public:
   DecoderBackprop(Decoder decoder, int latentDim);
 
-  // z: [tiles, latent], dirs: [tiles * rowsPerTile, 4]. Returns [tiles * rowsPerTile, 3]
+  // z: [tiles, latent], dirs: [tiles * rowsPerTile, direction inputs]. Returns [tiles * rowsPerTile, 3]
   // (a view of an internal buffer, valid until the next call).
   torch::Tensor forward(const torch::Tensor& z, const torch::Tensor& dirs, int rowsPerTile);
 
@@ -46,7 +46,7 @@ class DecoderBackprop {
   // by the host does not hold the other up), and the sums are added in chunk order.
   struct ChunkSums {
     AlignedFloats weightGrad;      // layers 1 .. layers - 1: [out x stride], bias in column width_
-    std::vector<float> dirGrad;    // 4 x width: dLoss/dW_d, transposed
+    std::vector<float> dirGrad;    // direction inputs x width: dLoss/dW_d, transposed
     std::vector<float> tileGrad;   // the chunk's tiles (from firstTile) x width: dLoss/d(W_z z + b)
     std::int64_t firstTile = 0;
     double loss = 0;
@@ -60,6 +60,7 @@ class DecoderBackprop {
 
   Decoder decoder_;
   int latentDim_, layers_, width_, outputs_;
+  int dirWidth_;                         // direction inputs per row (4: the paper's stereographic pair)
   int stride_;                           // padded row length: width_ hidden units + the 1 column
   std::vector<std::size_t> gradOffset_;  // layer l >= 1 -> offset in Worker::weightGrad
   // Per call, for layers l >= 1: forward_[l] = [W^T; b^T] padded ([in + 1] x stride, the
@@ -68,7 +69,7 @@ class DecoderBackprop {
   std::vector<AlignedFloats> forward_, backward_;
   std::vector<Worker> workers_;
   std::vector<ChunkSums> chunkSums_;
-  std::vector<float> dirWeightT_;  // 4 x width: W_d transposed, refreshed every call
+  std::vector<float> dirWeightT_;  // direction inputs x width: W_d transposed, refreshed every call
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
   torch::Tensor out_;              // [rows, outputs]
   std::vector<torch::Tensor> weightGrad_, biasGrad_;

@@ -105,14 +105,14 @@ void DistributedGroup::allReduceSum(torch::Tensor& values) {
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void DistributedGroup::allReduceGradients(const std::vector<torch::Tensor>& params) {
+double DistributedGroup::allReduceGradients(const std::vector<torch::Tensor>& params, double value) {
   // Every rank has the same parameters in the same order; a gradient that is undefined on one
   // rank (a frozen part) is undefined on all, so the flat layouts match.
-  std::vector<torch::Tensor> grads;
+  std::vector<torch::Tensor> parts;
   for (const torch::Tensor& p : params)
-    if (p.grad().defined()) grads.push_back(p.grad().reshape({-1}));
-  if (grads.empty()) return;
-  torch::Tensor flat = torch::cat(grads).contiguous();
+    if (p.grad().defined()) parts.push_back(p.grad().reshape({-1}));
+  parts.push_back(torch::full({1}, static_cast<float>(value)));
+  torch::Tensor flat = torch::cat(parts).contiguous();
   allReduceSum(flat);
   std::int64_t offset = 0;
   for (const torch::Tensor& p : params) {
@@ -123,6 +123,7 @@ void DistributedGroup::allReduceGradients(const std::vector<torch::Tensor>& para
   }
   bytes_ += static_cast<double>(flat.numel()) * sizeof(float);
   ++calls_;
+  return flat[offset].item<float>();
 }
 
 }  // namespace detail

@@ -22,8 +22,9 @@ class DistributedGroup {
 
   // Sums `values` (float32, CPU, contiguous) over the ranks in place, on every rank.
   void allReduceSum(torch::Tensor& values);
-  // Sums every defined gradient of `params` over the ranks (one flat message per call).
-  void allReduceGradients(const std::vector<torch::Tensor>& params);
+  // Sums every defined gradient of `params`, and `value` (the step's loss share), over the
+  // ranks in one flat message; returns the summed value.
+  double allReduceGradients(const std::vector<torch::Tensor>& params, double value);
   // Bytes sent per allReduceGradients so far and the calls (for the summary and benchmarks).
   double bytesReduced() const { return bytes_; }
   long calls() const { return calls_; }

@@ -34,7 +34,7 @@ std::vector<int> encoderWidths(int imageCount, const std::vector<int>& configure
 
 Mlp decoderShape(const ModelConfig& model) {
   Mlp mlp;
-  int in = model.latentDim + 4;
+  int in = model.latentDim + model.directionInputCount();
   for (int l = 0; l < model.decoderLayers; ++l) {
     bool last = l + 1 == model.decoderLayers;
     DenseLayer layer;

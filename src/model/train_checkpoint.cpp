@@ -32,6 +32,8 @@ std::uint64_t checkpointFingerprint(const TrainConfig& c, const TrainingSet& set
   for (int g = 0; g < set.groups(); ++g) h = hashCombine(h, set.groupSize(g));
   for (int i : set.holdoutImages()) h = hashCombine(h, i);
   if (set.texelCoefficientHash()) h = hashCombine(h, set.texelCoefficientHash());  // absent before modulation: old checkpoints still match
+  if (c.model.directionInputs != DirectionEncoding::Stereographic)  // absent before: old checkpoints still match
+    h = hashCombine(h, static_cast<std::uint64_t>(c.model.directionInputs));
   return h;
 }
 

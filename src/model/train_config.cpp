@@ -127,6 +127,13 @@ TrainConfig loadTrainConfig(const std::string& path) {
   model.read("encoder_channels", c.model.encoderChannels);
   model.read("decoder_width", c.model.decoderWidth);
   model.read("decoder_layers", c.model.decoderLayers);
+  std::string directionInputs = directionEncodingName(c.model.directionInputs);
+  model.read("direction_inputs", directionInputs);
+  try {
+    c.model.directionInputs = parseDirectionEncoding(directionInputs);
+  } catch (const Error& e) {
+    bad(path, "model.direction_inputs", std::string("is not valid: ") + e.what());
+  }
   model.rejectUnknown();
 
   Section opt(root, "optimizer", path);

@@ -11,7 +11,7 @@ RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const to
   const int images = set.images(), groups = set.groups();
   // Groups per chunk: about 64k decoder rows, at least one group.
   const int chunk = std::max(1, 65536 / images);
-  torch::Tensor dirsOne = torch::from_blob(const_cast<float*>(set.directions().data()), {images, 4}).clone();
+  torch::Tensor dirsOne = torch::from_blob(const_cast<float*>(set.directions().data()), {images, set.directionWidth()}).clone();
   std::vector<int> all(images);
   for (int i = 0; i < images; ++i) all[i] = i;
   const int outputs = set.outputs();

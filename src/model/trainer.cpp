@@ -123,7 +123,7 @@ torch::Device trainingDevice(const TrainConfig& config) {
 // frozen encoder while polishing) are not moved by the optimizer's momentum.
 double stockTrainStep(Decoder& decoder, const std::vector<torch::Tensor>& params, const torch::Tensor& z,
                       const torch::Tensor& dirs, const torch::Tensor& targets, int perTile, const torch::Device& device) {
-  for (const torch::Tensor& p : params) const_cast<torch::Tensor&>(p).mutable_grad() = torch::Tensor();
+  for (const torch::Tensor& p : params) p.mutable_grad() = torch::Tensor();
   torch::Tensor inputs = torch::cat({z.repeat_interleave(perTile, 0), dirs.to(device)}, 1);
   torch::Tensor loss = torch::mse_loss(decoder->forward(inputs), targets.to(device));
   loss.backward();
@@ -190,7 +190,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   const int threads = config.threads > 0 ? config.threads : threadCount();
   torch::set_num_threads(threads);
 
-  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress);
+  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs);
   const MatrixXfCol& x = *inputs.encoderInputs;
   const EncoderInputSource inputSource(x);
   const int latentDim = config.model.latentDim;
@@ -257,7 +257,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   const int outputs = set.outputs();
   // The loss is a mean over the decoder's outputs; per texel and channel it counts terms times.
   const double lossToTexelMse = outputs / 3.0;
-  torch::Tensor dirs = torch::empty({batch, 4}), targets = torch::empty({batch, outputs}), dz;
+  const int dirWidth = set.directionWidth();
+  torch::Tensor dirs = torch::empty({batch, dirWidth}), targets = torch::empty({batch, outputs}), dz;
   torch::Tensor tileSlot = torch::empty({tiles}, torch::kLong), tileGroup = torch::empty({tiles}, torch::kLong);
   torch::Tensor polishLatents;  // [groups, latent] once the encoder is frozen
   double withinTrain = 0;
@@ -337,7 +338,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
           const int* img = &plan.images[(shareBegin + t) * perTile];
           set.targets(plan.tileGroup[shareBegin + t], img, perTile, y + t * perTile * outputs);
           for (int s = 0; s < perTile; ++s)
-            std::memcpy(d + (t * perTile + s) * 4, &allDirs[static_cast<std::size_t>(img[s]) * 4], 4 * sizeof(float));
+            std::memcpy(d + (t * perTile + s) * dirWidth, &allDirs[static_cast<std::size_t>(img[s]) * dirWidth],
+                        dirWidth * sizeof(float));
         }
       });
     }
@@ -390,10 +392,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       const double weight = static_cast<double>(stepTiles) / tiles;
       for (const torch::Tensor& p : params)
         if (p.grad().defined()) p.grad().mul_(weight);
-      group->allReduceGradients(params);
-      torch::Tensor lossSum = torch::full({1}, static_cast<float>(loss * weight));
-      group->allReduceSum(lossSum);
-      loss = lossSum.item<float>();
+      loss = group->allReduceGradients(params, loss * weight);
     }
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
@@ -434,25 +433,21 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     result.allReduceBytesPerStep = group->bytesReduced() / group->calls();
     result.allReduceSecondsPerStep = group->secondsInCollectives() / group->calls();
   }
-  if (worker) {
-    // Rank 0 exports, evaluates and writes; this rank's part is done.
-    result.worker = true;
-    result.steps = step;
-    result.epochsRun = static_cast<int>(step / stepsPerEpoch);
-    result.rmseTrain = result.rmseHoldout = -1;
-    result.samplesPerSecond =
-        result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
-    result.seconds = since(callStart);
-    return result;
-  }
-
-  // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
   result.steps = step;
   result.epochsRun = static_cast<int>(step / stepsPerEpoch);
   result.finalLoss = std::max(0.0, emaLoss);
   result.encoderBlocks = encoder->blocks;
   result.samplesPerSecond =
       result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
+  if (worker) {
+    // Rank 0 exports, evaluates and writes; this rank's part is done.
+    result.worker = true;
+    result.rmseTrain = result.rmseHoldout = -1;
+    result.seconds = since(callStart);
+    return result;
+  }
+
+  // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
   result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample / 1e9;
   result.holdoutImages = set.holdoutImages();
   torch::Tensor latents = encodeAll(encoder, x, stock, device);

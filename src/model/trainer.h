@@ -12,6 +12,7 @@
 #include "codec/mlp.h"
 #include "model/distributed.h"
 #include "preprocess/abrdf_matrix.h"
+#include "util/directions.h"
 
 namespace nbtf {
 
@@ -27,6 +28,10 @@ struct ModelConfig {
   // RGB terms the decoder outputs: 1, or R with per-texel modulation of R terms (set by the
   // compress pipeline from the "modulation" object, not a config key of its own).
   int outputTerms = 1;
+  // The decoder's direction input (util/directions.h): the paper's 4 stereographic
+  // coordinates, or those plus the half vector and cos(theta_d) (8).
+  DirectionEncoding directionInputs = DirectionEncoding::Stereographic;
+  int directionInputCount() const { return nbtf::directionInputCount(directionInputs); }
 };
 
 // Conv blocks actually used for N images: as many of `configured` as keep the pooled
@@ -39,7 +44,7 @@ int encoderBlockCount(int imageCount, int configured);
 // 22,801 images: 7600 -> 2533 -> 844 -> 281 with {4, 8, 16, 32}, the 4 blocks the paper's
 // predecessor used there; 6561 images or fewer: unchanged.
 std::vector<int> encoderWidths(int imageCount, const std::vector<int>& configured);
-// The decoder as an Mlp shape (input latent + 4, RGB out), weights zero; 24,383 parameters
+// The decoder as an Mlp shape (input latent + direction inputs, RGB out), weights zero; 24,383 parameters
 // for the defaults.
 Mlp decoderShape(const ModelConfig& model);
 

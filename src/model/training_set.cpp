@@ -17,7 +17,8 @@ constexpr std::uint64_t kHoldoutStream = 0x686f6c646f7574ull;  // "holdout"
 constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
 }  // namespace
 
-TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress)
+TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress,
+                         DirectionEncoding directionInputs)
     : stack_(in.stack), alpha_(in.alpha), perTexel_(in.ids.empty()) {
   // ---- Validate: every mismatch here would otherwise be a wrong answer, not a crash.
   if (!in.stack) throw Error("training: no BTF stack given");
@@ -62,13 +63,11 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
   for (int i = 0; i < images_; ++i) (holdout_[i] ? holdoutImages_ : trainImages_).push_back(i);
 
   // ---- Decoder direction inputs (eq. 7-9).
-  directions_.resize(static_cast<std::size_t>(images_) * 4);
-  for (int i = 0; i < images_; ++i) {
-    auto l = stereographic(stack.lights()[i / stack.numViews()]);
-    auto v = stereographic(stack.views()[i % stack.numViews()]);
-    float* d = &directions_[static_cast<std::size_t>(i) * 4];
-    d[0] = l[0], d[1] = l[1], d[2] = v[0], d[3] = v[1];
-  }
+  directionWidth_ = directionInputCount(directionInputs);
+  directions_.resize(static_cast<std::size_t>(images_) * directionWidth_);
+  for (int i = 0; i < images_; ++i)
+    encodeDirections(directionInputs, stack.lights()[i / stack.numViews()], stack.views()[i % stack.numViews()],
+                          &directions_[static_cast<std::size_t>(i) * directionWidth_]);
 
   if (!perTexel_) {
     const float* coefficients = nullptr;

@@ -28,7 +28,8 @@ std::vector<std::uint8_t> holdoutImageMask(int images, double fraction, std::uin
 class TrainingSet {
  public:
   // Validates the inputs (throws nbtf::Error) and precomputes the cluster means in parallel.
-  TrainingSet(const TrainInputs& inputs, double holdoutFraction, std::uint64_t seed, bool progress);
+  TrainingSet(const TrainInputs& inputs, double holdoutFraction, std::uint64_t seed, bool progress,
+              DirectionEncoding directionInputs = DirectionEncoding::Stereographic);
 
   bool perTexel() const { return perTexel_; }
   int groups() const { return groups_; }        // encoder inputs (rows of encoderInputs)
@@ -41,8 +42,9 @@ class TrainingSet {
   bool isHoldout(int image) const { return holdout_[image] != 0; }
   // Sum over texels and channels of |y_t - ybar_c|^2 for one image (0 per texel).
   double withinSse(int image) const { return withinSse_.empty() ? 0.0 : withinSse_[image]; }
-  // Stereographic (light x, y, view x, y) of every image: the decoder's direction input.
+  // The decoder's direction input of every image (images x directionWidth(); util/directions.h).
   const std::vector<float>& directions() const { return directions_; }
+  int directionWidth() const { return directionWidth_; }
   // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.
   std::uint64_t texelCoefficientHash() const { return coefficientHash_; }
 
@@ -65,7 +67,8 @@ class TrainingSet {
   std::vector<std::uint8_t> holdout_;
   std::vector<float> means_;      // groups x images x outputs() (clustered only)
   std::vector<double> withinSse_; // images (clustered only)
-  std::vector<float> directions_; // images x 4
+  std::vector<float> directions_; // images x directionWidth_
+  int directionWidth_ = 4;
   std::uint64_t coefficientHash_ = 0;
   int terms_ = 1;
 };

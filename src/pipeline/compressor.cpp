@@ -135,6 +135,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   const bool modulated = clusters > 0 && mc.mode != "none";
   CompressedBtf b = compressedFrame(stack, method, alpha);
   b.decoder = std::move(train.decoder);
+  b.directionEncoding = config.model.directionInputs;
   b.latentDim = config.model.latentDim;
   b.latentRows = train.latentRows;
   b.latents = std::move(train.latents);
@@ -215,6 +216,9 @@ std::string trainConfigJson(const TrainConfig& c) {
                 {"encoder_channels", c.model.encoderChannels},
                 {"decoder_width", c.model.decoderWidth},
                 {"decoder_layers", c.model.decoderLayers}};
+  // Recorded only when not the paper's, so files of earlier configs keep their bytes.
+  if (c.model.directionInputs != DirectionEncoding::Stereographic)
+    j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
   j["optimizer"] = {{"name", c.optimizer}, {"learning_rate", c.learningRate}, {"momentum", c.momentum}};
   j["training"] = {{"batch_size", c.batchSize},
                    {"images_per_input", c.imagesPerInput},

@@ -1,5 +1,6 @@
 #include "util/directions.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -57,6 +58,53 @@ std::array<float, 2> stereographic(const Direction& d) {
   double r = std::sin(t) / denom;  // denom >= 1 on the upper hemisphere
   double p = d.phiDeg * kDeg;
   return {static_cast<float>(r * std::cos(p)), static_cast<float>(r * std::sin(p))};
+}
+
+bool isDirectionEncoding(int code) { return code == 1 || code == 2; }
+
+int directionInputCount(DirectionEncoding encoding) { return encoding == DirectionEncoding::StereographicHalf ? 8 : 4; }
+
+std::string directionEncodingName(DirectionEncoding encoding) {
+  return encoding == DirectionEncoding::StereographicHalf ? "stereographic+half" : "stereographic";
+}
+
+DirectionEncoding parseDirectionEncoding(const std::string& name) {
+  if (name == "stereographic") return DirectionEncoding::Stereographic;
+  if (name == "stereographic+half") return DirectionEncoding::StereographicHalf;
+  throw Error("unknown direction encoding \"" + name + "\" (expected \"stereographic\" or \"stereographic+half\")");
+}
+
+namespace {
+// tan(theta / 2) (cos phi, sin phi) = (x, y) / (1 + z): eq. (7)-(9) of the paper for a unit vector.
+void stereographicOfUnit(const std::array<double, 3>& u, float* out) {
+  out[0] = static_cast<float>(u[0] / (1 + u[2]));
+  out[1] = static_cast<float>(u[1] / (1 + u[2]));
+}
+}  // namespace
+
+void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& light, const std::array<double, 3>& view,
+                      float* out) {
+  stereographicOfUnit(light, out);
+  stereographicOfUnit(view, out + 2);
+  if (encoding != DirectionEncoding::StereographicHalf) return;
+  double h[3] = {light[0] + view[0], light[1] + view[1], light[2] + view[2]};
+  const double n = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);  // > 0: both on the upper hemisphere
+  for (double& c : h) c = n > 0 ? c / n : 0;
+  if (!(n > 0)) h[2] = 1;
+  out[4] = static_cast<float>(h[0]);
+  out[5] = static_cast<float>(h[1]);
+  out[6] = static_cast<float>(h[2]);
+  out[7] = static_cast<float>(light[0] * h[0] + light[1] * h[1] + light[2] * h[2]);
+}
+
+void encodeDirections(DirectionEncoding encoding, const Direction& light, const Direction& view, float* out) {
+  auto l = stereographic(light), v = stereographic(view);
+  out[0] = l[0], out[1] = l[1], out[2] = v[0], out[3] = v[1];  // the paper's formula, as trained before
+  if (encoding == DirectionEncoding::StereographicHalf) {
+    float half[8];
+    encodeDirections(encoding, light.unitVector(), view.unitVector(), half);
+    std::copy(half + 4, half + 8, out + 4);
+  }
 }
 
 Direction parseDirection(const std::string& text, const std::string& what) {

@@ -2,6 +2,7 @@
 // sampling, and the stereographic projection the decoder takes as input.
 #pragma once
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,25 @@ const std::vector<Direction>& hemisphere81();
 // R = sin(pi - theta) / (1 - cos(pi - theta)), x = R cos(phi), y = R sin(phi).
 // Maps the hemisphere into the unit disk (theta = 90 -> R = 1, theta = 0 -> R = 0).
 std::array<float, 2> stereographic(const Direction& d);
+
+// How a (light, view) pair is fed to the decoder, after the latent (the "model.direction_inputs"
+// key of a config; stored in the .nbtf, so values are never renumbered). Stereographic is the
+// paper's eq. (7)-(9): (x, y) of the light, then of the view (4 inputs). StereographicHalf
+// (format 1.3) adds the unit half vector h = (l + v) / |l + v| and cos(theta_d) = l . h
+// (8 inputs): highlights and Fresnel-like effects are simple functions of them (Rusinkiewicz's
+// parameterization), which the decoder would otherwise build from the stereographic
+// coordinates with its own layers.
+enum class DirectionEncoding : std::uint8_t { Stereographic = 1, StereographicHalf = 2 };
+constexpr int kMaxDirectionInputs = 8;
+bool isDirectionEncoding(int code);                              // a value this build knows
+int directionInputCount(DirectionEncoding encoding);             // 4 or 8
+std::string directionEncodingName(DirectionEncoding encoding);   // "stereographic" | "stereographic+half"
+// Throws nbtf::Error naming the accepted names.
+DirectionEncoding parseDirectionEncoding(const std::string& name);
+// Writes directionInputCount(encoding) floats. Light and view are unit vectors (z = the normal).
+void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& light, const std::array<double, 3>& view,
+                      float* out);
+void encodeDirections(DirectionEncoding encoding, const Direction& light, const Direction& view, float* out);
 
 // "THETA,PHI" in degrees -> Direction; throws nbtf::Error naming `what` on bad text.
 Direction parseDirection(const std::string& text, const std::string& what);

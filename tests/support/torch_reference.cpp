@@ -41,7 +41,7 @@ DecoderBatch randomDecoderBatch(const ModelConfig& model, std::uint64_t seed, in
   detail::Decoder decoder(model);
   const int rows = tiles * rowsPerTile;
   torch::Tensor z = torch::randn({tiles, model.latentDim});
-  torch::Tensor dirs = torch::rand({rows, 4}) * 2 - 1;
+  torch::Tensor dirs = torch::rand({rows, static_cast<std::int64_t>(model.directionInputCount())}) * 2 - 1;
   torch::Tensor targets = torch::rand({rows, 3});
   return {decoder, z, dirs, targets};
 }
