@@ -4,7 +4,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 
-#include "preprocess/abrdf_matrix.h"
+#include "preprocess/abrdf_source.h"
 
 namespace nbtf {
 
@@ -31,7 +31,10 @@ struct PcaResult {
   double explainedRatio() const; // sum(explainedVariance) / totalVariance
 };
 
-// Throws nbtf::Error if components < 1 or components > min(M, D).
+// Throws nbtf::Error if components < 1 or components > min(M, D). X comes from `x` in slices
+// (preprocess/abrdf_source.h): 2 * powerIterations + 3 reads, never a copy of X. An in-memory
+// X and a stack give the same bits.
+PcaResult randomizedPca(const AbrdfSource& x, const PcaOptions& options);
 PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options);
 
 }  // namespace nbtf
