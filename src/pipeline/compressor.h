@@ -56,6 +56,11 @@ struct CompressOptions {
   bool progress = true;
   std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
   AdaptiveOptions adaptive;     // clustered only
+  // compressBtf refuses, before loading, a run whose estimated peak memory
+  // (pipeline/memory_estimate.h) is above this many bytes; 0 = defaultMemoryLimit() (75% of
+  // physical memory). memoryLimitText: how the limit was given, for the error ("" = default).
+  std::size_t memoryLimit = 0;
+  std::string memoryLimitText;
 };
 
 // Wall-clock seconds per stage.
@@ -97,6 +102,9 @@ struct CompressStats {
   std::string checkpointPath;
   std::vector<AdaptiveStage> adaptiveStages;  // empty unless --adaptive
   std::string adaptiveStopReason;             // why the clusters stopped growing
+  // Memory (compressBtf): the estimate checked before loading, the limit, and the peak
+  // resident set size at the end (getrusage), bytes; 0 = not measured (compressStack alone).
+  std::size_t memoryEstimate = 0, memoryLimit = 0, peakMemory = 0;
 };
 
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).
