@@ -1,6 +1,7 @@
-// The compression pipeline behind `nbtf compress`: load -> ABRDF matrix -> standardize ->
-// (clustered) PCA + k-means++ + representatives | (per-texel) the standardized matrix
-// itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
+// The compression pipeline behind `nbtf compress`: memory estimate (--memory-limit) -> load ->
+// standardization statistics -> (clustered) PCA + k-means++ + representatives over the ABRDF
+// matrix streamed from the stack (preprocess/abrdf_source.h) | (per-texel) the standardized
+// matrix itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
 // The PCA baseline (pcaBaseline) replaces everything after loading: pipeline/pca_compressor.h.
 // Deterministic for a seed and thread count.
 #pragma once
