@@ -12,8 +12,10 @@
 #include "commands.h"
 #include "io/btf_loader.h"
 #include "io/image_io.h"
-#include "preprocess/abrdf_matrix.h"
+#include "pipeline/memory_estimate.h"
+#include "preprocess/abrdf_source.h"
 #include "util/atomic_file.h"
+#include "util/memory.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -61,6 +63,15 @@ int clusterStack(const cxxopts::ParseResult& args) {
   LoadOptions load;
   if (args.count("layout")) load.layout = parseLayout(args["layout"].as<std::string>());
   if (args.count("crop")) load.crop = parseCrop(args["crop"].as<std::string>());
+  // Refuse before loading what cannot fit (docs/compress.md, *Memory*).
+  const std::string limitValue = args.count("memory-limit") ? args["memory-limit"].as<std::string>() : "";
+  const std::size_t limit = limitValue.empty() ? defaultMemoryLimit() : parseByteSize(limitValue, "--memory-limit");
+  {
+    const StackShape shape = stackShape(input, load);
+    const MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,
+                                                          options.pca.oversampling, threadCount());
+    enforceMemoryLimit(estimate, limit, memoryLimitText(!limitValue.empty(), limitValue), input, shape);
+  }
   BtfStack stack = loadBtfStack(input, load);
   info.loadSeconds = secondsSince(step);
   info.width = stack.width(), info.height = stack.height(), info.images = stack.numImages();
@@ -76,18 +87,20 @@ int clusterStack(const cxxopts::ParseResult& args) {
                 std::to_string(std::min(texels, dims)) + " for " + std::to_string(texels) + " texels x " +
                 std::to_string(dims) + " dimensions");
 
+  // The standardized ABRDF matrix is streamed from the 8-bit (or half) stack in slices
+  // (preprocess/abrdf_source.h): it never exists whole.
   step = std::chrono::steady_clock::now();
-  MatrixXfCol x = abrdfMatrix(stack);
+  const Eigen::MatrixXf texelColour = texelMeanColour(stack);
   info.matrixSeconds = secondsSince(step);
   const int width = stack.width(), height = stack.height(), images = stack.numImages();
-  stack = BtfStack();  // X holds the data now: a full material's 8-bit stack is 1.3 GB
-  const Eigen::MatrixXf texelColour = texelMeanColour(x);  // before X is log-transformed
   step = std::chrono::steady_clock::now();
-  standardizeInPlace(x);
+  StackAbrdfSource source(stack, fitStandardization(stack, !Progress::quiet()));
   info.standardizeSeconds = secondsSince(step);
 
-  ClusteringResult result = clusterAbrdfs(x, options);
+  ClusteringResult result = clusterAbrdfs(source, options);
   info.totalSeconds = secondsSince(start);
+  const std::size_t peak = peakResidentBytes();
+  info.peakMemoryBytes = peak;
 
   std::error_code ec;
   fs::create_directories(outDir, ec);
@@ -118,6 +131,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
               sizes["max"].get<int>(),
               result.emptyClusters ? (", " + std::to_string(result.emptyClusters) + " empty (too few distinct ABRDFs)").c_str()
                                    : "");
+  std::printf("  memory       peak %s resident (--memory-limit %s)\n", formatBytes(peak).c_str(),
+              formatBytes(limit).c_str());
   std::printf("  wrote        %s (ids), %s and %s (mean colour per texel / per cluster), %s\n",
               labelsPath.c_str(), texelColourPath.c_str(), clusterColourPath.c_str(), summaryPath.c_str());
   return 0;
@@ -143,6 +158,10 @@ int clusterMain(int argc, char** argv) {
         "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
+        "memory-limit",
+        "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
+        "physical memory)",
+        cxxopts::value<std::string>())(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
     addCommonOptions(options);
     options.parse_positional({"input"});

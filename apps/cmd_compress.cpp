@@ -15,6 +15,7 @@
 #include "pipeline/compressor.h"
 #include "commands.h"
 #include "util/atomic_file.h"
+#include "util/memory.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -187,7 +188,11 @@ int compressMain(int argc, char** argv) {
         "size-budget", "--adaptive: the written file is at most BYTES bytes", cxxopts::value<long long>())(
         "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
         "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
-        cxxopts::value<int>());
+        cxxopts::value<int>())(
+        "memory-limit",
+        "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
+        "physical memory)",
+        cxxopts::value<std::string>());
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
@@ -220,6 +225,11 @@ int compressMain(int argc, char** argv) {
     if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
     if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
+    if (args.count("memory-limit")) {
+      const std::string limit = args["memory-limit"].as<std::string>();
+      o.memoryLimit = parseByteSize(limit, "--memory-limit");
+      o.memoryLimitText = "--memory-limit " + limit;
+    }
     std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
     // Every command creates the missing folders above its outputs.
     for (const std::string& out : {output, statsPath, o.saveEncoderPath})

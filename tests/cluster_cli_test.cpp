@@ -109,6 +109,22 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
   EXPECT_TRUE(summary["seconds"].contains("total"));
 }
 
+TEST_F(ClusterCliTest, MemoryLimitRefusesBeforeLoadingAndThePeakIsReported) {
+  fs::path out = root_ / "out";
+  std::string output;
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 2 --components 2 -q --memory-limit 64M -o " + out.string(),
+                output), 1);
+  EXPECT_NE(output.find("--memory-limit 64M allows 64 MiB"), std::string::npos) << output;
+  EXPECT_NE(output.find("12 x 8 texels x 4 images (8-bit)"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 2 --components 2 -q --memory-limit 4G -o " + out.string(),
+                output), 0) << output;
+  EXPECT_NE(output.find("memory       peak"), std::string::npos) << output;
+  std::ifstream in(out / "summary.json");
+  nlohmann::json summary = nlohmann::json::parse(in);
+  EXPECT_GT(summary["peak_memory_bytes"].get<double>(), 1e6);
+}
+
 TEST_F(ClusterCliTest, CropIsApplied) {
   std::string output;
   fs::path out = root_ / "crop";

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
 #include "codec/texel_modulation.h"
@@ -198,6 +199,93 @@ TEST(ClusterValues, CoefficientsAreTheTopSingularVectorsFromEitherSide) {
       EXPECT_NEAR(square / n, 1.0, 1e-3) << imagesUsed << " images, cluster " << g;
       EXPECT_NEAR(cross / n, 0.0, 1e-3) << imagesUsed << " images, cluster " << g;
     }
+  }
+}
+
+// Subspace iteration against the exact SVD (from the small side's eigen-decomposition, in
+// double): the top vectors and singular values of a matrix with a decaying spectrum.
+TEST(ClusterValues, IterativeSingularVectorsMatchTheExactSvd) {
+  std::mt19937 rng(11);
+  std::normal_distribution<float> normal(0.0f, 1.0f);
+  const int n = 1500, dims = 400, rank = 12;
+  Eigen::MatrixXf a(n, rank), b(rank, dims);
+  for (int i = 0; i < n; ++i)
+    for (int r = 0; r < rank; ++r) a(i, r) = normal(rng) * std::pow(0.5f, static_cast<float>(r));
+  for (int r = 0; r < rank; ++r)
+    for (int d = 0; d < dims; ++d) b(r, d) = normal(rng);
+  Eigen::MatrixXf y = a * b;
+  y.array() += 3.0f;  // same-signed, like ABRDFs: one dominant direction
+  for (int i = 0; i < n; ++i)
+    for (int d = 0; d < dims; ++d) y(i, d) += 0.01f * normal(rng);
+  Eigen::MatrixXd yd = y.cast<double>();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(yd.transpose() * yd);
+  Eigen::MatrixXd u;
+  Eigen::VectorXd sigma;
+  int iterations = 0;
+  topLeftSingularVectors(y, 3, 1, u, sigma, &iterations);
+  ASSERT_EQ(u.rows(), n);
+  ASSERT_EQ(u.cols(), 3);
+  EXPECT_LT(iterations, 200);
+  for (int r = 0; r < 3; ++r) {
+    const double exactSigma = std::sqrt(eig.eigenvalues()(dims - 1 - r));
+    Eigen::VectorXd exact = yd * eig.eigenvectors().col(dims - 1 - r) / exactSigma;
+    EXPECT_NEAR(sigma(r), exactSigma, 1e-5 * exactSigma) << "term " << r;
+    EXPECT_GT(std::abs(exact.dot(u.col(r))), 1 - 1e-8) << "term " << r;
+    EXPECT_NEAR(u.col(r).norm(), 1.0, 1e-6);
+  }
+  // Deterministic: the same seed gives the same bits.
+  Eigen::MatrixXd u2;
+  Eigen::VectorXd sigma2;
+  topLeftSingularVectors(y, 3, 1, u2, sigma2);
+  EXPECT_TRUE(u2 == u);
+}
+
+// A cluster above kExactSvdUpTo on both sides (1,152 texels, 3 x 361 values) takes the
+// iterative way: its coefficients match the exact ones (the Gram matrix's eigenvectors), on any
+// thread count.
+TEST(ClusterValues, LargeClustersUseTheIterativeSvdAndMatchTheExactOne) {
+  const int width = 36, height = 32, side = 19;
+  std::vector<Direction> dirs;
+  for (int i = 0; i < side; ++i) dirs.push_back({3.0 * i, 17.0 * i});
+  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  std::vector<float> bright(width * height), tint(width * height);
+  for (int t = 0; t < width * height; ++t) bright[t] = 0.5f + u01(rng), tint[t] = u01(rng);
+  std::vector<float> rgb(width * height * 3);
+  for (int image = 0; image < stack.numImages(); ++image) {
+    const float lobe = 0.2f + 0.8f * u01(rng), second = u01(rng);
+    for (int t = 0; t < width * height; ++t)
+      for (int c = 0; c < 3; ++c)
+        rgb[3 * t + c] = bright[t] * lobe * (1 + 0.1f * c) + 0.2f * tint[t] * second + 0.01f * u01(rng);
+    stack.setImageLinear(image, rgb.data());
+  }
+  ASSERT_GT(std::min(width * height, 3 * stack.numImages()), kExactSvdUpTo);
+  const std::vector<std::int32_t> ids(width * height, 0);
+  const std::vector<std::uint8_t> use(stack.numImages(), 1);
+  const float alpha = 2.0f;
+  const int terms = 2;
+  setThreadCount(1);
+  const std::vector<float> one = texelCoefficients(stack, alpha, ids, 1, use, terms, false);
+  setThreadCount(2);
+  const std::vector<float> two = texelCoefficients(stack, alpha, ids, 1, use, terms, false);
+  setThreadCount(0);
+  EXPECT_EQ(one, two);
+  const int n = width * height, dims = 3 * stack.numImages();
+  Eigen::MatrixXd y(n, dims);
+  for (int t = 0; t < n; ++t)
+    for (int i = 0; i < stack.numImages(); ++i)
+      for (int c = 0; c < 3; ++c) y(t, 3 * i + c) = stack.sample(i, t, c) / alpha;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(y * y.transpose());
+  for (int r = 0; r < terms; ++r) {
+    Eigen::VectorXd exact = eig.eigenvectors().col(n - 1 - r) * std::sqrt(static_cast<double>(n));
+    if (exact.sum() < 0) exact = -exact;
+    // (The first term's sign is fixed by a positive sum; a later term's sum can be near 0.)
+    double worst[2] = {0, 0};
+    for (int t = 0; t < n; ++t)
+      for (int sign : {0, 1})
+        worst[sign] = std::max(worst[sign], std::abs((sign ? -exact(t) : exact(t)) - one[static_cast<std::size_t>(t) * terms + r]));
+    EXPECT_LT(r == 0 ? worst[0] : std::min(worst[0], worst[1]), 1e-4) << "term " << r;
   }
 }
 

@@ -71,6 +71,26 @@ TEST_F(CmdCompress, MissingInputIsNamed) {
   EXPECT_FALSE(fs::exists(path("out.nbtf")));
 }
 
+// --memory-limit: a run whose estimated peak is above it is refused before loading, with the
+// stack, the estimate and the limit named, and nothing written; a bad size names the option.
+TEST_F(CmdCompress, MemoryLimitRefusesWhatCannotFit) {
+  std::string stack = writeStack();
+  const std::string out = path("out.nbtf");
+  RunResult r = run("compress " + stack + " -o " + out + " --clusters 4 -q --memory-limit 100M");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "nbtf compress: error: " + stack + ": ")) << r.output;
+  EXPECT_TRUE(contains(r.output, "need about")) << r.output;
+  EXPECT_TRUE(contains(r.output, "--memory-limit 100M allows 100 MiB")) << r.output;
+  EXPECT_TRUE(contains(r.output, "the stack and the program alone do not fit")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out + ".ckpt"));
+  EXPECT_FALSE(contains(r.output, "load")) << "refused before loading: " << r.output;
+  r = run("compress " + stack + " -o " + out + " --clusters 4 -q --memory-limit 12X");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "--memory-limit: expected a size in bytes")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(CmdCompress, UnwritableOutputFailsBeforeAnyWork) {
   std::string stack = writeStack();
   // Missing folders are created (one rule for every command), but not through a file.

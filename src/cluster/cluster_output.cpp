@@ -78,6 +78,26 @@ Eigen::MatrixXf texelMeanColour(const MatrixXfCol& linearAbrdfs) {
   return out;
 }
 
+Eigen::MatrixXf texelMeanColour(const BtfStack& stack) {
+  const Eigen::Index m = stack.numTexels();
+  const int images = stack.numImages();
+  if (images == 0) throw Error("texel colours: the stack has no images");
+  Eigen::MatrixXf out(m, 3);
+  // Texel ranges in parallel; within a range, images in order: the sums of the matrix version.
+  parallelFor(m, [&](std::size_t begin, std::size_t end) {
+    const Eigen::Index n = static_cast<Eigen::Index>(end - begin);
+    Eigen::ArrayXXd sum = Eigen::ArrayXXd::Zero(n, 3);
+    std::vector<float> abrdf(3 * static_cast<std::size_t>(images));
+    for (Eigen::Index i = 0; i < n; ++i) {
+      stack.abrdfLinear(static_cast<int>(begin + i), abrdf.data());
+      for (int image = 0; image < images; ++image)
+        for (int c = 0; c < 3; ++c) sum(i, c) += static_cast<double>(abrdf[3 * image + c]);
+    }
+    out.middleRows(begin, n) = (sum / static_cast<double>(images)).cast<float>().matrix();
+  }, 256);
+  return out;
+}
+
 Eigen::MatrixXf clusterMeanColour(const Eigen::MatrixXf& texelColour, const std::vector<std::int32_t>& ids, int k) {
   if (static_cast<Eigen::Index>(ids.size()) != texelColour.rows()) throw Error("cluster colours: one id per texel expected");
   Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(k, 3);
@@ -177,8 +197,9 @@ nlohmann::json clusteringSummary(const ClusteringResult& result, const Clusterin
     clusters.push_back({{"id", c}, {"size", result.sizes[c]}, {"colour", hex}});
   }
   j["clusters"] = clusters;
+  if (info.peakMemoryBytes > 0) j["peak_memory_bytes"] = info.peakMemoryBytes;
   j["seconds"] = {{"load", info.loadSeconds},
-                  {"abrdf_matrix", info.matrixSeconds},
+                  {"texel_colours", info.matrixSeconds},
                   {"standardize", info.standardizeSeconds},
                   {"pca", result.pcaSeconds},
                   {"kmeans", result.kmeansSeconds},

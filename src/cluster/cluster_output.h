@@ -25,6 +25,8 @@ Image8 labelImage(const std::vector<std::int32_t>& ids, int width, int height);
 // each texel's linear RGB averaged over all images (from the linear ABRDF matrix, M x 3N),
 // and the same with every texel given its cluster's average. M x 3, linear.
 Eigen::MatrixXf texelMeanColour(const MatrixXfCol& linearAbrdfs);
+// The same (bit for bit) from the stack, without the matrix.
+Eigen::MatrixXf texelMeanColour(const BtfStack& stack);
 Eigen::MatrixXf clusterMeanColour(const Eigen::MatrixXf& texelColour, const std::vector<std::int32_t>& ids, int k);
 // Linear RGB (M x 3) -> 8-bit sRGB image, divided by `scale` first (e.g. the brightest texel).
 Image8 colourImage(const Eigen::MatrixXf& rgb, int width, int height, float scale);
@@ -43,7 +45,10 @@ struct ClusterRunInfo {
   Crop crop;
   float alpha = 0;  // target normalization (linear)
   int threads = 0;
+  // matrixSeconds: the texel colours (one read of the stack); standardizeSeconds: the
+  // standardization's statistics (another). The ABRDF matrix is streamed, never built.
   double loadSeconds = 0, matrixSeconds = 0, standardizeSeconds = 0, totalSeconds = 0;
+  std::size_t peakMemoryBytes = 0;  // peak resident set size (getrusage), 0 = not measured
 };
 
 nlohmann::json clusteringSummary(const ClusteringResult& result, const ClusteringOptions& options,

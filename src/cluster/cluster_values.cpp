@@ -5,7 +5,9 @@
 #include <cmath>
 #include <string>
 
+#include "linalg/blas.h"
 #include "util/error.h"
+#include "util/random.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -75,6 +77,67 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
   return out;
 }
 
+namespace {
+
+// Orthonormal columns (thin Householder QR, in double).
+Eigen::MatrixXf orthonormalColumns(const Eigen::MatrixXf& a) {
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(a.cast<double>());
+  return (qr.householderQ() * Eigen::MatrixXd::Identity(a.rows(), a.cols())).cast<float>();
+}
+
+}  // namespace
+
+void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
+                            Eigen::VectorXd& sigma, int* iterationsOut) {
+  const Eigen::Index n = y.rows(), dims = y.cols();
+  const Eigen::Index rank = std::min(n, dims);
+  if (terms < 1 || rank == 0) throw Error("top singular vectors: need terms >= 1 and a non-empty matrix");
+  const Eigen::Index want = std::min<Eigen::Index>(terms, rank);
+  const Eigen::Index block = std::min<Eigen::Index>(rank, want + 6);
+  // Start: the mean row (close to the top right singular vector of same-signed data) and fixed
+  // pseudo-random directions.
+  Eigen::MatrixXf v(dims, block);
+  v.col(0) = y.colwise().sum().transpose();
+  if (!(v.col(0).squaredNorm() > 0)) v.col(0).setOnes();
+  SplitMix64 random(seed);
+  for (Eigen::Index j = 1; j < block; ++j)
+    for (Eigen::Index d = 0; d < dims; ++d) v(d, j) = static_cast<float>(random.uniform() - 0.5);
+  v = orthonormalColumns(v);
+  Eigen::MatrixXf w(n, block), z(dims, block);
+  Eigen::MatrixXd previous;
+  constexpr int kMaxIterations = 200;
+  int iteration = 0;
+  for (; iteration < kMaxIterations; ++iteration) {
+    // q = orth(y v); B = q^T y (block x dims); B B^T = Ub S^2 Ub^T: y's left singular vectors
+    // are approximately q Ub, the next right ones orth(B^T) = orth(y^T q). Single-threaded BLAS
+    // products: the same bits on any thread count.
+    gemmOnThisThread(false, false, static_cast<int>(n), static_cast<int>(block), static_cast<int>(dims), y.data(),
+                     static_cast<int>(n), v.data(), static_cast<int>(dims), w.data(), static_cast<int>(n));
+    const Eigen::MatrixXf q = orthonormalColumns(w);
+    gemmOnThisThread(true, false, static_cast<int>(dims), static_cast<int>(block), static_cast<int>(n), y.data(),
+                     static_cast<int>(n), q.data(), static_cast<int>(n), z.data(), static_cast<int>(dims));
+    const Eigen::MatrixXd zd = z.cast<double>();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(zd.transpose() * zd);  // = B B^T, ascending
+    u.resize(n, want);
+    sigma.resize(want);
+    for (Eigen::Index r = 0; r < want; ++r) {
+      u.col(r) = q.cast<double>() * eig.eigenvectors().col(block - 1 - r);
+      sigma(r) = std::sqrt(std::max(0.0, eig.eigenvalues()(block - 1 - r)));
+    }
+    v = orthonormalColumns(z);
+    // Converged when every wanted vector stopped turning: 1 - |cos| below 1e-11 (angles of
+    // about 4e-6 rad, float resolution of the data's products).
+    bool done = previous.size() > 0;
+    for (Eigen::Index r = 0; done && r < want; ++r) {
+      const double cosine = std::abs(previous.col(r).dot(u.col(r)));
+      if (sigma(r) > 1e-12 * std::max(1.0, sigma(0)) && 1.0 - cosine > 1e-11) done = false;
+    }
+    previous = u;
+    if (done) break;
+  }
+  if (iterationsOut) *iterationsOut = iteration + 1;
+}
+
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                      int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress) {
   const int images = stack.numImages();
@@ -106,6 +169,23 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
       for (std::size_t j = 0; j < used.size(); ++j)
         for (Eigen::Index k = 0; k < n; ++k)
           for (int c = 0; c < 3; ++c) y(k, 3 * j + c) = stack.sample(used[j], texelsOf[k], c) * invAlpha;
+      const double scale = std::sqrt(static_cast<double>(n));
+      if (std::min(n, dims) > kExactSvdUpTo) {
+        // Large clusters of long ABRDFs: subspace iteration for the top vectors only
+        // (n x dims x (terms + 6) per iteration instead of n x min(n, dims) x dims).
+        Eigen::MatrixXd u;
+        Eigen::VectorXd sigma;
+        topLeftSingularVectors(y, terms, SplitMix64::mix(0x5eed5eedULL, g), u, sigma);
+        for (int r = 0; r < terms && r < u.cols(); ++r) {
+          if (sigma(r) * sigma(r) <= 1e-12 * std::max(1.0, sigma(0) * sigma(0))) break;
+          Eigen::VectorXd ur = u.col(r);
+          if (ur.sum() < 0) ur = -ur;
+          for (Eigen::Index k = 0; k < n; ++k)
+            out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * ur(k));
+        }
+        bar.advance(static_cast<std::size_t>(n));
+        continue;
+      }
       // The left singular vectors of y come from the smaller of its two Gram matrices: the
       // n x n one (y y^T: its eigenvectors), or, for clusters with more texels than values per
       // ABRDF (few images, large clusters), the dims x dims one (y^T y: u = y v / sigma).
@@ -119,7 +199,6 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
       }
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
       const Eigen::Index m = gram.rows();
-      const double scale = std::sqrt(static_cast<double>(n));
       for (int r = 0; r < terms && r < m; ++r) {
         const double lambda = eig.eigenvalues()(m - 1 - r);  // eigenvalues ascend
         if (lambda <= 1e-12 * std::max(1.0, eig.eigenvalues()(m - 1))) break;

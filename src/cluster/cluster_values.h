@@ -7,6 +7,7 @@
 // a per-cluster projection, whose floor lies below the plain one.
 // Also the coefficients themselves, derived from the data (a rank-R model per cluster).
 #pragma once
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
@@ -33,9 +34,24 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
 // sqrt(n_c) x its entries of the top `terms` left singular vectors, the first oriented to a
 // positive sum (with terms = 1: a brightness factor of mean square 1). Texels x terms.
 // Parallel over clusters, each computed alone: the same on any thread count. Costs
-// sum_c n_c^2 x 3 x images multiply-adds and n_c x 3 x images floats per cluster in flight.
+// sum_c n_c x min(n_c, 3 x images) x 3 x images multiply-adds (clusters above kExactSvdUpTo:
+// about 40 x n_c x 3 x images x (terms + 6), subspace iteration) and n_c x 3 x images floats per
+// cluster in flight.
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                      int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress);
+
+// Clusters whose min(n_c, 3 x images) is above this take the top `terms` singular vectors by
+// subspace iteration (topLeftSingularVectors) instead of the exact eigen-decomposition of a
+// Gram matrix: a 100 x 100 material at the default k = 500 never has such a cluster, so its
+// coefficients are the exact ones, bit for bit; at 800 x 800 texels the exact way costs hours.
+constexpr long kExactSvdUpTo = 1024;
+
+// The top `terms` left singular vectors u (n x terms, unit columns) and singular values of y
+// (n x dims), by block subspace iteration (block terms + 6, Rayleigh-Ritz each iteration,
+// single-threaded BLAS products) until every vector turns by less than about 4e-6 rad per
+// iteration (at most 200 iterations). Deterministic for a seed. Signs are arbitrary.
+void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
+                            Eigen::VectorXd& sigma, int* iterations = nullptr);
 
 // Refit after training: every texel's coefficients that best mix its cluster's trained terms,
 // least squares over `images` (linear / alpha): per cluster the R x R Gram matrix of its terms,

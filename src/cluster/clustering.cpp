@@ -63,6 +63,11 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::int32_t>& ids, int k,
                                    Representative kind) {
+  return clusterRepresentatives(DenseAbrdfSource(x), ids, k, kind);
+}
+
+MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::int32_t>& ids, int k,
+                                   Representative kind, const std::string& progressLabel) {
   if (k < 1) throw Error("cluster representatives: k must be at least 1, got " + std::to_string(k));
   if (static_cast<Eigen::Index>(ids.size()) != x.rows()) {
     std::ostringstream s;
@@ -89,12 +94,14 @@ MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::
 
   // Dimension by dimension: a column of X is contiguous and small enough to stay in cache
   // while every cluster gathers its values from it, and no cluster is ever copied whole
-  // (a single cluster of a full material would be gigabytes).
+  // (a single cluster of a full material would be gigabytes). Columns come in slices
+  // (preprocess/abrdf_source.h): from the stack, X never exists whole either.
   MatrixXfCol out(k, x.cols());
-  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
+  const Eigen::Index rows = x.rows();
+  x.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
     std::vector<float> values(largest);
-    for (std::size_t d = begin; d < end; ++d) {
-      const float* column = x.col(d).data();
+    for (Eigen::Index d = c0; d < c1; ++d) {
+      const float* column = data + (d - c0) * rows;
       float* rep = out.col(d).data();
       for (int c = 0; c < k; ++c) {
         const std::int32_t n = offset[c + 1] - offset[c];
@@ -120,13 +127,17 @@ MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::
         }
       }
     }
-  });
+  }, progressLabel);
   return out;
 }
 
 // ---- The stage
 
 ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options) {
+  return clusterAbrdfs(DenseAbrdfSource(x), options);
+}
+
+ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options) {
   const Eigen::Index m = x.rows(), dims = x.cols();
   if (m == 0 || dims == 0) throw Error("clustering: empty ABRDF matrix");
   if (options.clusters < 1)
@@ -161,7 +172,8 @@ ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& op
   result.emptyClusters = kmeans.emptyClusters;
 
   start = std::chrono::steady_clock::now();
-  result.representatives = clusterRepresentatives(x, kmeans.ids, options.clusters, options.representative);
+  result.representatives = clusterRepresentatives(x, kmeans.ids, options.clusters, options.representative,
+                                                  options.progress ? "representatives (dimensions)" : "");
   result.representativeSeconds = secondsSince(start);
   result.ids = std::move(kmeans.ids);
   result.sizes = std::move(kmeans.sizes);

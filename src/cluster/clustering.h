@@ -35,11 +35,17 @@ struct ClusteringResult {
   double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
 };
 
-// Per-dimension median (or mean) of each cluster's rows of x. k x D.
+// Per-dimension median (or mean) of each cluster's rows of x. k x D. One read of x, column
+// slice by column slice (progressLabel: a bar in dimensions; empty: none).
+MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::int32_t>& ids, int k,
+                                   Representative kind, const std::string& progressLabel = "");
 MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::int32_t>& ids, int k,
                                    Representative kind);
 
-// x: M x D standardized ABRDFs. Throws nbtf::Error on bad k or components.
+// x: M x D standardized ABRDFs, in memory or streamed from the stack (StackAbrdfSource: the
+// same bits; memory: the source's slices, the PCA's (M + D) x (C + p) floats, k-means' M x C
+// scores). Reads X 2 * powerIterations + 4 times. Throws nbtf::Error on bad k or components.
+ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options);
 ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options);
 
 }  // namespace nbtf

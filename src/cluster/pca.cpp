@@ -2,7 +2,9 @@
 
 #include <Eigen/QR>
 #include <Eigen/SVD>
+#include <climits>
 #include <cmath>
+#include <string>
 #include <sstream>
 
 #include "linalg/blas.h"
@@ -21,33 +23,39 @@ namespace {
 
 constexpr Eigen::Index kRun = 1024;
 
-// Column means and the total (population) variance; one pass over X.
-void columnStatistics(const MatrixXfCol& x, Eigen::VectorXf& mean, double& totalVariance) {
+int checkedInt(Eigen::Index v) {
+  if (v > INT_MAX) throw Error("PCA: a matrix size exceeds the BLAS index range");
+  return static_cast<int>(v);
+}
+
+// Column means and the total (population) variance; one pass over X, column slice by slice.
+void columnStatistics(const AbrdfSource& x, Eigen::VectorXf& mean, double& totalVariance, const std::string& label) {
   mean.resize(x.cols());
   Eigen::VectorXd variance(x.cols());
-  const double rows = static_cast<double>(x.rows());
-  parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
-    for (std::size_t d = begin; d < end; ++d) {
+  const Eigen::Index rows = x.rows();
+  const double n = static_cast<double>(rows);
+  x.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
+    for (Eigen::Index d = c0; d < c1; ++d) {
       // Two passes over one column (it stays in cache): float sums over short runs, which
       // Eigen vectorizes, accumulated in double.
-      const float* col = x.col(d).data();
+      const float* col = data + (d - c0) * rows;
       double sum = 0;
-      for (Eigen::Index b = 0; b < x.rows(); b += kRun)
-        sum += Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, x.rows() - b)).sum();
-      const double m = sum / rows;
+      for (Eigen::Index b = 0; b < rows; b += kRun)
+        sum += Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, rows - b)).sum();
+      const double m = sum / n;
       const float mf = static_cast<float>(m);
       double squares = 0;
-      for (Eigen::Index b = 0; b < x.rows(); b += kRun)
-        squares += (Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, x.rows() - b)) - mf).square().sum();
+      for (Eigen::Index b = 0; b < rows; b += kRun)
+        squares += (Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, rows - b)) - mf).square().sum();
       if (!std::isfinite(m) || !std::isfinite(squares)) {
         std::ostringstream s;
         s << "PCA: dimension " << d << " holds NaN or Inf values";
         throw Error(s.str());
       }
       mean[d] = static_cast<float>(m);
-      variance[d] = squares / rows;
+      variance[d] = squares / n;
     }
-  });
+  }, label);
   totalVariance = variance.sum();
 }
 
@@ -60,16 +68,27 @@ MatrixXfCol orthonormalize(const MatrixXfCol& y) {
 // The centred products, without ever forming X - mean:
 //   (X - 1 mean^T) B   = X B   - 1 (mean^T B)
 //   (X - 1 mean^T)^T Q = X^T Q - mean (1^T Q)
-MatrixXfCol centredTimes(const MatrixXfCol& x, const Eigen::VectorXf& mean, const MatrixXfCol& b) {
-  MatrixXfCol y;
-  blasMultiply(x, false, b, y);
+// X B row slice by row slice, X^T Q column slice by column slice: one single-threaded BLAS
+// product per slice (the slices of linalg/blas.cpp's blasMultiply), so every entry is computed
+// the same way whatever the thread count and wherever the slice comes from.
+MatrixXfCol centredTimes(const AbrdfSource& x, const Eigen::VectorXf& mean, const MatrixXfCol& b,
+                         const std::string& label) {
+  MatrixXfCol y(x.rows(), b.cols());
+  const int n = checkedInt(b.cols()), k = checkedInt(x.cols()), ldc = checkedInt(x.rows());
+  x.forEachRowSlice([&](Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld) {
+    gemmOnThisThread(false, false, static_cast<int>(r1 - r0), n, k, data, checkedInt(ld), b.data(), k, y.data() + r0, ldc);
+  }, label);
   Eigen::RowVectorXf shift = mean.transpose() * b;
   y.rowwise() -= shift;
   return y;
 }
-MatrixXfCol centredTransposeTimes(const MatrixXfCol& x, const Eigen::VectorXf& mean, const MatrixXfCol& q) {
-  MatrixXfCol z;
-  blasMultiply(x, true, q, z);
+MatrixXfCol centredTransposeTimes(const AbrdfSource& x, const Eigen::VectorXf& mean, const MatrixXfCol& q,
+                                  const std::string& label) {
+  MatrixXfCol z(x.cols(), q.cols());
+  const int n = checkedInt(q.cols()), k = checkedInt(x.rows()), ldc = checkedInt(x.cols());
+  x.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
+    gemmOnThisThread(true, false, static_cast<int>(c1 - c0), n, k, data, k, q.data(), k, z.data() + c0, ldc);
+  }, label);
   Eigen::RowVectorXf sums = q.colwise().sum();
   z.noalias() -= mean * sums;
   return z;
@@ -78,6 +97,10 @@ MatrixXfCol centredTransposeTimes(const MatrixXfCol& x, const Eigen::VectorXf& m
 }  // namespace
 
 PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options) {
+  return randomizedPca(DenseAbrdfSource(x), options);
+}
+
+PcaResult randomizedPca(const AbrdfSource& x, const PcaOptions& options) {
   const Eigen::Index rows = x.rows(), dims = x.cols();
   const Eigen::Index rank = std::min(rows, dims);
   if (options.components < 1 || options.components > rank) {
@@ -92,8 +115,15 @@ PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options) {
   const Eigen::Index sketch = std::min<Eigen::Index>(components + options.oversampling, rank);
 
   PcaResult result;
-  columnStatistics(x, result.mean, result.totalVariance);
-  Progress bar("pca", 2 * options.powerIterations + 2, options.progress);
+  // One read of X for the statistics, 2 q + 2 for the products; a progress bar for each.
+  const int passes = 2 * options.powerIterations + 3;
+  int pass = 0;
+  auto label = [&](const char* what) {
+    ++pass;
+    return options.progress ? "pca pass " + std::to_string(pass) + "/" + std::to_string(passes) + " (" + what + ")"
+                            : std::string();
+  };
+  columnStatistics(x, result.mean, result.totalVariance, label("statistics, dimensions"));
 
   // Range finder: a Gaussian sketch of the column space, sharpened by power iterations
   // (each one squares the decay of the singular values the sketch must separate).
@@ -101,20 +131,16 @@ PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options) {
   MatrixXfCol omega(dims, sketch);
   for (Eigen::Index j = 0; j < sketch; ++j)
     for (Eigen::Index d = 0; d < dims; ++d) omega(d, j) = static_cast<float>(random.normal());
-  MatrixXfCol q = orthonormalize(centredTimes(x, result.mean, omega));
+  MatrixXfCol q = orthonormalize(centredTimes(x, result.mean, omega, label("sketch, texels")));
   omega.resize(0, 0);
-  bar.advance();
   for (int i = 0; i < options.powerIterations; ++i) {
-    MatrixXfCol z = orthonormalize(centredTransposeTimes(x, result.mean, q));
-    bar.advance();
-    q = orthonormalize(centredTimes(x, result.mean, z));
-    bar.advance();
+    MatrixXfCol z = orthonormalize(centredTransposeTimes(x, result.mean, q, label("power iteration, dimensions")));
+    q = orthonormalize(centredTimes(x, result.mean, z, label("power iteration, texels")));
   }
 
   // B = Q^T (X - mean) is small (sketch x D). With B^T = Qb R: B = R^T Qb^T, and the SVD
   // of the tiny R^T = U S W^T gives B = U S (Qb W)^T.
-  MatrixXfCol bt = centredTransposeTimes(x, result.mean, q);
-  bar.advance();
+  MatrixXfCol bt = centredTransposeTimes(x, result.mean, q, label("projection, dimensions"));
   Eigen::HouseholderQR<MatrixXfCol> qr(bt);
   MatrixXfCol qb = qr.householderQ() * MatrixXfCol::Identity(dims, sketch);
   Eigen::MatrixXd rt = qr.matrixQR().topRows(sketch).triangularView<Eigen::Upper>().toDenseMatrix().transpose().cast<double>();
@@ -138,7 +164,6 @@ PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options) {
       result.scores.col(j) *= -1.0f;
     }
   }
-  bar.finish();
   return result;
 }
 

@@ -4,15 +4,16 @@
 #include <Eigen/Core>
 #include <cstdint>
 
-#include "preprocess/abrdf_matrix.h"
+#include "preprocess/abrdf_source.h"
 
 namespace nbtf {
 
-// Cost is 2 * powerIterations + 2 passes over X; a wide sketch is cheaper than more passes
-// (a pass costs little more at 80 columns than at 42). On a synthetic fabric (32 components,
-// 93.3% explained), the explained variance falls short of the exact PCA's by 1.5e-4 of itself
-// with these defaults (4 passes), 6e-5 with 4 iterations and oversampling 10 (10 passes):
-// far below what changes a clustering. Raise powerIterations for flat spectra.
+// Cost is 2 * powerIterations + 2 product passes over X (+ 1 for the column statistics); a
+// wide sketch is cheaper than more passes (a pass costs little more at 80 columns than at
+// 42). On a synthetic fabric (32 components, 93.3% explained), the explained variance falls
+// short of the exact PCA's by 1.5e-4 of itself with these defaults (4 passes), 6e-5 with 4
+// iterations and oversampling 10 (10 passes): far below what changes a clustering. Raise
+// powerIterations for flat spectra.
 struct PcaOptions {
   int components = 32;
   int oversampling = 48;
@@ -31,7 +32,10 @@ struct PcaResult {
   double explainedRatio() const; // sum(explainedVariance) / totalVariance
 };
 
-// Throws nbtf::Error if components < 1 or components > min(M, D).
+// Throws nbtf::Error if components < 1 or components > min(M, D). X comes from `x` in slices
+// (preprocess/abrdf_source.h): 2 * powerIterations + 3 reads, never a copy of X. An in-memory
+// X and a stack give the same bits.
+PcaResult randomizedPca(const AbrdfSource& x, const PcaOptions& options);
 PcaResult randomizedPca(const MatrixXfCol& x, const PcaOptions& options);
 
 }  // namespace nbtf

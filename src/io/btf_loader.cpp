@@ -194,6 +194,25 @@ Crop checkCrop(const std::string& path, const LoadOptions& options) {
   return cropFor(path, listBtfStack(path, options.layout), options, srcW, srcH);
 }
 
+StackShape stackShape(const std::string& path, const LoadOptions& options) {
+  StackShape shape;
+  if (looksLikeUbo2014(path)) {
+    Ubo2014Btf btf = Ubo2014Btf::read(path);
+    const Crop crop = options.crop.empty() ? Crop{0, 0, btf.width(), btf.height()} : options.crop;  // checked on loading
+    shape.lights = btf.numLights(), shape.views = btf.numViews();
+    shape.width = crop.width, shape.height = crop.height;
+    shape.type = SampleType::Half;  // the crop is expanded as half floats
+    return shape;
+  }
+  StackListing listing = listBtfStack(path, options.layout);
+  int srcW = 0, srcH = 0;
+  const Crop crop = cropFor(path, listing, options, srcW, srcH);
+  shape.lights = static_cast<int>(listing.lights.size()), shape.views = static_cast<int>(listing.views.size());
+  shape.width = crop.width, shape.height = crop.height;
+  shape.type = imageFormatFromName(listing.files.front()) == ImageFormat::Exr ? SampleType::Half : SampleType::Srgb8;
+  return shape;
+}
+
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
   // A UBO2014 file: the factors are read, and only the crop's texels are expanded.
   if (looksLikeUbo2014(path)) return Ubo2014Btf::read(path).toStack(options.crop, options.progress);

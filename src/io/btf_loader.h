@@ -34,6 +34,20 @@ StackListing listBtfStack(const std::string& path, Layout forced = Layout::Unkno
 // naming the file and the problem for every kind of bad input.
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
 
+// The shape a load would give (crop applied), from the listing and the first image only
+// (a UBO2014 file: its header and factors): what memory estimates need before loading.
+struct StackShape {
+  int lights = 0, views = 0, width = 0, height = 0;
+  SampleType type = SampleType::Srgb8;
+  std::int64_t texels() const { return static_cast<std::int64_t>(width) * height; }
+  int images() const { return lights * views; }
+  // Bytes of the loaded stack: 8-bit sRGB (1 byte per value) or half (2).
+  std::size_t stackBytes() const {
+    return static_cast<std::size_t>(images()) * static_cast<std::size_t>(texels()) * 3 * (type == SampleType::Srgb8 ? 1 : 2);
+  }
+};
+StackShape stackShape(const std::string& path, const LoadOptions& options = {});
+
 // Lists the stack and reads its first image only: throws the loader's errors (a crop outside
 // the images included) before a long load. Returns the crop that loading would apply.
 Crop checkCrop(const std::string& path, const LoadOptions& options);

@@ -226,7 +226,7 @@ std::string adaptiveMetadataJson(const CompressOptions& o, const std::vector<Ada
   return a.dump();
 }
 
-CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, MatrixXfCol x,
+CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x,
                                ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats) {
   const AdaptiveOptions& a = o.adaptive;
   const bool say = o.progress && !Progress::quiet();  // stage lines, as the progress bars

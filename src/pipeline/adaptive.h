@@ -52,8 +52,9 @@ int initialAdaptiveClusters(const CompressOptions& o, std::int64_t texels);
 
 // The adaptive pipeline from the initial clustering (with scores) on: stages, edits, the
 // final material; fills stats (adaptiveStages, RMSE, sizes). `x`: the standardized M x 3N
-// ABRDF matrix (representatives of changed clusters are medians of its rows).
-CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, MatrixXfCol x,
+// ABRDF matrix, streamed from the stack (representatives of changed clusters are medians of
+// its rows, one read of it per stage).
+CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x,
                                ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats);
 
 // The "adaptive" object of the file's metadata: {"stages": [{k, steps, rmse_train, bytes,

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <tuple>
 #include <utility>
 #include <nlohmann/json.hpp>
@@ -13,13 +14,16 @@
 #include "codec/decoder.h"
 #include "pipeline/adaptive.h"
 #include "pipeline/compressor_internal.h"
+#include "pipeline/memory_estimate.h"
 #include "pipeline/pca_compressor.h"
 #include "io/source_fingerprint.h"
 #include "codec/texel_modulation.h"
 #include "model/training_set.h"
 #include "preprocess/abrdf_matrix.h"
+#include "preprocess/abrdf_source.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/memory.h"
 #include "util/parallel.h"
 
 namespace nbtf {
@@ -248,12 +252,21 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.method = o.clusters > 0 ? CodecMethod::ClusteredNeural : CodecMethod::PerTexelNeural;
   checkClusterCount(o.clusters, texels, stack.source.empty() ? "the material" : stack.source);
 
-  // ---- Preprocess: linear ABRDF matrix, log + standardize (eq. 1-4), alpha (eq. 5)
+  // ---- Preprocess: log + standardize (eq. 1-4), alpha (eq. 5). Clustered: the statistics
+  // only, from the stack; the standardized ABRDF matrix is streamed from the stack in slices
+  // (preprocess/abrdf_source.h) and never exists whole. Per-texel: the matrix itself, the
+  // encoder's input.
   auto t = Clock::now();
   const float alpha = targetAlpha(stack);
   stats.alpha = alpha;
-  MatrixXfCol x = abrdfMatrix(stack, o.progress);
-  standardizeInPlace(x);
+  MatrixXfCol x;
+  std::unique_ptr<StackAbrdfSource> source;
+  if (o.clusters > 0) {
+    source = std::make_unique<StackAbrdfSource>(stack, fitStandardization(stack, o.progress));
+  } else {
+    x = abrdfMatrix(stack, o.progress);
+    standardizeInPlace(x);
+  }
   stats.seconds.preprocess = secondsSince(t);
 
   // ---- Cluster (PCA + k-means++ + per-cluster medians), or per-texel: X itself
@@ -266,7 +279,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   if (o.clusters > 0) {
     ClusteringOptions co;
     co.clusters = o.clusters;
-    int maxComponents = static_cast<int>(std::min<Eigen::Index>(x.rows(), x.cols()));
+    int maxComponents = static_cast<int>(std::min<Eigen::Index>(source->rows(), source->cols()));
     if (o.pcaComponents > maxComponents)
       throw Error("--components " + std::to_string(o.pcaComponents) + " exceeds the " +
                   std::to_string(maxComponents) + " the data allows (min of texels and 3 x images)");
@@ -282,14 +295,14 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
       co.clusters = detail::initialAdaptiveClusters(o, texels);
       co.keepScores = true;  // splits are 2-means in the same PCA space
     }
-    clustering = clusterAbrdfs(x, co);
+    clustering = clusterAbrdfs(*source, co);
     if (adaptive) {
       stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
       stats.pcaComponents = pcaComponents;
       stats.seconds.cluster = secondsSince(t);
-      return detail::compressAdaptive(stack, o, std::move(x), std::move(clustering), alpha, pcaComponents, stats);
+      return detail::compressAdaptive(stack, o, *source, std::move(clustering), alpha, pcaComponents, stats);
     }
-    x.resize(0, 0);  // the encoder sees only the k representatives: free the M x 3N matrix
+    source.reset();  // the encoder sees only the k representatives
     stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
     stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
     inputs.encoderInputs = &clustering.representatives;
@@ -395,6 +408,18 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
 
   CompressStats stats;
   stats.output = output;
+  {
+    // ---- Fail before loading when the run cannot fit in --memory-limit.
+    const StackShape shape = stackShape(input, o.load);
+    const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
+    const MemoryEstimate estimate = estimateCompressMemory(
+        shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
+        PcaOptions().oversampling, modulated ? o.train.modulation.terms : 1, threadCount());
+    stats.memoryEstimate = estimate.total();
+    stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
+    enforceMemoryLimit(estimate, stats.memoryLimit,
+                       o.memoryLimitText.empty() ? memoryLimitText(false, "") : o.memoryLimitText, input, shape);
+  }
   auto t = Clock::now();
   LoadOptions load = o.load;
   load.progress = load.progress && o.progress;
@@ -406,6 +431,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
 
   CompressedBtf btf = compressStack(stack, o, stats);  // fills the other stages' seconds
+  stats.peakMemory = peakResidentBytes();
   if (stats.interrupted || stats.worker) return stats;
 
   // ---- Write (atomic); the encoder copy is the same file plus the encoder section.
@@ -428,6 +454,14 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
 }
 
 // ---- Reporting
+
+namespace {
+std::string formatMemoryLine(const CompressStats& s) {
+  if (s.peakMemory == 0) return "";
+  return "memory: peak " + formatBytes(s.peakMemory) + " resident (estimated before loading: " +
+         formatBytes(s.memoryEstimate) + "; --memory-limit " + formatBytes(s.memoryLimit) + ")\n";
+}
+}  // namespace
 
 std::string formatCompressSummary(const CompressStats& s) {
   std::string out;
@@ -502,6 +536,7 @@ std::string formatCompressSummary(const CompressStats& s) {
                   "%.2f | total %.2f\n",
                   t.load, t.preprocess, t.pca, t.write, t.total());
     out += line;
+    out += formatMemoryLine(s);
     return out;
   }
   std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
@@ -519,6 +554,7 @@ std::string formatCompressSummary(const CompressStats& s) {
                 "%.2f\n",
                 t.load, t.preprocess, t.cluster, t.train, t.write, t.total());
   out += line;
+  out += formatMemoryLine(s);
   return out;
 }
 
@@ -559,6 +595,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["decoder_gflops"] = s.decoderGflops;
   j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
   j["interrupted"] = s.interrupted;
+  j["memory_bytes"] = {{"peak_resident", s.peakMemory}, {"estimate", s.memoryEstimate}, {"limit", s.memoryLimit}};
   j["world_size"] = s.worldSize;
   j["all_reduce_bytes_per_step"] = s.allReduceBytesPerStep;
   j["all_reduce_seconds_per_step"] = s.allReduceSecondsPerStep;

@@ -1,6 +1,7 @@
-// The compression pipeline behind `nbtf compress`: load -> ABRDF matrix -> standardize ->
-// (clustered) PCA + k-means++ + representatives | (per-texel) the standardized matrix
-// itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
+// The compression pipeline behind `nbtf compress`: memory estimate (--memory-limit) -> load ->
+// standardization statistics -> (clustered) PCA + k-means++ + representatives over the ABRDF
+// matrix streamed from the stack (preprocess/abrdf_source.h) | (per-texel) the standardized
+// matrix itself -> train the encoder/decoder -> CompressedBtf -> .nbtf (atomic write).
 // The PCA baseline (pcaBaseline) replaces everything after loading: pipeline/pca_compressor.h.
 // Deterministic for a seed and thread count.
 #pragma once
@@ -56,6 +57,11 @@ struct CompressOptions {
   bool progress = true;
   std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
   AdaptiveOptions adaptive;     // clustered only
+  // compressBtf refuses, before loading, a run whose estimated peak memory
+  // (pipeline/memory_estimate.h) is above this many bytes; 0 = defaultMemoryLimit() (75% of
+  // physical memory). memoryLimitText: how the limit was given, for the error ("" = default).
+  std::size_t memoryLimit = 0;
+  std::string memoryLimitText;
 };
 
 // Wall-clock seconds per stage.
@@ -97,6 +103,9 @@ struct CompressStats {
   std::string checkpointPath;
   std::vector<AdaptiveStage> adaptiveStages;  // empty unless --adaptive
   std::string adaptiveStopReason;             // why the clusters stopped growing
+  // Memory (compressBtf): the estimate checked before loading, the limit, and the peak
+  // resident set size at the end (getrusage), bytes; 0 = not measured (compressStack alone).
+  std::size_t memoryEstimate = 0, memoryLimit = 0, peakMemory = 0;
 };
 
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).

@@ -136,34 +136,75 @@ void Standardization::invert(MatrixXfCol& z) const {
   });
 }
 
+namespace {
+
+// One column of linear values (contiguous, cache-resident): log, two-pass mean and variance
+// in double, then scaled in place. The float sums run over Eigen maps whose vectorized
+// reduction depends on the column's address modulo the SIMD alignment, so callers that
+// stream (fitStandardization) lay columns out at the address offsets X would give them.
+void standardizeColumn(float* column, Eigen::Index rows, Eigen::Index d, float& meanOut, float& stddevOut) {
+  checkLogDomain(column, rows, d);
+  auto col = Eigen::Map<Eigen::ArrayXf>(column, rows);
+  log1pInPlace(column, rows);
+  double mean = columnSum(column, rows) / static_cast<double>(rows);
+  double stddev = std::sqrt(columnSquares(column, rows, static_cast<float>(mean)) / static_cast<double>(rows));
+  if (isConstantDimension(mean, stddev)) stddev = 0;
+  meanOut = static_cast<float>(mean);
+  stddevOut = static_cast<float>(stddev);
+  // Exactly the arithmetic of apply(), so fitting and re-applying agree bit for bit.
+  if (stddev > 0)
+    col = (col - meanOut) * (1.0f / stddevOut);
+  else
+    col = 0.0f;
+}
+
+}  // namespace
+
 Standardization standardizeInPlace(MatrixXfCol& x) {
   if (x.rows() == 0 || x.cols() == 0) throw Error("standardization: empty ABRDF matrix");
   Standardization s;
   s.mean.resize(x.cols());
   s.stddev.resize(x.cols());
-  const double rows = static_cast<double>(x.rows());
-  // Per column (contiguous, cache-resident): log, two-pass mean and variance in double,
-  // then scale. One pass over memory, no second copy of X.
+  // Per column: one pass over memory, no second copy of X.
   parallelFor(x.cols(), [&](std::size_t begin, std::size_t end) {
-    for (std::size_t d = begin; d < end; ++d) {
-      float* column = x.col(d).data();
-      checkLogDomain(column, x.rows(), d);
-      auto col = x.col(d).array();
-      log1pInPlace(column, x.rows());
-      double mean = columnSum(column, x.rows()) / rows;
-      double stddev = std::sqrt(columnSquares(column, x.rows(), static_cast<float>(mean)) / rows);
-      if (isConstantDimension(mean, stddev)) stddev = 0;
-      s.mean[d] = static_cast<float>(mean);
-      s.stddev[d] = static_cast<float>(stddev);
-      // Exactly the arithmetic of apply(), so fitting and re-applying agree bit for bit.
-      if (stddev > 0)
-        col = (col - s.mean[d]) * (1.0f / s.stddev[d]);
-      else
-        col = 0.0f;
-    }
+    for (std::size_t d = begin; d < end; ++d) standardizeColumn(x.col(d).data(), x.rows(), d, s.mean[d], s.stddev[d]);
   });
   return s;
 }
+
+Standardization fitStandardization(const BtfStack& stack, bool progress) {
+  const Eigen::Index texels = stack.numTexels(), dims = 3 * static_cast<Eigen::Index>(stack.numImages());
+  if (texels == 0 || dims == 0) throw fileError(stack.source, "empty BTF stack: nothing to cluster");
+  Standardization s;
+  s.mean.resize(dims);
+  s.stddev.resize(dims);
+  // One image (3 columns) per task, each column placed at the offset modulo the SIMD width
+  // that column 3 * image + c has in X (Eigen aligns X's start), so that the vectorized sums
+  // add the same values in the same order as standardizeInPlace: identical statistics.
+  constexpr Eigen::Index kAlign = 16 / sizeof(float);
+  const int workers = threadCount();
+  std::vector<Eigen::VectorXf> buffers(workers);
+  std::vector<std::vector<float>> images(workers);
+  Progress bar("standardize", stack.numImages(), progress);
+  parallelForDynamic(stack.numImages(), [&](std::size_t image, int worker) {
+    Eigen::VectorXf& buffer = buffers[worker];
+    std::vector<float>& rgb = images[worker];
+    if (buffer.size() == 0) buffer.resize(texels + kAlign);
+    if (rgb.empty()) rgb.resize(static_cast<std::size_t>(texels) * 3);
+    stack.imageLinear(static_cast<int>(image), rgb.data());
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
+      float* column = buffer.data() + (d * texels) % kAlign;
+      for (Eigen::Index t = 0; t < texels; ++t) column[t] = rgb[3 * t + c];
+      standardizeColumn(column, texels, d, s.mean[d], s.stddev[d]);
+    }
+    bar.advance();
+  });
+  bar.finish();
+  return s;
+}
+
+void log1pRun(float* values, Eigen::Index n) { log1pInPlace(values, n); }
 
 // ---- Target normalization
 

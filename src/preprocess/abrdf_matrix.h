@@ -30,6 +30,14 @@ struct Standardization {
 // Fits the standardization on X (linear values) and applies it in place (no second copy).
 Standardization standardizeInPlace(MatrixXfCol& x);
 
+// The same statistics (bit for bit) from the stack, streaming: one image's three columns at a
+// time per thread, never the M x 3N matrix. Progress in images.
+Standardization fitStandardization(const BtfStack& stack, bool progress = true);
+
+// log(x + 1) elementwise, in place: the transform standardization applies (value by value,
+// so any layout of the values gives the same results).
+void log1pRun(float* values, Eigen::Index n);
+
 // alpha of eq. (5): the global maximum of the linear values; targets are values / alpha.
 // Throws nbtf::Error if the stack is all zero (nothing to normalize by).
 float targetAlpha(const BtfStack& stack);

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Full-size materials through the streaming clustered pipeline (issue 19): the ABRDF matrix is
+# never built; PCA, the standardization statistics and the medians read the 8-bit stack in
+# slices. Compresses with the default recipe (k = 500) under /usr/bin/time -v and checks:
+#   256: a full 256 x 256 UBO2003-layout material: peak resident memory <= the 8-bit stack
+#        + 1 GiB, wall time < 10 minutes; RMSE reported. Also `nbtf cluster` alone (its peak).
+#   800: an 800 x 800 UTIA-layout material (nbtf-synth; ~12.6 GB as 8-bit, several GB of PNGs
+#        on disk, synthesis alone 10+ minutes): peak <= 16 GiB, wall time < 60 minutes.
+# Usage: scripts/bench_full.sh [256|800|all]   (default 256)
+# Data: $NBTF_BENCH_DATA (default build/bench_data) for 256 (shared with bench_load.sh);
+# $NBTF_BENCH_BIG (default /work/tmp-bench) for 800, deleted afterwards unless NBTF_KEEP_BIG=1.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+point=${1:-256}
+case "$point" in 256|800|all) ;; *) echo "usage: $0 [256|800|all]" >&2; exit 2;; esac
+"$root/scripts/setup.sh" --with time
+"$root/scripts/build.sh" "$root/build"
+bin=$root/build/bin
+out=$(mktemp -d /tmp/nbtf_bench_full.XXXXXX)
+trap 'rm -rf "$out"' EXIT
+echo "== $(nproc) cores, $(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo); $(date -u '+%Y-%m-%d %H:%M UTC')"
+
+# run NAME LOG COMMAND...: /usr/bin/time -v; prints and keeps "seconds peak_kib"
+run() {
+  local name=$1 log=$2
+  shift 2
+  echo "== $name: $*"
+  /usr/bin/time -v -o "$out/$name.time" "$@" >"$log" 2>&1 || { cat "$log"; cat "$out/$name.time"; echo "bench $name: command failed FAIL"; return 1; }
+  tail -n 25 "$log"
+  python3 - "$out/$name.time" <<'PY' >"$out/$name.result"
+import re, sys
+text = open(sys.argv[1]).read()
+kib = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", text).group(1))
+wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", text).group(1)
+seconds = 0.0
+for part in wall.split(":"):
+    seconds = seconds * 60 + float(part)
+print(f"{seconds:.1f} {kib}")
+PY
+}
+
+# check NAME STACK_BYTES EXTRA_LIMIT_BYTES TIME_LIMIT_S [STATS_JSON]
+check() {
+  python3 - "$out/$1.result" "$1" "$2" "$3" "$4" "${5:-}" <<'PY'
+import json, sys
+seconds, kib = open(sys.argv[1]).read().split()
+name, stack, extra, tmax, stats = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), float(sys.argv[5]), sys.argv[6]
+peak = int(kib) * 1024
+gib = 1024 ** 3
+limit = stack + extra
+rmse = ""
+if stats:
+    s = json.load(open(stats))
+    rmse = f", RMSE train {s['rmse_train']:.5f} (linear / alpha), floor {s['rmse_floor']}"
+ok_mem = peak <= limit
+ok_time = float(seconds) < tmax
+print(f"bench {name}_peak_memory: {peak / gib:.2f} GiB (8-bit stack {stack / gib:.2f} GiB; target <= {limit / gib:.2f} GiB) {'PASS' if ok_mem else 'FAIL'}")
+print(f"bench {name}_time: {float(seconds):.0f} s (target < {tmax:.0f} s){rmse} {'PASS' if ok_time else 'FAIL'}")
+PY
+}
+
+if [[ $point == 256 || $point == all ]]; then
+  data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric256_ubo2003
+  if [[ ! -f "$data/synth.json" ]]; then
+    echo "== generating the 256 x 256 UBO2003 stack (once; cached in $data)"
+    "$bin/nbtf-synth" --preset fabric --size 256x256 --layout ubo2003 --seed 1 --no-ground-truth -o "$data"
+  fi
+  stack=$((6561 * 256 * 256 * 3))
+  run full256_cluster "$out/cluster.log" "$bin/nbtf" cluster "$data" --clusters 500 -o "$out/c256"
+  check full256_cluster $stack $((1 << 30)) 600
+  run full256_compress "$out/compress.log" "$bin/nbtf" compress "$data" -o "$out/fabric256.nbtf" --clusters 500 \
+    --stats-json "$out/fabric256.json"
+  check full256_compress $stack $((1 << 30)) 600 "$out/fabric256.json"
+fi
+
+if [[ $point == 800 || $point == all ]]; then
+  big=${NBTF_BENCH_BIG:-/work/tmp-bench}/fabric800_utia
+  mkdir -p "$(dirname "$big")"
+  if [[ ! -f "$big/synth.json" ]]; then
+    echo "== generating the 800 x 800 UTIA stack in $big (10+ minutes, several GB)"
+    /usr/bin/time -f "synthesis: %e s" "$bin/nbtf-synth" --preset fabric --size 800x800 --layout utia --seed 1 \
+      --no-ground-truth -o "$big"
+  fi
+  du -sh "$big"
+  stack=$((6561 * 800 * 800 * 3))
+  run full800_compress "$out/compress800.log" "$bin/nbtf" compress "$big" -o "$out/fabric800.nbtf" --clusters 500 \
+    --stats-json "$out/fabric800.json"
+  check full800_compress $stack $(((16 << 30) - stack)) 3600 "$out/fabric800.json"
+  [[ ${NBTF_KEEP_BIG:-0} == 1 ]] || rm -rf "$big"
+fi

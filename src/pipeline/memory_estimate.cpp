@@ -1,0 +1,104 @@
+#include "pipeline/memory_estimate.h"
+
+#include <algorithm>
+#include <sstream>
+
+#include "preprocess/abrdf_source.h"
+#include "util/error.h"
+#include "util/memory.h"
+
+namespace nbtf {
+
+namespace {
+
+constexpr std::size_t kFloat = sizeof(float);
+// The process before any data: libtorch, OpenCV, OpenBLAS and their arenas (about 100 MiB
+// resident, measured), with allocator slack and the training's own arrays.
+constexpr std::size_t kProcess = std::size_t(256) << 20;
+
+struct Stage {
+  std::size_t bytes = 0;
+  const char* name = "";
+};
+
+// Clustering from the stack: the source's tables and slices, the PCA's texels x sketch and
+// 3N x sketch matrices (a few alive at once: Q, the product, the QR's copy), k-means' scores.
+Stage clusteringStage(const StackShape& shape, int components, int oversampling, int workers) {
+  const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
+  const std::size_t sketch = static_cast<std::size_t>(std::max(1, components + oversampling));
+  const std::size_t source = StackAbrdfSource::workingBytes(shape.texels(), shape.images(), shape.type, workers);
+  const std::size_t pca = 4 * m * sketch * kFloat + 4 * d * sketch * kFloat;
+  const std::size_t kmeans = 3 * m * static_cast<std::size_t>(std::max(1, components)) * kFloat + 32 * m;
+  return {source + pca + kmeans, "PCA of the streamed ABRDF matrix"};
+}
+
+// Per-texel modulation coefficients: one cluster's ABRDFs per thread (taken as 8 x the mean
+// cluster size, at most all texels), its Gram matrix when it is small, the texels' coefficients.
+Stage modulationStage(const StackShape& shape, int clusters, int terms, int workers) {
+  const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
+  const std::size_t large = std::min(m, 8 * m / static_cast<std::size_t>(std::max(1, clusters)) + 1);
+  const std::size_t side = std::min<std::size_t>(std::min(large, d), 1024);  // exact SVD only up to 1024 (cluster_values.h)
+  const std::size_t perWorker = large * d * kFloat + side * side * 8 * 2;
+  const std::size_t perTexel = m * static_cast<std::size_t>(std::max(1, terms)) * kFloat * 4 + m * 3 * kFloat * 2;
+  return {static_cast<std::size_t>(std::max(1, workers)) * perWorker + perTexel, "per-texel modulation coefficients"};
+}
+
+}  // namespace
+
+MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, bool pcaBaseline, int components,
+                                      int oversampling, int modulationTerms, int workers) {
+  MemoryEstimate e;
+  e.stack = shape.stackBytes();
+  e.process = kProcess;
+  const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
+  const std::size_t matrix = m * d * kFloat;
+  if (pcaBaseline || clusters <= 0) {
+    // The M x 3N float32 matrix in memory, plus a copy's worth of working space (the
+    // per-texel encoder's inputs, the baseline's products).
+    e.working = matrix + matrix / 4 + m * 3 * kFloat * static_cast<std::size_t>(std::max(1, workers));
+    e.stage = pcaBaseline ? "the PCA baseline's M x 3N float32 matrix" : "the per-texel mode's M x 3N float32 matrix";
+    return e;
+  }
+  Stage a = clusteringStage(shape, components, oversampling, workers);
+  Stage b = modulationStage(shape, clusters, modulationTerms, workers);
+  const Stage& top = a.bytes >= b.bytes ? a : b;
+  e.working = top.bytes;
+  e.stage = top.name;
+  return e;
+}
+
+MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
+                                     int workers) {
+  (void)clusters;
+  MemoryEstimate e;
+  e.stack = shape.stackBytes();
+  e.process = kProcess;
+  Stage a = clusteringStage(shape, components, oversampling, workers);
+  e.working = a.bytes;
+  e.stage = a.name;
+  return e;
+}
+
+void enforceMemoryLimit(const MemoryEstimate& e, std::size_t limit, const std::string& limitText,
+                        const std::string& input, const StackShape& shape) {
+  if (e.total() <= limit) return;
+  std::ostringstream s;
+  s << shape.width << " x " << shape.height << " texels x " << shape.images() << " images ("
+    << (shape.type == SampleType::Srgb8 ? "8-bit" : "half float") << ") need about " << formatBytes(e.total())
+    << " of memory: the stack " << formatBytes(e.stack) << " + " << formatBytes(e.working) << " for the "
+    << e.stage << " + " << formatBytes(e.process) << " for the program; " << limitText << " allows "
+    << formatBytes(limit);
+  if (e.stack + e.process > limit)
+    s << ": the stack and the program alone do not fit. Compress a part of it (--crop X,Y,W,H) or raise "
+         "--memory-limit";
+  else
+    s << ". Raise --memory-limit, or compress a part of it (--crop X,Y,W,H)";
+  throw fileError(input, s.str());
+}
+
+std::string memoryLimitText(bool given, const std::string& value) {
+  if (given) return "--memory-limit " + value;
+  return "the default --memory-limit (75% of the " + formatBytes(physicalMemoryBytes()) + " of physical memory)";
+}
+
+}  // namespace nbtf

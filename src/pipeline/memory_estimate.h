@@ -1,0 +1,39 @@
+// How much memory a run will take, estimated before the stack is loaded, and the check of
+// --memory-limit (docs/compress.md, *Memory*). The clustered pipeline streams the ABRDF matrix
+// from the stack (preprocess/abrdf_source.h), so its peak is the stack plus working sets that
+// grow with texels x (PCA sketch + components), 3N x (sketch + a few tables) and one cluster's
+// ABRDFs per thread, not with texels x 3N; the per-texel mode and the PCA baseline hold the
+// M x 3N float32 matrix.
+#pragma once
+#include <cstddef>
+#include <string>
+
+#include "io/btf_loader.h"
+
+namespace nbtf {
+
+struct MemoryEstimate {
+  std::size_t stack = 0;    // the loaded stack (8-bit or half)
+  std::size_t working = 0;  // the largest working set after loading (the stage named below)
+  std::size_t process = 0;  // the program itself: libraries (libtorch, OpenCV, BLAS), allocator slack
+  std::string stage;        // where the working set peaks
+  std::size_t total() const { return stack + working + process; }
+};
+
+// The clustered pipeline with k clusters (k > 0), the per-texel mode (k = 0), or the PCA
+// baseline (pcaBaseline), on `workers` threads. components: PCA components before k-means.
+MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, bool pcaBaseline, int components,
+                                      int oversampling, int modulationTerms, int workers);
+// `nbtf cluster` (no training; the texel colour images).
+MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
+                                     int workers);
+
+// Throws nbtf::Error naming the input, its shape, the estimate and the limit when the estimate
+// is above `limit`; `limitText` says where the limit came from (e.g. "--memory-limit 8G").
+void enforceMemoryLimit(const MemoryEstimate& estimate, std::size_t limit, const std::string& limitText,
+                        const std::string& input, const StackShape& shape);
+
+// "the default --memory-limit (75% of the 23.4 GiB of physical memory)" or "--memory-limit 8G".
+std::string memoryLimitText(bool given, const std::string& value);
+
+}  // namespace nbtf

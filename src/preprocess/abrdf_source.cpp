@@ -1,0 +1,187 @@
+#include "preprocess/abrdf_source.h"
+
+#include <algorithm>
+
+#include "io/color.h"
+#include "util/error.h"
+#include "util/half.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+
+namespace {
+
+// SIMD alignment of Eigen's vectorized code in this build, in floats (X's start is aligned to it).
+constexpr Eigen::Index kAlign = 16 / sizeof(float);
+
+// One buffer per worker thread, allocated on first use.
+struct WorkerBuffers {
+  explicit WorkerBuffers(int workers) : buffers(workers) {}
+  float* get(int worker, Eigen::Index size) {
+    Eigen::VectorXf& b = buffers[worker];
+    if (b.size() < size) b.resize(size);
+    return b.data();
+  }
+  std::vector<Eigen::VectorXf> buffers;
+};
+
+}  // namespace
+
+Eigen::Index columnSliceWidth(Eigen::Index rows) {
+  constexpr Eigen::Index kMaxFloats = (Eigen::Index(256) << 20) / sizeof(float);
+  if (rows <= 0 || rows * kColumnSlice <= kMaxFloats) return kColumnSlice;
+  return std::max<Eigen::Index>(16, (kMaxFloats / rows) / 16 * 16);
+}
+
+void AbrdfSource::forEachColumnSlice(const ColumnVisit& visit, const std::string& label) const {
+  const Eigen::Index m = rows(), d = cols(), width = columnSliceWidth(m);
+  const Eigen::Index slices = (d + width - 1) / width;
+  const float* x = dense();
+  WorkerBuffers buffers(x ? 0 : threadCount());
+  Progress bar(label, static_cast<std::size_t>(d), !label.empty());
+  parallelForDynamic(static_cast<std::size_t>(slices), [&](std::size_t s, int worker) {
+    const Eigen::Index c0 = static_cast<Eigen::Index>(s) * width, c1 = std::min(d, c0 + width);
+    if (x) {
+      visit(c0, c1, x + c0 * m);
+    } else {
+      // Column c at the offset modulo the SIMD width that it has in X.
+      float* data = buffers.get(worker, m * width + kAlign) + (c0 * m) % kAlign;
+      fillColumns(c0, c1, data);
+      visit(c0, c1, data);
+    }
+    bar.advance(static_cast<std::size_t>(c1 - c0));
+  });
+  bar.finish();
+}
+
+void AbrdfSource::forEachRowSlice(const RowVisit& visit, const std::string& label) const {
+  const Eigen::Index m = rows(), d = cols();
+  const Eigen::Index slices = (m + kRowSlice - 1) / kRowSlice;
+  const float* x = dense();
+  WorkerBuffers buffers(x ? 0 : threadCount());
+  Progress bar(label, static_cast<std::size_t>(m), !label.empty());
+  parallelForDynamic(static_cast<std::size_t>(slices), [&](std::size_t s, int worker) {
+    const Eigen::Index r0 = static_cast<Eigen::Index>(s) * kRowSlice, r1 = std::min(m, r0 + kRowSlice);
+    if (x) {
+      visit(r0, r1, x + r0, m);
+    } else {
+      float* data = buffers.get(worker, kRowSlice * d);
+      fillRows(r0, r1, data);
+      visit(r0, r1, data, r1 - r0);
+    }
+    bar.advance(static_cast<std::size_t>(r1 - r0));
+  });
+  bar.finish();
+}
+
+void AbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const {
+  const float* x = dense();
+  if (!x) throw Error("ABRDF source: no column data");
+  std::copy(x + c0 * rows(), x + c1 * rows(), out);
+}
+
+void AbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
+  const float* x = dense();
+  if (!x) throw Error("ABRDF source: no row data");
+  for (Eigen::Index d = 0; d < cols(); ++d) std::copy(x + d * rows() + r0, x + d * rows() + r1, out + d * (r1 - r0));
+}
+
+// ---- From the stack
+
+StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standardization)
+    : stack_(stack), s_(std::move(standardization)) {
+  const Eigen::Index d = cols();
+  if (s_.mean.size() != d || s_.stddev.size() != d)
+    throw Error("ABRDF source: the standardization has " + std::to_string(s_.mean.size()) + " dimensions, the stack " +
+                std::to_string(d));
+  if (stack_.sampleType() != SampleType::Srgb8) return;
+  // log(x + 1) of the 256 linear values, through the same function X is transformed with, then
+  // standardized with the arithmetic of Standardization::apply: the value X holds for each byte.
+  std::vector<float> logs(256);
+  for (int v = 0; v < 256; ++v) logs[v] = srgb8ToLinearTable()[v];
+  log1pRun(logs.data(), 256);
+  table_.resize(static_cast<std::size_t>(d) * 256);
+  parallelFor(static_cast<std::size_t>(d), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t j = begin; j < end; ++j) {
+      float* t = &table_[j * 256];
+      if (s_.stddev[j] > 0) {
+        auto out = Eigen::Map<Eigen::ArrayXf>(t, 256);
+        out = (Eigen::Map<const Eigen::ArrayXf>(logs.data(), 256) - s_.mean[j]) * (1.0f / s_.stddev[j]);
+      } else {
+        std::fill(t, t + 256, 0.0f);
+      }
+    }
+  });
+}
+
+std::size_t StackAbrdfSource::workingBytes(std::int64_t texels, int images, SampleType type, int workers) {
+  const std::size_t d = 3 * static_cast<std::size_t>(images), m = static_cast<std::size_t>(texels);
+  const std::size_t tables = type == SampleType::Srgb8 ? d * 256 * sizeof(float) : 0;
+  const std::size_t column = (m * static_cast<std::size_t>(columnSliceWidth(texels)) + kAlign) * sizeof(float);
+  const std::size_t row = static_cast<std::size_t>(kRowSlice) * d * sizeof(float);
+  const std::size_t image = type == SampleType::Srgb8 ? 0 : m * 3 * sizeof(float);
+  return tables + static_cast<std::size_t>(std::max(1, workers)) * (column + row + image);
+}
+
+std::size_t StackAbrdfSource::sliceBytes(int workers) const {
+  return workingBytes(stack_.numTexels(), stack_.numImages(), stack_.sampleType(), workers);
+}
+
+namespace {
+
+// A half stack: linear values -> log(x + 1) -> standardized, as Standardization::apply does.
+void standardizeRun(float* values, Eigen::Index n, float mean, float stddev) {
+  auto v = Eigen::Map<Eigen::ArrayXf>(values, n);
+  if (stddev > 0) {
+    log1pRun(values, n);
+    v = (v - mean) * (1.0f / stddev);
+  } else {
+    v = 0.0f;
+  }
+}
+
+}  // namespace
+
+void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const {
+  const Eigen::Index m = rows();
+  const bool srgb = stack_.sampleType() == SampleType::Srgb8;
+  for (Eigen::Index image = c0 / 3; image <= (c1 - 1) / 3; ++image) {
+    const std::uint8_t* bytes = stack_.imageBytes(static_cast<int>(image));
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index d = 3 * image + c;
+      if (d < c0 || d >= c1) continue;
+      float* column = out + (d - c0) * m;
+      if (srgb) {
+        const float* t = &table_[static_cast<std::size_t>(d) * 256];
+        for (Eigen::Index i = 0; i < m; ++i) column[i] = t[bytes[3 * i + c]];
+      } else {
+        const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(bytes);
+        for (Eigen::Index i = 0; i < m; ++i) column[i] = halfToFloat(h[3 * i + c]);
+        standardizeRun(column, m, s_.mean[d], s_.stddev[d]);
+      }
+    }
+  }
+}
+
+void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
+  const Eigen::Index n = r1 - r0;
+  const bool srgb = stack_.sampleType() == SampleType::Srgb8;
+  for (int image = 0; image < stack_.numImages(); ++image) {
+    const std::uint8_t* bytes = stack_.imageBytes(image) + 3 * r0 * static_cast<Eigen::Index>(stack_.bytesPerSample());
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
+      float* column = out + d * n;
+      if (srgb) {
+        const float* t = &table_[static_cast<std::size_t>(d) * 256];
+        for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
+      } else {
+        const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(bytes);
+        for (Eigen::Index i = 0; i < n; ++i) column[i] = halfToFloat(h[3 * i + c]);
+        standardizeRun(column, n, s_.mean[d], s_.stddev[d]);
+      }
+    }
+  }
+}
+
+}  // namespace nbtf

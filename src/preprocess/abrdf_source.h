@@ -1,0 +1,101 @@
+// The standardized ABRDF matrix X (M texels x 3N dimensions, preprocess/abrdf_matrix.h) as a
+// source of blocks, so that PCA, the column statistics and the cluster representatives never
+// need all of X at once.
+//
+// Two kinds of block, each exactly what the in-memory X holds there:
+//   - column slices: columns [c0, c1) over all M texels (column-major, leading dimension M);
+//   - row slices: texels [r0, r1) over all 3N dimensions (column-major, leading dimension r1 - r0).
+// DenseAbrdfSource wraps an in-memory X (blocks are pointers into it); StackAbrdfSource makes
+// them on demand from the 8-bit (or half) stack: an 8-bit stack through one 256-entry table per
+// dimension (the standardized value of every byte), a half stack value by value. The same code
+// (cluster/pca.cpp, cluster/clustering.cpp) runs on either, and gets the same bits: column slices
+// are laid out at the addresses modulo the SIMD width that X gives them, because Eigen's
+// vectorized sums depend on them.
+//
+// Memory of StackAbrdfSource: per worker thread one column slice (M x columnSliceWidth(M)
+// floats, at most 256 MiB) and one row slice (kRowSlice x 3N floats, 80 MB for a full
+// UBO2003 material), plus the tables (3N x 256 floats, 20 MB): never the 4 x M x 3N bytes of X.
+#pragma once
+#include <Eigen/Core>
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "preprocess/abrdf_matrix.h"
+
+namespace nbtf {
+
+// Rows per row slice, and the widest column slice: the slices the BLAS products of PCA have
+// always used (linalg/blas.cpp), so results do not depend on where the data comes from.
+constexpr Eigen::Index kRowSlice = 1024;
+constexpr Eigen::Index kColumnSlice = 512;
+// Columns per column slice for M texels: kColumnSlice, fewer (a multiple of 16, at least 16)
+// when M x kColumnSlice floats would pass 256 MiB (more than 131,072 texels). A function of
+// M only: results never depend on the thread count.
+Eigen::Index columnSliceWidth(Eigen::Index rows);
+
+class AbrdfSource {
+ public:
+  virtual ~AbrdfSource() = default;
+  virtual Eigen::Index rows() const = 0;  // M texels
+  virtual Eigen::Index cols() const = 0;  // D = 3 x images
+
+  // visit(c0, c1, data): data holds columns [c0, c1), column j - c0 at data + (j - c0) x rows().
+  // Slices of columnSliceWidth(rows()) columns, in parallel (each visit on one thread, any
+  // order); `label`: a progress bar in columns (empty: none).
+  using ColumnVisit = std::function<void(Eigen::Index c0, Eigen::Index c1, const float* data)>;
+  void forEachColumnSlice(const ColumnVisit& visit, const std::string& label = "") const;
+  // visit(r0, r1, data, ld): texels [r0, r1) of every column, entry (t, d) at data[d x ld + t - r0].
+  // Slices of kRowSlice texels, in parallel; `label`: a progress bar in texels (empty: none).
+  using RowVisit = std::function<void(Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld)>;
+  void forEachRowSlice(const RowVisit& visit, const std::string& label = "") const;
+
+  // Bytes of working memory the slices take on `workers` threads (0 for an in-memory X).
+  virtual std::size_t sliceBytes(int /*workers*/) const { return 0; }
+
+ protected:
+  // An in-memory X returns its data (column-major, leading dimension rows()); others nullptr
+  // and fill blocks on demand.
+  virtual const float* dense() const { return nullptr; }
+  // Columns [c0, c1) into out (leading dimension rows()).
+  virtual void fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const;
+  // Texels [r0, r1) into out (leading dimension r1 - r0).
+  virtual void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const;
+};
+
+class DenseAbrdfSource : public AbrdfSource {
+ public:
+  explicit DenseAbrdfSource(const MatrixXfCol& x) : x_(x) {}
+  Eigen::Index rows() const override { return x_.rows(); }
+  Eigen::Index cols() const override { return x_.cols(); }
+
+ protected:
+  const float* dense() const override { return x_.data(); }
+
+ private:
+  const MatrixXfCol& x_;
+};
+
+// The standardized log ABRDFs of a stack, made on demand. Keeps a reference to the stack.
+class StackAbrdfSource : public AbrdfSource {
+ public:
+  StackAbrdfSource(const BtfStack& stack, Standardization standardization);
+  Eigen::Index rows() const override { return stack_.numTexels(); }
+  Eigen::Index cols() const override { return 3 * static_cast<Eigen::Index>(stack_.numImages()); }
+  const Standardization& standardization() const { return s_; }
+  std::size_t sliceBytes(int workers) const override;
+  // Working memory for a stack of this shape (tables + per-worker slices), before it exists.
+  static std::size_t workingBytes(std::int64_t texels, int images, SampleType type, int workers);
+
+ protected:
+  void fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const override;
+  void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const override;
+
+ private:
+  const BtfStack& stack_;
+  Standardization s_;
+  std::vector<float> table_;  // 8-bit stacks: D x 256 standardized values (dimension-major)
+};
+
+}  // namespace nbtf

@@ -1,0 +1,180 @@
+// The streamed ABRDF matrix (preprocess/abrdf_source.h) against the in-memory one: the same
+// standardization, the same blocks, the same PCA, k-means labels and medians, bit for bit.
+#include "preprocess/abrdf_source.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <random>
+
+#include "cluster/clustering.h"
+#include "cluster/pca.h"
+#include "util/error.h"
+#include "util/parallel.h"
+#include "util/progress.h"
+
+namespace nbtf {
+namespace {
+
+// A small material with structure (three "threads" of different reflectance, a light- and
+// view-dependent lobe) and per-texel noise. texels = width x height; odd sizes so that columns
+// start at every offset modulo the SIMD width and the row slices of 1024 texels end mid-way.
+BtfStack structuredStack(int width, int height, int lights, int views, SampleType type, unsigned seed) {
+  std::vector<Direction> l, v;
+  for (int i = 0; i < lights; ++i) l.push_back({10.0 * i, 40.0 * i});
+  for (int i = 0; i < views; ++i) v.push_back({12.0 * i, 60.0 * i});
+  BtfStack stack(l, v, width, height, type);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> noise(-0.04f, 0.04f);
+  std::vector<float> rgb(static_cast<std::size_t>(width) * height * 3);
+  for (int image = 0; image < stack.numImages(); ++image) {
+    const int li = image / views, vi = image % views;
+    for (int t = 0; t < width * height; ++t) {
+      const int x = t % width, y = t / width, kind = (x / 3 + y / 4) % 3;
+      const float lobe = 0.3f + 0.5f * std::cos(0.4f * (li - vi) + kind);
+      for (int c = 0; c < 3; ++c)
+        rgb[3 * t + c] = std::max(0.0f, 0.15f * (kind + 1) * (1 + 0.2f * c) * lobe + noise(rng) + (c == kind ? 0.1f : 0.0f));
+    }
+    stack.setImageLinear(image, rgb.data());
+  }
+  // One black pixel everywhere: a constant dimension (standardized to 0).
+  if (type == SampleType::Srgb8) std::fill(stack.imageBytes(1), stack.imageBytes(1) + stack.bytesPerImage(), 0);
+  return stack;
+}
+
+MatrixXfCol standardizedMatrix(const BtfStack& stack, Standardization& s) {
+  MatrixXfCol x = abrdfMatrix(stack, false);
+  s = standardizeInPlace(x);
+  return x;
+}
+
+class AbrdfSourceTest : public ::testing::Test {
+ protected:
+  void SetUp() override { Progress::setQuiet(true); }
+  void TearDown() override { setThreadCount(0); }
+};
+
+TEST_F(AbrdfSourceTest, FitStandardizationMatchesTheInMemoryStatisticsBitForBit) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    BtfStack stack = structuredStack(37, 29, 4, 3, type, 1);
+    Standardization dense;
+    standardizedMatrix(stack, dense);
+    Standardization streamed = fitStandardization(stack, false);
+    ASSERT_EQ(streamed.mean.size(), dense.mean.size());
+    EXPECT_TRUE((streamed.mean.array() == dense.mean.array()).all()) << sampleTypeName(type);
+    EXPECT_TRUE((streamed.stddev.array() == dense.stddev.array()).all()) << sampleTypeName(type);
+    if (type == SampleType::Srgb8) EXPECT_EQ(streamed.stddev[3], 0.0f);  // image 1 is black: a constant dimension
+  }
+}
+
+TEST_F(AbrdfSourceTest, BlocksHoldExactlyWhatTheMatrixHolds) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    BtfStack stack = structuredStack(41, 27, 5, 4, type, 2);  // 1107 texels: two row slices
+    Standardization s;
+    const MatrixXfCol x = standardizedMatrix(stack, s);
+    StackAbrdfSource source(stack, s);
+    ASSERT_EQ(source.rows(), x.rows());
+    ASSERT_EQ(source.cols(), x.cols());
+    int columnSlices = 0, rowSlices = 0, mismatches = 0;
+    source.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
+      for (Eigen::Index d = c0; d < c1; ++d)
+        for (Eigen::Index t = 0; t < x.rows(); ++t) mismatches += data[(d - c0) * x.rows() + t] != x(t, d);
+      ++columnSlices;
+    });
+    source.forEachRowSlice([&](Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld) {
+      for (Eigen::Index d = 0; d < x.cols(); ++d)
+        for (Eigen::Index t = r0; t < r1; ++t) mismatches += data[d * ld + t - r0] != x(t, d);
+      ++rowSlices;
+    });
+    EXPECT_EQ(mismatches, 0) << sampleTypeName(type);
+    EXPECT_EQ(columnSlices, 1);
+    EXPECT_EQ(rowSlices, 2);
+  }
+}
+
+TEST_F(AbrdfSourceTest, StreamingPcaEqualsTheInMemoryPca) {
+  // 1,107 texels x 3 x 120 images: two row slices, a column slice of 360 dimensions.
+  BtfStack stack = structuredStack(41, 27, 12, 10, SampleType::Srgb8, 3);
+  Standardization s;
+  const MatrixXfCol x = standardizedMatrix(stack, s);
+  StackAbrdfSource source(stack, s);
+  PcaOptions o;
+  o.components = 8;
+  o.oversampling = 10;
+  o.powerIterations = 2;
+  o.progress = false;
+  for (int threads : {1, 2}) {
+    setThreadCount(threads);
+    PcaResult dense = randomizedPca(x, o), streamed = randomizedPca(source, o);
+    // The same math on the same values in the same slices: identical, not merely close.
+    EXPECT_TRUE(streamed.basis == dense.basis) << threads << " threads";
+    EXPECT_TRUE(streamed.scores == dense.scores) << threads << " threads";
+    EXPECT_TRUE(streamed.mean == dense.mean);
+    EXPECT_EQ(streamed.totalVariance, dense.totalVariance);
+    // And close to the exact PCA, within tolerance: the leading component itself, the next
+    // ones (whose variances lie close together here) as a subspace.
+    Eigen::MatrixXd centred = x.cast<double>().rowwise() - x.cast<double>().colwise().mean();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(centred.transpose() * centred / x.rows());
+    const Eigen::Index d = eig.eigenvectors().cols();
+    EXPECT_GT(std::abs(eig.eigenvectors().col(d - 1).dot(streamed.basis.col(0).cast<double>())), 0.999);
+    const Eigen::MatrixXd top = eig.eigenvectors().rightCols(6);
+    for (int j = 0; j < 3; ++j)
+      EXPECT_GT((top.transpose() * streamed.basis.col(j).cast<double>()).norm(), 0.99) << "component " << j;
+    EXPECT_NEAR(streamed.explainedVariance(0), eig.eigenvalues()(d - 1), 1e-3 * eig.eigenvalues()(d - 1));
+  }
+}
+
+TEST_F(AbrdfSourceTest, StreamingClusteringGivesTheSameLabelsAndMedians) {
+  BtfStack stack = structuredStack(33, 35, 6, 5, SampleType::Srgb8, 4);  // 1,155 texels
+  Standardization s;
+  const MatrixXfCol x = standardizedMatrix(stack, s);
+  StackAbrdfSource source(stack, s);
+  ClusteringOptions o;
+  o.clusters = 12;
+  o.pca.components = 6;
+  o.seed = 7;
+  o.progress = false;
+  for (int threads : {1, 2}) {
+    setThreadCount(threads);
+    ClusteringResult dense = clusterAbrdfs(x, o), streamed = clusterAbrdfs(source, o);
+    EXPECT_EQ(streamed.ids, dense.ids) << threads << " threads";
+    EXPECT_EQ(streamed.sizes, dense.sizes);
+    EXPECT_TRUE(streamed.representatives == dense.representatives);
+    EXPECT_EQ(streamed.inertia, dense.inertia);
+    for (Representative kind : {Representative::Median, Representative::Mean})
+      EXPECT_TRUE(clusterRepresentatives(source, dense.ids, o.clusters, kind) ==
+                  clusterRepresentatives(x, dense.ids, o.clusters, kind));
+  }
+}
+
+TEST_F(AbrdfSourceTest, ColumnSlicesNarrowOnlyForLargeMaterials) {
+  EXPECT_EQ(columnSliceWidth(10000), kColumnSlice);      // 100 x 100: the slices PCA always used
+  EXPECT_EQ(columnSliceWidth(131072), kColumnSlice);     // up to 256 MiB per slice
+  EXPECT_EQ(columnSliceWidth(65536 * 4), 256);           // 512 x 512
+  const Eigen::Index w = columnSliceWidth(640000);       // 800 x 800
+  EXPECT_EQ(w % 16, 0);
+  EXPECT_LE(w * 640000 * 4, Eigen::Index(256) << 20);
+  EXPECT_GE(columnSliceWidth(100000000), 16);
+}
+
+TEST_F(AbrdfSourceTest, WorkingMemoryIsFarBelowTheMatrix) {
+  // A full UBO2003 material, 256 x 256 texels x 6561 images, on 2 threads: tables + slices.
+  const std::size_t bytes = StackAbrdfSource::workingBytes(65536, 6561, SampleType::Srgb8, 2);
+  EXPECT_LT(bytes, std::size_t(600) << 20);
+  EXPECT_GT(bytes, std::size_t(100) << 20);
+  // 800 x 800: the column slices narrow, the working set stays under 1 GiB.
+  EXPECT_LT(StackAbrdfSource::workingBytes(640000, 6561, SampleType::Srgb8, 2), std::size_t(1) << 30);
+}
+
+TEST_F(AbrdfSourceTest, RejectsStatisticsOfAnotherShape) {
+  BtfStack stack = structuredStack(5, 4, 2, 2, SampleType::Srgb8, 5);
+  Standardization s;
+  s.mean = Eigen::VectorXf::Zero(5);
+  s.stddev = Eigen::VectorXf::Ones(5);
+  EXPECT_THROW(StackAbrdfSource(stack, s), Error);
+}
+
+}  // namespace
+}  // namespace nbtf
