@@ -17,8 +17,8 @@ constexpr int kChunkRows = 512;
 // ---- Layer 0 (element-wise, cloned per instruction set). Rows have stride S >= W + 1.
 
 // h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n (D direction inputs
-// per row), then the constant-1 column at W and zeros up to S. The paper's D = 4 has its own
-// unrolled loop; wider inputs add theirs 4 at a time in the same order.
+// per row), then the constant-1 column at W and zeros up to S. The first 4 inputs (the
+// paper's) go in one unrolled sum; wider encodings add the rest one input at a time.
 NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, int D, std::int64_t r0, int rowsPerTile,
                                     const float* __restrict tiles, const float* __restrict d,
                                     const float* __restrict w0T, float* __restrict h) {
@@ -27,20 +27,13 @@ NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, int D, std::int64_t r0,
     const float* dr = d + static_cast<std::size_t>(D) * r;
     float* __restrict hr = h + static_cast<std::size_t>(r) * S;
     const float d0 = dr[0], d1 = dr[1], d2 = dr[2], d3 = dr[3];
-    if (D == 4) {
-      for (int j = 0; j < W; ++j) {
-        float v = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
-        hr[j] = v > 0 ? v : 0;
-      }
-    } else {
-      for (int j = 0; j < W; ++j) hr[j] = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
-      for (int q = 4; q < D; ++q) {
-        const float dq = dr[q];
-        const float* __restrict wq = w0T + static_cast<std::size_t>(q) * W;
-        for (int j = 0; j < W; ++j) hr[j] += dq * wq[j];
-      }
-      for (int j = 0; j < W; ++j) hr[j] = hr[j] > 0 ? hr[j] : 0;
+    for (int j = 0; j < W; ++j) hr[j] = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
+    for (int q = 4; q < D; ++q) {
+      const float dq = dr[q];
+      const float* __restrict wq = w0T + static_cast<std::size_t>(q) * W;
+      for (int j = 0; j < W; ++j) hr[j] += dq * wq[j];
     }
+    for (int j = 0; j < W; ++j) hr[j] = hr[j] > 0 ? hr[j] : 0;
     hr[W] = 1.0f;
     for (int j = W + 1; j < S; ++j) hr[j] = 0.0f;
   }

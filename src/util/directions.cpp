@@ -1,6 +1,5 @@
 #include "util/directions.h"
 
-#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -80,31 +79,31 @@ void stereographicOfUnit(const std::array<double, 3>& u, float* out) {
   out[0] = static_cast<float>(u[0] / (1 + u[2]));
   out[1] = static_cast<float>(u[1] / (1 + u[2]));
 }
+
+// The half-vector inputs of StereographicHalf (4 values) from unit light and view vectors.
+void halfVectorInputs(const std::array<double, 3>& light, const std::array<double, 3>& view, float* out) {
+  double h[3] = {light[0] + view[0], light[1] + view[1], light[2] + view[2]};
+  const double n = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);  // > 0: both on the upper hemisphere
+  for (double& c : h) c = n > 0 ? c / n : 0;
+  if (!(n > 0)) h[2] = 1;
+  out[0] = static_cast<float>(h[0]);
+  out[1] = static_cast<float>(h[1]);
+  out[2] = static_cast<float>(h[2]);
+  out[3] = static_cast<float>(light[0] * h[0] + light[1] * h[1] + light[2] * h[2]);
+}
 }  // namespace
 
 void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& light, const std::array<double, 3>& view,
                       float* out) {
   stereographicOfUnit(light, out);
   stereographicOfUnit(view, out + 2);
-  if (encoding != DirectionEncoding::StereographicHalf) return;
-  double h[3] = {light[0] + view[0], light[1] + view[1], light[2] + view[2]};
-  const double n = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);  // > 0: both on the upper hemisphere
-  for (double& c : h) c = n > 0 ? c / n : 0;
-  if (!(n > 0)) h[2] = 1;
-  out[4] = static_cast<float>(h[0]);
-  out[5] = static_cast<float>(h[1]);
-  out[6] = static_cast<float>(h[2]);
-  out[7] = static_cast<float>(light[0] * h[0] + light[1] * h[1] + light[2] * h[2]);
+  if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light, view, out + 4);
 }
 
 void encodeDirections(DirectionEncoding encoding, const Direction& light, const Direction& view, float* out) {
   auto l = stereographic(light), v = stereographic(view);
   out[0] = l[0], out[1] = l[1], out[2] = v[0], out[3] = v[1];  // the paper's formula, as trained before
-  if (encoding == DirectionEncoding::StereographicHalf) {
-    float half[8];
-    encodeDirections(encoding, light.unitVector(), view.unitVector(), half);
-    std::copy(half + 4, half + 8, out + 4);
-  }
+  if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light.unitVector(), view.unitVector(), out + 4);
 }
 
 Direction parseDirection(const std::string& text, const std::string& what) {
