@@ -38,15 +38,27 @@ const Shape kShapes[] = {{512, 107, 112, 112}, {7, 5, 16, 5},   {13, 3, 32, 3}, 
 
 }  // namespace
 
-// Both builds of the kernels: the AVX-512 register blocks (on a CPU that has them) and the
-// narrow path of every other CPU.
-class DenseKernels : public testing::TestWithParam<bool> {
+// Every build of the kernels this CPU runs: AVX-512 register blocks, AVX2 + FMA blocks, the
+// narrow path of every other CPU (a build the CPU cannot run is skipped, and says so).
+class DenseKernels : public testing::TestWithParam<DenseKernelTier> {
  protected:
-  void SetUp() override { setDenseKernelsGeneric(GetParam()); }
-  void TearDown() override { setDenseKernelsGeneric(false); }
+  void SetUp() override {
+    if (!denseKernelTierSupported(GetParam())) GTEST_SKIP() << "this CPU cannot run this build";
+    setDenseKernelTier(GetParam());
+  }
+  void TearDown() override { setDenseKernelTier(DenseKernelTier::Auto); }
 };
-INSTANTIATE_TEST_SUITE_P(Paths, DenseKernels, testing::Values(false, true),
-                         [](const testing::TestParamInfo<bool>& p) { return p.param ? "Generic" : "Native"; });
+INSTANTIATE_TEST_SUITE_P(Builds, DenseKernels,
+                         testing::Values(DenseKernelTier::Auto, DenseKernelTier::Narrow, DenseKernelTier::Mid,
+                                         DenseKernelTier::Wide),
+                         [](const testing::TestParamInfo<DenseKernelTier>& p) {
+                           switch (p.param) {
+                             case DenseKernelTier::Narrow: return "Narrow";
+                             case DenseKernelTier::Mid: return "Avx2Fma";
+                             case DenseKernelTier::Wide: return "Avx512";
+                             default: return "Native";
+                           }
+                         });
 
 TEST_P(DenseKernels, ProductsMatchADoubleReference) {
   std::mt19937 rng(7);

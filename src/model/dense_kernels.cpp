@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
+#include <type_traits>
 
 #include "util/simd.h"
 
@@ -12,30 +14,39 @@
 namespace nbtf::detail {
 namespace {
 
-// A 16-float vector (GCC/clang vector extension): one zmm register in the AVX-512 clone,
-// two ymm or four xmm in the others. Loads and stores go through memcpy (no alignment or
-// aliasing assumptions); the compiler turns them into plain vector moves.
-using Vec = float __attribute__((vector_size(kDenseLanes * sizeof(float))));
+// Three builds of every kernel, by CPU:
+//   Wide   (AVX-512): 16-float vectors (one zmm each), panels of 4 vectors, 32 registers;
+//   Mid    (AVX2 + FMA): 8-float vectors (one ymm each), panels of 2 vectors, 16 registers;
+//   Narrow (anything else, and clang or sanitizer builds): 16-float vectors in panels of one,
+//          two rows per block, so nothing spills whatever the target splits a vector into.
+// Each sums in the same index order; results differ between builds only by FMA rounding.
+enum class Tier { Narrow, Mid, Wide };
 
-inline __attribute__((always_inline)) Vec load(const float* p) {
-  Vec v;
+// GCC/clang vector extensions. Loads and stores go through memcpy (no alignment or aliasing
+// assumptions); the compiler turns them into plain vector moves.
+using Vec16 = float __attribute__((vector_size(16 * sizeof(float))));
+using Vec8 = float __attribute__((vector_size(8 * sizeof(float))));
+template <Tier T> using VecOf = std::conditional_t<T == Tier::Mid, Vec8, Vec16>;
+template <Tier T> constexpr int kLanes = static_cast<int>(sizeof(VecOf<T>) / sizeof(float));
+
+template <class V> inline __attribute__((always_inline)) V load(const float* p) {
+  V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline __attribute__((always_inline)) void store(float* p, Vec v) { std::memcpy(p, &v, sizeof v); }
+template <class V> inline __attribute__((always_inline)) void store(float* p, V v) { std::memcpy(p, &v, sizeof v); }
 
-// Columns per panel: 4 vectors (64 floats); with 6 rows that is 24 accumulators, plus the 4
-// row vectors of b and a broadcast, within the 32 vector registers. Measured against 7
-// vectors x 3 rows (the decoder's whole 112-float row at once): about 1.3x faster, as each
-// loaded value feeds more FMAs.
-constexpr int kPanelVectors = 4;
+// Vectors per column panel. Wide: 4 (64 floats); with 6 rows that is 24 accumulators, plus
+// the 4 row vectors of b and a broadcast, within the 32 registers. Measured against 7 vectors
+// x 3 rows (the decoder's whole 112-float row at once): about 1.3x faster, as each loaded
+// value feeds more FMAs. Mid: 2 (16 floats) x 6 rows = 12 accumulators + 2 + 1 of 16.
+template <Tier T> constexpr int panelVectors() { return T == Tier::Wide ? 4 : T == Tier::Mid ? 2 : 1; }
 
-// Rows (or gradient rows) per register block for a panel of V vectors. With Wide false
-// (CPUs without AVX-512, where a 16-float vector takes 2 or 4 registers of 16) panels are
-// one vector and blocks two rows, so nothing spills.
-template <int V, bool Wide>
+// Rows (or gradient rows) per register block for a panel of V vectors.
+template <int V, Tier T>
 constexpr int blockRows() {
-  if constexpr (!Wide) return 2;
+  if constexpr (T == Tier::Narrow) return 2;
+  if constexpr (T == Tier::Mid) return V == 2 ? 6 : 12;
   return V == 4 ? 6 : V == 3 ? 8 : V == 2 ? 12 : 16;
 }
 
@@ -43,16 +54,18 @@ enum class Epilogue { Relu, Mask };
 
 // R rows x V vectors of y (+)= x[:, q0:q1] b[q0:q1, :]: the first slice of the sum starts
 // from zero, later ones from y; the last applies the epilogue.
-template <int R, int V, Epilogue E>
+template <Tier T, int R, int V, Epilogue E>
 inline __attribute__((always_inline)) void productBlock(int q0, int q1, bool first, bool last, const float* x,
                                                         int ldx, const float* b, int cols, float* y, const float* h) {
+  using Vec = VecOf<T>;
+  constexpr int L = kLanes<T>;
   Vec acc[R][V];
   for (int r = 0; r < R; ++r)
     for (int v = 0; v < V; ++v)
-      acc[r][v] = first ? Vec{} : load(y + static_cast<std::size_t>(r) * cols + kDenseLanes * v);
+      acc[r][v] = first ? Vec{} : load<Vec>(y + static_cast<std::size_t>(r) * cols + L * v);
   for (int q = q0; q < q1; ++q) {
     Vec w[V];
-    for (int v = 0; v < V; ++v) w[v] = load(b + static_cast<std::size_t>(q) * cols + kDenseLanes * v);
+    for (int v = 0; v < V; ++v) w[v] = load<Vec>(b + static_cast<std::size_t>(q) * cols + L * v);
     for (int r = 0; r < R; ++r) {
       const float s = x[static_cast<std::size_t>(r) * ldx + q];
       for (int v = 0; v < V; ++v) acc[r][v] += s * w[v];
@@ -61,28 +74,27 @@ inline __attribute__((always_inline)) void productBlock(int q0, int q1, bool fir
   const Vec zero = {};
   for (int r = 0; r < R; ++r)
     for (int v = 0; v < V; ++v) {
-      float* out = y + static_cast<std::size_t>(r) * cols + kDenseLanes * v;
+      float* out = y + static_cast<std::size_t>(r) * cols + L * v;
       if (!last) {
         store(out, acc[r][v]);
       } else if constexpr (E == Epilogue::Relu) {
         store(out, acc[r][v] > zero ? acc[r][v] : zero);
       } else {
-        const Vec mask = load(h + static_cast<std::size_t>(r) * cols + kDenseLanes * v);
+        const Vec mask = load<Vec>(h + static_cast<std::size_t>(r) * cols + L * v);
         store(out, mask > zero ? acc[r][v] : zero);
       }
     }
 }
 
-// The sum over q in slices of at most kSliceDepth rows of b (a panel: 4 x 16 floats each), so a
-// slice of b stays in L1 while every row block of x passes over it; rows in blocks of R
-// (R x V accumulators fit the registers), the rest one by one. Each y entry still sums q
-// in increasing order.
+// The sum over q in slices of at most kSliceDepth rows of b (a panel), so a slice of b stays
+// in L1 while every row block of x passes over it; rows in blocks of R (R x V accumulators fit
+// the registers), the rest one by one. Each y entry still sums q in increasing order.
 constexpr int kSliceDepth = 48;
 
-template <int V, Epilogue E, bool Wide>
+template <int V, Epilogue E, Tier T>
 inline __attribute__((always_inline)) void productPanel(int n, int k, const float* x, int ldx, const float* b,
                                                         int cols, float* y, const float* h) {
-  constexpr int R = blockRows<V, Wide>();
+  constexpr int R = blockRows<V, T>();
   const int slices = std::max(1, (k + kSliceDepth - 1) / kSliceDepth), depth = std::max(1, (k + slices - 1) / slices);
   for (int q0 = 0; q0 < std::max(k, 1); q0 += depth) {
     const int q1 = std::min(k, q0 + depth);
@@ -90,130 +102,166 @@ inline __attribute__((always_inline)) void productPanel(int n, int k, const floa
     int r = 0;
     for (; r + R <= n; r += R) {
       const std::size_t off = static_cast<std::size_t>(r) * cols;
-      productBlock<R, V, E>(q0, q1, first, last, x + static_cast<std::size_t>(r) * ldx, ldx, b, cols, y + off,
-                            h ? h + off : nullptr);
+      productBlock<T, R, V, E>(q0, q1, first, last, x + static_cast<std::size_t>(r) * ldx, ldx, b, cols, y + off,
+                               h ? h + off : nullptr);
     }
     for (; r < n; ++r) {
       const std::size_t off = static_cast<std::size_t>(r) * cols;
-      productBlock<1, V, E>(q0, q1, first, last, x + static_cast<std::size_t>(r) * ldx, ldx, b, cols, y + off,
-                            h ? h + off : nullptr);
+      productBlock<T, 1, V, E>(q0, q1, first, last, x + static_cast<std::size_t>(r) * ldx, ldx, b, cols, y + off,
+                               h ? h + off : nullptr);
     }
   }
 }
 
-template <Epilogue E, bool Wide>
+template <Epilogue E, Tier T>
 inline __attribute__((always_inline)) void product(int n, int k, const float* x, int ldx, const float* b, int cols,
                                                    float* y, const float* h) {
   // Column panels: b, y and h are addressed from the panel's first column, strides unchanged.
-  constexpr int panel = Wide ? kPanelVectors : 1;
-  for (int c0 = 0; c0 < cols; c0 += panel * kDenseLanes) {
+  constexpr int panel = panelVectors<T>(), L = kLanes<T>;
+  for (int c0 = 0; c0 < cols; c0 += panel * L) {
     const float* bp = b + c0;
     float* yp = y + c0;
     const float* hp = h ? h + c0 : nullptr;
-    switch (std::min(panel, (cols - c0) / kDenseLanes)) {
-      case 4: productPanel<4, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 3: productPanel<3, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
-      case 2: productPanel<2, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
-      default: productPanel<1, E, Wide>(n, k, x, ldx, bp, cols, yp, hp); break;
+    switch (std::min(panel, (cols - c0) / L)) {
+      case 4: if constexpr (panel >= 4) productPanel<4, E, T>(n, k, x, ldx, bp, cols, yp, hp); break;
+      case 3: if constexpr (panel >= 3) productPanel<3, E, T>(n, k, x, ldx, bp, cols, yp, hp); break;
+      case 2: if constexpr (panel >= 2) productPanel<2, E, T>(n, k, x, ldx, bp, cols, yp, hp); break;
+      default: productPanel<1, E, T>(n, k, x, ldx, bp, cols, yp, hp); break;
     }
   }
 }
 
 // M rows of w (gradient rows i0 .. i0 + M) x V vectors, summed over rows r0 .. r1 of g and h.
-template <int M, int V>
+template <Tier T, int M, int V>
 inline __attribute__((always_inline)) void outerBlock(int r0, int r1, const float* g, int ldg, const float* h,
                                                       int cols, float* w) {
+  using Vec = VecOf<T>;
+  constexpr int L = kLanes<T>;
   Vec acc[M][V];
   for (int i = 0; i < M; ++i)
-    for (int v = 0; v < V; ++v) acc[i][v] = load(w + static_cast<std::size_t>(i) * cols + kDenseLanes * v);
+    for (int v = 0; v < V; ++v) acc[i][v] = load<Vec>(w + static_cast<std::size_t>(i) * cols + L * v);
   for (int r = r0; r < r1; ++r) {
     Vec hv[V];
-    for (int v = 0; v < V; ++v) hv[v] = load(h + static_cast<std::size_t>(r) * cols + kDenseLanes * v);
+    for (int v = 0; v < V; ++v) hv[v] = load<Vec>(h + static_cast<std::size_t>(r) * cols + L * v);
     for (int i = 0; i < M; ++i) {
       const float s = g[static_cast<std::size_t>(r) * ldg + i];
       for (int v = 0; v < V; ++v) acc[i][v] += s * hv[v];
     }
   }
   for (int i = 0; i < M; ++i)
-    for (int v = 0; v < V; ++v) store(w + static_cast<std::size_t>(i) * cols + kDenseLanes * v, acc[i][v]);
+    for (int v = 0; v < V; ++v) store(w + static_cast<std::size_t>(i) * cols + L * v, acc[i][v]);
 }
 
-template <int V, bool Wide>
+template <int V, Tier T>
 inline __attribute__((always_inline)) void outerPanel(int r0, int r1, int m, const float* g, int ldg, const float* h,
                                                       int cols, float* w) {
-  constexpr int M = blockRows<V, Wide>();
+  constexpr int M = blockRows<V, T>();
   int i = 0;
-  for (; i + M <= m; i += M) outerBlock<M, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
-  for (; i < m; ++i) outerBlock<1, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
+  for (; i + M <= m; i += M) outerBlock<T, M, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
+  for (; i < m; ++i) outerBlock<T, 1, V>(r0, r1, g + i, ldg, h, cols, w + static_cast<std::size_t>(i) * cols);
 }
 
-template <bool Wide>
+template <Tier T>
 inline __attribute__((always_inline)) void outer(int n, int m, const float* g, int ldg, const float* h, int cols,
                                                  float* w) {
   // Rows in slices of 32, so a slice of g and h (2 x 32 x 112 floats) stays in L1 while
   // every block of gradient rows passes over it. Each w entry still sums r in order.
-  constexpr int kSliceRows = 32, panel = Wide ? kPanelVectors : 1;
+  constexpr int kSliceRows = 32, panel = panelVectors<T>(), L = kLanes<T>;
   for (int r0 = 0; r0 < n; r0 += kSliceRows) {
     const int r1 = std::min(n, r0 + kSliceRows);
-    for (int c0 = 0; c0 < cols; c0 += panel * kDenseLanes) {
+    for (int c0 = 0; c0 < cols; c0 += panel * L) {
       const float* hp = h + c0;
       float* wp = w + c0;
-      switch (std::min(panel, (cols - c0) / kDenseLanes)) {
-        case 4: outerPanel<4, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 3: outerPanel<3, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        case 2: outerPanel<2, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
-        default: outerPanel<1, Wide>(r0, r1, m, g, ldg, hp, cols, wp); break;
+      switch (std::min(panel, (cols - c0) / L)) {
+        case 4: if constexpr (panel >= 4) outerPanel<4, T>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        case 3: if constexpr (panel >= 3) outerPanel<3, T>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        case 2: if constexpr (panel >= 2) outerPanel<2, T>(r0, r1, m, g, ldg, hp, cols, wp); break;
+        default: outerPanel<1, T>(r0, r1, m, g, ldg, hp, cols, wp); break;
       }
     }
   }
 }
 
-// ---- The two builds of each kernel: AVX-512 register blocks, and the narrow blocks that
-// every other target (and clang or sanitizer builds) runs.
+// ---- The three builds of each kernel.
 NBTF_AVX512 void productReluWide(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu, true>(n, k, x, ldx, b, cols, y, nullptr);
+  product<Epilogue::Relu, Tier::Wide>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_AVX2_FMA void productReluMid(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  product<Epilogue::Relu, Tier::Mid>(n, k, x, ldx, b, cols, y, nullptr);
 }
 NBTF_SIMD_CLONES void productReluNarrow(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu, false>(n, k, x, ldx, b, cols, y, nullptr);
+  product<Epilogue::Relu, Tier::Narrow>(n, k, x, ldx, b, cols, y, nullptr);
 }
 NBTF_AVX512 void productMaskedWide(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
                                    float* y) {
-  product<Epilogue::Mask, true>(n, k, x, ldx, b, cols, y, h);
+  product<Epilogue::Mask, Tier::Wide>(n, k, x, ldx, b, cols, y, h);
+}
+NBTF_AVX2_FMA void productMaskedMid(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
+                                    float* y) {
+  product<Epilogue::Mask, Tier::Mid>(n, k, x, ldx, b, cols, y, h);
 }
 NBTF_SIMD_CLONES void productMaskedNarrow(int n, int k, const float* x, int ldx, const float* b, int cols,
                                           const float* h, float* y) {
-  product<Epilogue::Mask, false>(n, k, x, ldx, b, cols, y, h);
+  product<Epilogue::Mask, Tier::Narrow>(n, k, x, ldx, b, cols, y, h);
 }
 NBTF_AVX512 void outerWide(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
-  outer<true>(n, m, g, ldg, h, cols, w);
+  outer<Tier::Wide>(n, m, g, ldg, h, cols, w);
+}
+NBTF_AVX2_FMA void outerMid(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
+  outer<Tier::Mid>(n, m, g, ldg, h, cols, w);
 }
 NBTF_SIMD_CLONES void outerNarrow(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
-  outer<false>(n, m, g, ldg, h, cols, w);
+  outer<Tier::Narrow>(n, m, g, ldg, h, cols, w);
 }
 
-bool genericOnly = false;  // setDenseKernelsGeneric
-bool wide() {
-  static const bool avx512 = hasAvx512();
-  return avx512 && !genericOnly;
+DenseKernelTier forced = DenseKernelTier::Auto;  // setDenseKernelTier
+Tier tier() {
+  static const Tier best = hasAvx512() ? Tier::Wide : hasAvx2Fma() ? Tier::Mid : Tier::Narrow;
+  switch (forced) {
+    case DenseKernelTier::Narrow: return Tier::Narrow;
+    case DenseKernelTier::Mid: return Tier::Mid;
+    case DenseKernelTier::Wide: return Tier::Wide;
+    default: return best;
+  }
 }
 
 }  // namespace
 
-void setDenseKernelsGeneric(bool generic) { genericOnly = generic; }
+bool denseKernelTierSupported(DenseKernelTier t) {
+  switch (t) {
+    case DenseKernelTier::Wide: return hasAvx512();
+    case DenseKernelTier::Mid: return hasAvx2Fma();
+    default: return true;
+  }
+}
+
+void setDenseKernelTier(DenseKernelTier t) {
+  if (!denseKernelTierSupported(t)) throw std::invalid_argument("dense kernels: this CPU cannot run that tier");
+  forced = t;
+}
 
 void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  if (wide()) productReluWide(n, k, x, ldx, b, cols, y);
-  else productReluNarrow(n, k, x, ldx, b, cols, y);
+  switch (tier()) {
+    case Tier::Wide: return productReluWide(n, k, x, ldx, b, cols, y);
+    case Tier::Mid: return productReluMid(n, k, x, ldx, b, cols, y);
+    default: return productReluNarrow(n, k, x, ldx, b, cols, y);
+  }
 }
 
 void productMasked(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h, float* y) {
-  if (wide()) productMaskedWide(n, k, x, ldx, b, cols, h, y);
-  else productMaskedNarrow(n, k, x, ldx, b, cols, h, y);
+  switch (tier()) {
+    case Tier::Wide: return productMaskedWide(n, k, x, ldx, b, cols, h, y);
+    case Tier::Mid: return productMaskedMid(n, k, x, ldx, b, cols, h, y);
+    default: return productMaskedNarrow(n, k, x, ldx, b, cols, h, y);
+  }
 }
 
 void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
-  if (wide()) outerWide(n, m, g, ldg, h, cols, w);
-  else outerNarrow(n, m, g, ldg, h, cols, w);
+  switch (tier()) {
+    case Tier::Wide: return outerWide(n, m, g, ldg, h, cols, w);
+    case Tier::Mid: return outerMid(n, m, g, ldg, h, cols, w);
+    default: return outerNarrow(n, m, g, ldg, h, cols, w);
+  }
 }
 
 NBTF_SIMD_CLONES void rowDots(int n, int m, const float* h, int cols, const float* w, float* out) {
@@ -221,8 +269,8 @@ NBTF_SIMD_CLONES void rowDots(int n, int m, const float* h, int cols, const floa
     const float* hr = h + static_cast<std::size_t>(r) * cols;
     for (int i = 0; i < m; ++i) {
       const float* wi = w + static_cast<std::size_t>(i) * cols;
-      Vec acc = {};
-      for (int c = 0; c < cols; c += kDenseLanes) acc += load(hr + c) * load(wi + c);
+      Vec16 acc = {};
+      for (int c = 0; c < cols; c += kDenseLanes) acc += load<Vec16>(hr + c) * load<Vec16>(wi + c);
       float s = 0;
       for (int l = 0; l < kDenseLanes; ++l) s += acc[l];
       out[static_cast<std::size_t>(r) * m + i] = s;

@@ -31,9 +31,12 @@ void productMasked(int n, int k, const float* x, int ldx, const float* b, int co
 // w[i][j] += sum_{r<n} g[r * ldg + i] h[r][j] for i < m, j < cols (a weight gradient).
 void accumulateOuter(int n, int m, const float* g, int ldg, const float* h, int cols, float* w);
 
-// Tests only: true makes the kernels below take the narrow path that CPUs without AVX-512
-// run (the AVX-512 register blocks spill on narrower targets), so both are tested here.
-void setDenseKernelsGeneric(bool generic);
+// The kernels come in three builds (dense_kernels.cpp): Wide (AVX-512), Mid (AVX2 + FMA) and
+// Narrow (any CPU); Auto picks the widest the CPU runs. Tests only: force one, so that every
+// build this CPU supports is tested here (setDenseKernelTier throws for one it cannot run).
+enum class DenseKernelTier { Auto, Narrow, Mid, Wide };
+bool denseKernelTierSupported(DenseKernelTier tier);
+void setDenseKernelTier(DenseKernelTier tier);
 
 // out[r * m + i] = sum_{j<cols} h[r][j] w[i][j] for r < n, i < m (a narrow output layer).
 void rowDots(int n, int m, const float* h, int cols, const float* w, float* out);

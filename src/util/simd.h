@@ -21,12 +21,15 @@
 // Code that only pays with 16-float registers (it keeps many 16-float vectors live, which on
 // narrower targets spill): built for AVX-512 alone, called only where hasAvx512().
 #define NBTF_AVX512 __attribute__((target("avx512f")))
+// The same for 8-float registers: AVX2 with FMA, called only where hasAvx2Fma().
+#define NBTF_AVX2_FMA __attribute__((target("avx2,fma")))
 inline bool hasAvx512() { return __builtin_cpu_supports("avx512f"); }
 inline bool hasAvx512Vl() { return hasAvx512() && __builtin_cpu_supports("avx512vl"); }
 inline bool hasAvx2Fma() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"); }
 #else
 #define NBTF_SIMD_CLONES
 #define NBTF_AVX512
+#define NBTF_AVX2_FMA
 inline bool hasAvx512() { return false; }
 inline bool hasAvx512Vl() { return false; }
 inline bool hasAvx2Fma() { return false; }
