@@ -66,6 +66,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   // Refuse before loading what cannot fit (docs/compress.md, *Memory*).
   const std::string limitValue = args.count("memory-limit") ? args["memory-limit"].as<std::string>() : "";
   const std::size_t limit = limitValue.empty() ? defaultMemoryLimit() : parseByteSize(limitValue, "--memory-limit");
+  load.expandUpTo = expandBudget(limit);
   {
     const StackShape shape = stackShape(input, load);
     const MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,

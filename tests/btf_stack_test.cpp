@@ -44,6 +44,29 @@ TEST(BtfStack, Srgb8StorageLinearizesOnAccess) {
   EXPECT_FLOAT_EQ(img[2], 1.0f);
 }
 
+// gatherLinear: any texels in any images, dimension-major, the values sample() gives.
+TEST(BtfStack, GatherLinearReadsTexelsInImages) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {30, 0}}, 3, 2, type);
+    std::vector<float> rgb(6 * 3);
+    for (int i = 0; i < 4; ++i) {
+      for (std::size_t v = 0; v < rgb.size(); ++v) rgb[v] = 0.01f * static_cast<float>(i * 18 + v);
+      s.setImageLinear(i, rgb.data());
+    }
+    const std::vector<int> images = {3, 1}, texels = {5, 0, 2};
+    std::vector<float> out(2 * 3 * 3, -1.0f);
+    s.gatherLinear(images.data(), 2, texels.data(), 3, out.data());
+    for (int j = 0; j < 2; ++j)
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(out[(3 * j + c) * 3 + k], s.sample(images[j], texels[k], c));
+    std::vector<float> all(4 * 3);
+    const int texel = 4;
+    s.gatherLinear(nullptr, 0, &texel, 1, all.data());  // every image: one texel's ABRDF
+    EXPECT_EQ(all, s.abrdfLinear(texel));
+    EXPECT_FALSE(s.isComputed());
+  }
+}
+
 TEST(BtfStack, ParseCropAndLayout) {
   Crop c = parseCrop("10,20,100,50");
   EXPECT_EQ(c.x, 10);

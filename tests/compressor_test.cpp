@@ -10,7 +10,11 @@
 #include "codec/decoder.h"
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
+#include "io/btf_loader.h"
+#include "io/ubo2014_btf.h"
+#include "preprocess/ubo2014_factorize.h"
 #include "support/mlp_reference.h"
+#include "test_util.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 
@@ -180,6 +184,32 @@ TEST(Compressor, SameSeedSameBytesOtherSeedOtherBytes) {
   EXPECT_EQ(a, b);
   o.train.seed = 2;
   EXPECT_NE(serializeNbtf(compressStack(m.stack, o, s3)), a);
+}
+
+// A UBO2014 file too large to expand stays factorized (its values computed when read): the
+// compressed file must not depend on which of the two the loader chose.
+TEST(Compressor, FactorizedUbo2014InputGivesTheSameFileAsTheExpandedOne) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  Ubo2014FactorizeOptions f;
+  f.components = 6;
+  f.progress = false;
+  test::TempDir dir;
+  const std::string path = dir / "material.btf";
+  factorizeUbo2014(m.stack, f).write(path);
+  LoadOptions load;
+  load.progress = false;
+  BtfStack stored = loadBtfStack(path, load);
+  load.expandUpTo = 0;
+  BtfStack computed = loadBtfStack(path, load);
+  ASSERT_FALSE(stored.isComputed());
+  ASSERT_TRUE(computed.isComputed());
+  CompressOptions o = quickOptions(5);
+  o.train.epochs = 20;
+  CompressStats s1, s2;
+  std::vector<std::uint8_t> a = serializeNbtf(compressStack(stored, o, s1));
+  EXPECT_EQ(a, serializeNbtf(compressStack(computed, o, s2)));
+  EXPECT_EQ(s1.rmseTrain, s2.rmseTrain);
+  EXPECT_EQ(s1.rmseFloor, s2.rmseFloor);
 }
 
 TEST(Compressor, HoldoutImagesAreRecordedAndMeasured) {

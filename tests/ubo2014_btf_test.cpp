@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 #include "io/btf_loader.h"
 #include "test_util.h"
@@ -165,6 +166,62 @@ TEST(Ubo2014Btf, LoaderExpandsOnlyTheCrop) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("outside the 4 x 3"), std::string::npos) << e.what();
   }
+}
+
+// A stack computed from the factors holds exactly what the expanded one stores, through every
+// accessor; the loader keeps a file factorized when its expansion passes LoadOptions::expandUpTo.
+TEST(Ubo2014Btf, ComputedStackHoldsTheExpandedValues) {
+  for (std::int32_t model : {0, 11}) {
+    SCOPED_TRACE("colour model " + std::to_string(model));
+    auto btf = std::make_shared<const Ubo2014Btf>(smallMaterial(model, 2));
+    for (Crop crop : {Crop{}, Crop{1, 1, 3, 2}}) {
+      const BtfStack stored = btf->toStack(crop, false);
+      const BtfStack computed = Ubo2014Btf::computedStack(btf, crop);
+      ASSERT_FALSE(stored.isComputed());
+      ASSERT_TRUE(computed.isComputed());
+      EXPECT_EQ(computed.width(), stored.width());
+      EXPECT_EQ(computed.crop.x, stored.crop.x);
+      EXPECT_EQ(computed.sourceWidth, 4);
+      EXPECT_EQ(computed.layout, Layout::Ubo2014);
+      EXPECT_EQ(computed.sampleType(), SampleType::Half);
+      EXPECT_EQ(computed.bytesInMemory(), btf->factorBytes());
+      const int texels = stored.numTexels(), images = stored.numImages();
+      std::vector<float> a(texels * 3), b(texels * 3);
+      for (int i = 0; i < images; ++i) {
+        stored.imageLinear(i, a.data());
+        computed.imageLinear(i, b.data());
+        EXPECT_EQ(a, b) << "image " << i;
+        for (int t = 0; t < texels; ++t)
+          for (int c = 0; c < 3; ++c) EXPECT_EQ(computed.sample(i, t, c), stored.sample(i, t, c));
+      }
+      EXPECT_EQ(computed.abrdfLinear(texels - 1), stored.abrdfLinear(texels - 1));
+      const std::vector<int> someImages = {4, 0, 2}, someTexels = {texels - 1, 0, 1};
+      std::vector<float> ga(9 * 3), gb(9 * 3);
+      stored.gatherLinear(someImages.data(), 3, someTexels.data(), 3, ga.data());
+      computed.gatherLinear(someImages.data(), 3, someTexels.data(), 3, gb.data());
+      EXPECT_EQ(ga, gb);
+      EXPECT_EQ(gb[(3 * 1 + 2) * 3 + 0], stored.sample(0, texels - 1, 2));  // (image 0, channel B) of texel texels - 1
+      float lo1, hi1, lo2, hi2;
+      stored.valueRange(lo1, hi1);
+      computed.valueRange(lo2, hi2);
+      EXPECT_EQ(lo1, lo2);
+      EXPECT_EQ(hi1, hi2);
+      BtfStack writable = computed;
+      EXPECT_THROW(writable.imageBytes(0), Error);
+    }
+  }
+  test::TempDir dir;
+  const std::string path = dir / "big.btf";
+  smallMaterial(11).write(path);
+  LoadOptions o;
+  o.progress = false;
+  EXPECT_FALSE(loadBtfStack(path, o).isComputed());
+  EXPECT_EQ(stackShape(path, o).computedBytes, 0u);
+  o.expandUpTo = 12 * 6 * 6 - 1;  // one byte less than the half-float expansion
+  EXPECT_TRUE(loadBtfStack(path, o).isComputed());
+  EXPECT_EQ(stackShape(path, o).stackBytes(), Ubo2014Btf::read(path).factorBytes());
+  o.crop = {0, 0, 2, 2};  // a crop small enough is expanded
+  EXPECT_FALSE(loadBtfStack(path, o).isComputed());
 }
 
 std::string errorOf(const std::string& path) {

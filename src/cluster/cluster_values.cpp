@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <numeric>
 #include <cmath>
 #include <string>
 
@@ -166,9 +167,8 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
       if (n == 0) continue;
       // The cluster's ABRDFs as rows (linear / alpha), then its Gram matrix in double.
       y.resize(n, dims);
-      for (std::size_t j = 0; j < used.size(); ++j)
-        for (Eigen::Index k = 0; k < n; ++k)
-          for (int c = 0; c < 3; ++c) y(k, 3 * j + c) = stack.sample(used[j], texelsOf[k], c) * invAlpha;
+      stack.gatherLinear(used.data(), static_cast<int>(used.size()), texelsOf.data(), static_cast<int>(n), y.data());
+      y *= invAlpha;
       const double scale = std::sqrt(static_cast<double>(n));
       if (std::min(n, dims) > kExactSvdUpTo) {
         // Large clusters of long ABRDFs: subspace iteration for the top vectors only
@@ -253,21 +253,30 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   constexpr std::size_t kChunk = 256;
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
     Eigen::VectorXd rhs(r);
-    for (std::size_t t = begin; t < end; ++t) {
-      const std::int32_t g = ids[t];
-      if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
-      const float* f = &terms[static_cast<std::size_t>(g) * n * o];
-      rhs.setZero();
-      for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) {
-          const double y = stack.sample(images[i], static_cast<int>(t), c) * invAlpha;
-          for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
-        }
-      Eigen::VectorXd e = solvers[g].solve(rhs);
-      for (int a = 0; a < r; ++a) out[t * r + a] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
-      if ((t + 1 - begin) % kChunk == 0) bar.advance(kChunk);
+    std::vector<int> chunk;
+    std::vector<float> values;  // the chunk's texels in the images, image by image (gatherLinear)
+    for (std::size_t first = begin; first < end; first += kChunk) {
+      const int count = static_cast<int>(std::min(kChunk, end - first));
+      chunk.resize(count);
+      std::iota(chunk.begin(), chunk.end(), static_cast<int>(first));
+      values.resize(3 * n * count);
+      stack.gatherLinear(images.data(), static_cast<int>(n), chunk.data(), count, values.data());
+      for (int k = 0; k < count; ++k) {
+        const std::size_t t = first + k;
+        const std::int32_t g = ids[t];
+        if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
+        const float* f = &terms[static_cast<std::size_t>(g) * n * o];
+        rhs.setZero();
+        for (std::size_t i = 0; i < n; ++i)
+          for (int c = 0; c < 3; ++c) {
+            const double y = values[(3 * i + c) * count + k] * invAlpha;
+            for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
+          }
+        Eigen::VectorXd e = solvers[g].solve(rhs);
+        for (int a = 0; a < r; ++a) out[t * r + a] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
+      }
+      bar.advance(static_cast<std::size_t>(count));
     }
-    bar.advance((end - begin) % kChunk);
   }, kChunk);
   bar.finish();
   return out;

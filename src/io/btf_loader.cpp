@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -178,6 +179,16 @@ Crop cropFor(const std::string& path, const StackListing& listing, const LoadOpt
 }
 }  // namespace
 
+namespace {
+// Whether a UBO2014 file's crop stays factorized: its half-float expansion is over the limit.
+bool keepFactorized(const Ubo2014Btf& btf, const LoadOptions& options) {
+  const Crop& c = options.crop;
+  const std::size_t texels = c.empty() ? static_cast<std::size_t>(btf.numTexels())
+                                       : static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height);
+  return texels * static_cast<std::size_t>(btf.numImages()) * 3 * 2 > options.expandUpTo;
+}
+}  // namespace
+
 Crop checkCrop(const std::string& path, const LoadOptions& options) {
   if (looksLikeUbo2014(path)) {
     Ubo2014Btf btf = Ubo2014Btf::read(path);
@@ -201,7 +212,8 @@ StackShape stackShape(const std::string& path, const LoadOptions& options) {
     const Crop crop = options.crop.empty() ? Crop{0, 0, btf.width(), btf.height()} : options.crop;  // checked on loading
     shape.lights = btf.numLights(), shape.views = btf.numViews();
     shape.width = crop.width, shape.height = crop.height;
-    shape.type = SampleType::Half;  // the crop is expanded as half floats
+    shape.type = SampleType::Half;  // the crop's values as half floats, stored or computed
+    if (keepFactorized(btf, options)) shape.computedBytes = btf.factorBytes();
     return shape;
   }
   StackListing listing = listBtfStack(path, options.layout);
@@ -214,8 +226,13 @@ StackShape stackShape(const std::string& path, const LoadOptions& options) {
 }
 
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
-  // A UBO2014 file: the factors are read, and only the crop's texels are expanded.
-  if (looksLikeUbo2014(path)) return Ubo2014Btf::read(path).toStack(options.crop, options.progress);
+  // A UBO2014 file: the factors are read; the crop's texels are expanded when that is small
+  // enough, else computed from the factors when read (the same values either way).
+  if (looksLikeUbo2014(path)) {
+    auto btf = std::make_shared<const Ubo2014Btf>(Ubo2014Btf::read(path));
+    if (keepFactorized(*btf, options)) return Ubo2014Btf::computedStack(std::move(btf), options.crop);
+    return btf->toStack(options.crop, options.progress);
+  }
   StackListing listing = listBtfStack(path, options.layout);
   const std::string& first = listing.files.front();
   bool exr = imageFormatFromName(first) == ImageFormat::Exr;

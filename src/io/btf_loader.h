@@ -13,6 +13,11 @@ struct LoadOptions {
   bool progress = true;             // progress bar on the terminal
   // EXR colour space when the file does not say: UTIA EXRs are CIE XYZ (D65).
   bool utiaExrIsXyz = true;
+  // A UBO2014 file's crop is expanded into a half-float stack (fast to read) when that takes
+  // at most this many bytes; a larger one stays factorized, its values computed when read
+  // (BtfStack::isComputed: the same values, memory of the factors only).
+  std::size_t expandUpTo = kExpandUpToDefault;
+  static constexpr std::size_t kExpandUpToDefault = std::size_t(2) << 30;
 };
 
 // Finds the images of a stack under `path`: either a folder per view (tvTTT_pvPPP/) or a
@@ -39,12 +44,14 @@ BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
 struct StackShape {
   int lights = 0, views = 0, width = 0, height = 0;
   SampleType type = SampleType::Srgb8;
+  std::size_t computedBytes = 0;  // > 0: a factorized UBO2014 stack, values computed from factors of this size
   std::int64_t texels() const { return static_cast<std::int64_t>(width) * height; }
   int images() const { return lights * views; }
-  // Bytes of the loaded stack: 8-bit sRGB (1 byte per value) or half (2).
-  std::size_t stackBytes() const {
+  // Bytes of the values, stored (8-bit sRGB: 1 byte per value, half: 2) or computed.
+  std::size_t storedBytes() const {
     return static_cast<std::size_t>(images()) * static_cast<std::size_t>(texels()) * 3 * (type == SampleType::Srgb8 ? 1 : 2);
   }
+  std::size_t stackBytes() const { return computedBytes ? computedBytes : storedBytes(); }
 };
 StackShape stackShape(const std::string& path, const LoadOptions& options = {});
 

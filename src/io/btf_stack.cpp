@@ -19,8 +19,26 @@ BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, 
   data_.resize(static_cast<std::size_t>(numImages()) * bytesPerImage());
 }
 
-std::uint8_t* BtfStack::imageBytes(int image) { return data_.data() + static_cast<std::size_t>(image) * bytesPerImage(); }
+BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height,
+                   SampleType type, std::shared_ptr<const ComputedStackValues> values)
+    : lights_(std::move(lights)), views_(std::move(views)), width_(width), height_(height), type_(type),
+      computed_(std::move(values)) {
+  if (!computed_) throw Error("BtfStack: a computed stack needs its values");
+}
+
+namespace {
+[[noreturn]] void noStoredBytes(const std::string& source) {
+  throw Error((source.empty() ? std::string("this stack") : source) +
+              ": its values are computed from factors on demand; it has no stored image bytes");
+}
+}  // namespace
+
+std::uint8_t* BtfStack::imageBytes(int image) {
+  if (computed_) noStoredBytes(source);
+  return data_.data() + static_cast<std::size_t>(image) * bytesPerImage();
+}
 const std::uint8_t* BtfStack::imageBytes(int image) const {
+  if (computed_) noStoredBytes(source);
   return data_.data() + static_cast<std::size_t>(image) * bytesPerImage();
 }
 
@@ -33,6 +51,11 @@ inline float halfToFloat(std::uint16_t bits) {
 }  // namespace
 
 float BtfStack::sample(int image, int texel, int channel) const {
+  if (computed_) {
+    float rgb[3];
+    computed_->value(image, texel, rgb);
+    return rgb[channel];
+  }
   std::size_t i = static_cast<std::size_t>(texel) * 3 + channel;
   if (type_ == SampleType::Srgb8) return srgb8ToLinearTable()[imageBytes(image)[i]];
   std::uint16_t bits;
@@ -41,6 +64,7 @@ float BtfStack::sample(int image, int texel, int channel) const {
 }
 
 void BtfStack::imageLinear(int image, float* out) const {
+  if (computed_) return computed_->image(image, out);
   std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
   const std::uint8_t* src = imageBytes(image);
   if (type_ == SampleType::Srgb8) {
@@ -53,6 +77,7 @@ void BtfStack::imageLinear(int image, float* out) const {
 }
 
 void BtfStack::abrdfLinear(int texel, float* out) const {
+  if (computed_) return computed_->gather(nullptr, numImages(), &texel, 1, out);  // count 1: the same layout
   std::size_t offset = static_cast<std::size_t>(texel) * 3;
   int n = numImages();
   if (type_ == SampleType::Srgb8) {
@@ -75,9 +100,48 @@ std::vector<float> BtfStack::abrdfLinear(int texel) const {
   return out;
 }
 
+void BtfStack::gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const {
+  if (!images) numImages = this->numImages();
+  if (computed_) return computed_->gather(images, numImages, texels, count, out);
+  const float* lut = type_ == SampleType::Srgb8 ? srgb8ToLinearTable() : nullptr;
+  for (int j = 0; j < numImages; ++j) {
+    const std::uint8_t* src = imageBytes(images ? images[j] : j);
+    float* o = out + static_cast<std::size_t>(3 * j) * count;
+    for (int k = 0; k < count; ++k) {
+      const std::size_t i = static_cast<std::size_t>(texels[k]) * 3;
+      for (int c = 0; c < 3; ++c) {
+        float v;
+        if (lut) {
+          v = lut[src[i + c]];
+        } else {
+          std::uint16_t bits;
+          std::memcpy(&bits, src + 2 * (i + c), 2);
+          v = halfToFloat(bits);
+        }
+        o[static_cast<std::size_t>(c) * count + k] = v;
+      }
+    }
+  }
+}
+
 void BtfStack::valueRange(float& lo, float& hi) const {
   lo = std::numeric_limits<float>::infinity();
   hi = -lo;
+  if (computed_) {
+    // Image by image in parallel; min and max do not depend on the order.
+    const int workers = threadCount();
+    std::vector<float> los(workers, lo), his(workers, hi);
+    std::vector<std::vector<float>> buffers(workers);
+    parallelForDynamic(numImages(), [&](std::size_t image, int worker) {
+      std::vector<float>& rgb = buffers[worker];
+      rgb.resize(static_cast<std::size_t>(numTexels()) * 3);
+      computed_->image(static_cast<int>(image), rgb.data());
+      for (float v : rgb) los[worker] = std::min(los[worker], v), his[worker] = std::max(his[worker], v);
+    });
+    for (int w = 0; w < workers; ++w) lo = std::min(lo, los[w]), hi = std::max(hi, his[w]);
+    if (numImages() == 0 || numTexels() == 0) lo = hi = 0;
+    return;
+  }
   if (data_.empty()) {
     lo = hi = 0;
     return;
@@ -96,7 +160,7 @@ void BtfStack::valueRange(float& lo, float& hi) const {
 
 void BtfStack::setImageLinear(int image, const float* rgb) {
   std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
-  std::uint8_t* dst = imageBytes(image);
+  std::uint8_t* dst = imageBytes(image);  // throws for a computed stack
   if (type_ == SampleType::Srgb8) {
     for (std::size_t i = 0; i < n; ++i) dst[i] = linearToSrgb8(rgb[i]);
   } else {

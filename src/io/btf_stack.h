@@ -4,9 +4,15 @@
 // 8-bit sources stay 8-bit sRGB in memory (4x smaller than float32) and are linearized
 // on access through a table; EXR sources stay half floats. An ABRDF is one texel's
 // values over all images: out[3 * image + channel], linear.
+//
+// A stack can also compute its values instead of storing them (ComputedStackValues: a
+// factorized UBO2014 material, io/ubo2014_btf.h), so that a material larger than memory as
+// half floats can still be compressed. Every linear accessor works on both; the raw-storage
+// ones (imageBytes, setImageLinear) exist only for stored stacks.
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,10 +21,29 @@
 
 namespace nbtf {
 
+// Values of a stack computed on demand. Each function gives exactly the values a stored stack
+// of the same material would hold (e.g. rounded to half floats), so results never depend on
+// which of the two a loader chose.
+class ComputedStackValues {
+ public:
+  virtual ~ComputedStackValues() = default;
+  // One image, linear RGB, texels x 3 floats.
+  virtual void image(int image, float* out) const = 0;
+  // One texel's value in one image, linear RGB.
+  virtual void value(int image, int texel, float rgb[3]) const = 0;
+  // texels[k] in images[j] (nullptr: every image, j = image): out[(3 j + c) x count + k].
+  virtual void gather(const int* images, int numImages, const int* texels, int count, float* out) const = 0;
+  // Bytes the computation keeps in memory (the factors).
+  virtual std::size_t bytes() const = 0;
+};
+
 class BtfStack {
  public:
   BtfStack() = default;
   BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type);
+  // A stack whose values are computed (no storage); `type` is the precision they are rounded to.
+  BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type,
+           std::shared_ptr<const ComputedStackValues> values);
 
   // ---- Shape
   int numLights() const { return static_cast<int>(lights_.size()); }
@@ -31,7 +56,9 @@ class BtfStack {
   const std::vector<Direction>& lights() const { return lights_; }
   const std::vector<Direction>& views() const { return views_; }
   SampleType sampleType() const { return type_; }
-  std::size_t bytesInMemory() const { return data_.size(); }
+  bool isComputed() const { return computed_ != nullptr; }
+  // Bytes the values take: the stored samples, or what a computed stack keeps.
+  std::size_t bytesInMemory() const { return computed_ ? computed_->bytes() : data_.size(); }
   // Bytes this stack would take as linear float32 RGB (the paper's "raw" size).
   std::size_t rawFloat32Bytes() const { return static_cast<std::size_t>(numImages()) * numTexels() * 3 * 4; }
 
@@ -42,10 +69,14 @@ class BtfStack {
   // One texel's ABRDF, linear: out[3 * image + channel], numImages * 3 floats.
   void abrdfLinear(int texel, float* out) const;
   std::vector<float> abrdfLinear(int texel) const;
+  // Several texels in several images (images == nullptr: all, numImages ignored), linear,
+  // dimension-major: out[(3 j + c) x count + k] is texels[k] in images[j] (a count x 3 images
+  // column-major matrix). Reads image by image, so a stored stack is read in order.
+  void gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const;
   // Smallest and largest linear value over the whole stack.
   void valueRange(float& lo, float& hi) const;
 
-  // ---- Raw storage (loaders and writers)
+  // ---- Raw storage (loaders and writers; stored stacks only: a computed one throws)
   std::uint8_t* imageBytes(int image);
   const std::uint8_t* imageBytes(int image) const;
   std::size_t bytesPerImage() const { return static_cast<std::size_t>(numTexels()) * 3 * bytesPerSample(); }
@@ -64,6 +95,7 @@ class BtfStack {
   int width_ = 0, height_ = 0;
   SampleType type_ = SampleType::Srgb8;
   std::vector<std::uint8_t> data_;
+  std::shared_ptr<const ComputedStackValues> computed_;
 };
 
 }  // namespace nbtf

@@ -308,10 +308,16 @@ void Ubo2014Btf::toRgb(float* v, int lightIndex) const {
 }
 
 namespace {
+// Eight independent partial sums (a fixed order, so the same bits everywhere): the compiler
+// vectorizes them, where one running sum waits on every addition. A computed stack
+// (computedStack) calls this three times per value it reads.
 float dotK(const float* a, const float* b, int k) {
-  float s = 0;
-  for (int j = 0; j < k; ++j) s += a[j] * b[j];
-  return s;
+  float lane[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int j = 0;
+  for (; j + 8 <= k; j += 8)
+    for (int l = 0; l < 8; ++l) lane[l] += a[j + l] * b[j + l];
+  for (int l = 0; j < k; ++j, ++l) lane[l] += a[j] * b[j];
+  return ((lane[0] + lane[4]) + (lane[1] + lane[5])) + ((lane[2] + lane[6]) + (lane[3] + lane[7]));
 }
 }  // namespace
 
@@ -343,19 +349,19 @@ void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
 void Ubo2014Btf::abrdfLinear(int texel, float* out) const { abrdfsLinear(&texel, 1, out); }
 
 void Ubo2014Btf::imageLinear(int image, float* out) const {
-  const std::size_t row = static_cast<std::size_t>(fileRow(image));
   const int texels = numTexels();
-  for (int t = 0; t < texels; ++t) {
-    float v[3];
-    for (int c = 0; c < 3; ++c) {
-      const Ubo2014Channel& ch = channels_[c];
-      const float* angular = (abrdfsInU_ ? ch.u.data() : ch.sxv.data()) + row * ch.components;
-      const float* spatial = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + static_cast<std::size_t>(t) * ch.components;
-      v[c] = dotK(angular, spatial, ch.components);
-    }
-    toRgb(v, image / numViews());
-    std::copy_n(v, 3, out + static_cast<std::size_t>(t) * 3);
+  for (int t = 0; t < texels; ++t) valueLinear(image, t, out + static_cast<std::size_t>(t) * 3);
+}
+
+void Ubo2014Btf::valueLinear(int image, int texel, float* rgb) const {
+  const std::size_t row = static_cast<std::size_t>(fileRow(image));
+  for (int c = 0; c < 3; ++c) {
+    const Ubo2014Channel& ch = channels_[c];
+    const float* angular = (abrdfsInU_ ? ch.u.data() : ch.sxv.data()) + row * ch.components;
+    const float* spatial = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + static_cast<std::size_t>(texel) * ch.components;
+    rgb[c] = dotK(angular, spatial, ch.components);
   }
+  toRgb(rgb, image / numViews());
 }
 
 std::size_t Ubo2014Btf::factorBytes() const {
@@ -364,20 +370,75 @@ std::size_t Ubo2014Btf::factorBytes() const {
   return n;
 }
 
-BtfStack Ubo2014Btf::toStack(const Crop& requested, bool progress) const {
+Crop Ubo2014Btf::checkedCrop(const Crop& requested) const {
   Crop crop = requested.empty() ? Crop{0, 0, width(), height()} : requested;
-  if (crop.x + crop.width > width() || crop.y + crop.height > height()) {
+  if (crop.x < 0 || crop.y < 0 || crop.width < 1 || crop.height < 1 || crop.x + crop.width > width() ||
+      crop.y + crop.height > height()) {
     std::ostringstream s;
     s << "crop " << crop.x << "," << crop.y << "," << crop.width << "," << crop.height << " lies outside the "
       << width() << " x " << height() << " material";
     throw fileError(source_, s.str());
   }
-  BtfStack stack(meta_.lights, meta_.views, crop.width, crop.height, SampleType::Half);
+  return crop;
+}
+
+void Ubo2014Btf::setProvenance(BtfStack& stack, const Crop& crop) const {
   stack.source = source_;
   stack.layout = Layout::Ubo2014;
   stack.sourceWidth = width();
   stack.sourceHeight = height();
-  stack.crop = requested.empty() ? Crop{} : crop;
+  stack.crop = crop;
+}
+
+namespace {
+
+// What toStack stores for a computed value, read back: reflectances (a truncated SVD can dip
+// below zero) rounded to half floats.
+inline float storedValue(float v) { return halfToFloat(floatToHalf(std::max(0.0f, v))); }
+
+// A crop of a factorized material, its values computed on demand (BtfStack::isComputed).
+class FactorizedValues : public ComputedStackValues {
+ public:
+  FactorizedValues(std::shared_ptr<const Ubo2014Btf> btf, Crop crop) : btf_(std::move(btf)), crop_(crop) {}
+  void image(int image, float* out) const override {
+    const int texels = crop_.width * crop_.height;
+    for (int t = 0; t < texels; ++t) value(image, t, out + static_cast<std::size_t>(t) * 3);
+  }
+  void value(int image, int texel, float rgb[3]) const override {
+    btf_->valueLinear(image, fileTexel(texel), rgb);
+    for (int c = 0; c < 3; ++c) rgb[c] = storedValue(rgb[c]);
+  }
+  void gather(const int* images, int numImages, const int* texels, int count, float* out) const override {
+    for (int k = 0; k < count; ++k)
+      for (int j = 0; j < numImages; ++j) {
+        float rgb[3];
+        value(images ? images[j] : j, texels[k], rgb);
+        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(3 * j + c) * count + k] = rgb[c];
+      }
+  }
+  std::size_t bytes() const override { return btf_->factorBytes(); }
+
+ private:
+  int fileTexel(int t) const { return (crop_.y + t / crop_.width) * btf_->width() + crop_.x + t % crop_.width; }
+  std::shared_ptr<const Ubo2014Btf> btf_;
+  Crop crop_;
+};
+
+}  // namespace
+
+BtfStack Ubo2014Btf::computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& requested) {
+  const Crop crop = btf->checkedCrop(requested);
+  const Ubo2014Btf& b = *btf;
+  BtfStack stack(b.meta_.lights, b.meta_.views, crop.width, crop.height, SampleType::Half,
+                 std::make_shared<FactorizedValues>(btf, crop));
+  b.setProvenance(stack, requested.empty() ? Crop{} : crop);
+  return stack;
+}
+
+BtfStack Ubo2014Btf::toStack(const Crop& requested, bool progress) const {
+  const Crop crop = checkedCrop(requested);
+  BtfStack stack(meta_.lights, meta_.views, crop.width, crop.height, SampleType::Half);
+  setProvenance(stack, requested.empty() ? Crop{} : crop);
 
   const int texels = crop.width * crop.height, pairs = numImages();
   constexpr int kBlock = 32;
@@ -397,8 +458,7 @@ BtfStack Ubo2014Btf::toStack(const Crop& requested, bool progress) const {
         std::uint8_t* dst = stack.imageBytes(image) + static_cast<std::size_t>(first + k) * 6;
         for (int c = 0; c < 3; ++c) {
           // The pipeline's inputs are reflectances: a truncated SVD can dip below zero.
-          float v = std::max(0.0f, rows[(static_cast<std::size_t>(k) * pairs + image) * 3 + c]);
-          std::uint16_t h = floatToHalf(v);
+          std::uint16_t h = floatToHalf(std::max(0.0f, rows[(static_cast<std::size_t>(k) * pairs + image) * 3 + c]));
           std::memcpy(dst + 2 * c, &h, 2);
         }
       }

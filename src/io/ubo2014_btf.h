@@ -8,11 +8,14 @@
 // format fact here comes from Bonn's public reader, cgbonn/btflib (matlab/@btf): the file
 // and line are cited in docs/ubo2014.md.
 //
-// The material is never expanded here: rows are computed on demand from the factors, and
-// toStack() expands only the texels a crop asks for (the pipeline trains on a dense stack).
+// The material is never expanded here: rows are computed on demand from the factors.
+// toStack() expands the texels of a crop into a half-float stack; computedStack() gives the
+// same stack without storing it (every value computed from the factors when read), for
+// materials too large to expand (io/btf_loader.h decides which).
 #pragma once
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -109,6 +112,8 @@ class Ubo2014Btf {
   void abrdfsLinear(const int* texels, int count, float* out) const;
   // One image, linear RGB, width * height * 3 floats.
   void imageLinear(int image, float* out) const;
+  // One texel in one image, linear RGB (the same arithmetic as the two above).
+  void valueLinear(int image, int texel, float* rgb) const;
 
   // Bytes the factors take in memory (floats), and the material once expanded to float32 RGB.
   std::size_t factorBytes() const;
@@ -120,11 +125,17 @@ class Ubo2014Btf {
   // crop texels x images x 6 bytes. Directions in the file's order. Throws naming the file
   // when the crop lies outside the material.
   BtfStack toStack(const Crop& crop, bool progress = true) const;
+  // The same stack, value for value (clamped at zero and rounded to half floats as toStack
+  // stores them), computed on demand: it keeps `btf` (its factors) instead of crop texels x
+  // images x 6 bytes. Slower to read: each value is three dot products of the components.
+  static BtfStack computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& crop);
 
  private:
   // Undecorrelates one light/view pair's channel values (in place) into linear RGB.
   void toRgb(float* v, int lightIndex) const;
   int fileRow(int image) const;  // nbtf image -> the file's light/view row (light fastest)
+  Crop checkedCrop(const Crop& requested) const;  // empty = all; throws naming the file when outside
+  void setProvenance(BtfStack& stack, const Crop& crop) const;
 
   Ubo2014Meta meta_;
   std::vector<Ubo2014Channel> channels_;

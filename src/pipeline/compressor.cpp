@@ -410,13 +410,14 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   stats.output = output;
   {
     // ---- Fail before loading when the run cannot fit in --memory-limit.
+    stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
+    o.load.expandUpTo = expandBudget(stats.memoryLimit);
     const StackShape shape = stackShape(input, o.load);
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
     const MemoryEstimate estimate = estimateCompressMemory(
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
         PcaOptions().oversampling, modulated ? o.train.modulation.terms : 1, threadCount());
     stats.memoryEstimate = estimate.total();
-    stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
     enforceMemoryLimit(estimate, stats.memoryLimit,
                        o.memoryLimitText.empty() ? memoryLimitText(false, "") : o.memoryLimitText, input, shape);
   }
@@ -425,6 +426,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   load.progress = load.progress && o.progress;
   BtfStack stack = loadBtfStack(input, load);
   stats.seconds.load = secondsSince(t);
+  stats.computedStack = stack.isComputed();
   if (stopRequested(o)) {
     stats.interrupted = true;
     return stats;
@@ -458,8 +460,12 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
 namespace {
 std::string formatMemoryLine(const CompressStats& s) {
   if (s.peakMemory == 0) return "";
-  return "memory: peak " + formatBytes(s.peakMemory) + " resident (estimated before loading: " +
-         formatBytes(s.memoryEstimate) + "; --memory-limit " + formatBytes(s.memoryLimit) + ")\n";
+  std::string line = "memory: peak " + formatBytes(s.peakMemory) + " resident (estimated before loading: " +
+                     formatBytes(s.memoryEstimate) + "; --memory-limit " + formatBytes(s.memoryLimit) + ")\n";
+  if (s.computedStack)
+    line += "        the UBO2014 input stayed factorized (its half-float expansion is over half the limit): values "
+            "computed from the factors when read\n";
+  return line;
 }
 }  // namespace
 
@@ -596,6 +602,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
   j["interrupted"] = s.interrupted;
   j["memory_bytes"] = {{"peak_resident", s.peakMemory}, {"estimate", s.memoryEstimate}, {"limit", s.memoryLimit}};
+  j["computed_stack"] = s.computedStack;
   j["world_size"] = s.worldSize;
   j["all_reduce_bytes_per_step"] = s.allReduceBytesPerStep;
   j["all_reduce_seconds_per_step"] = s.allReduceSecondsPerStep;

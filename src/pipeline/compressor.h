@@ -106,6 +106,7 @@ struct CompressStats {
   // Memory (compressBtf): the estimate checked before loading, the limit, and the peak
   // resident set size at the end (getrusage), bytes; 0 = not measured (compressStack alone).
   std::size_t memoryEstimate = 0, memoryLimit = 0, peakMemory = 0;
+  bool computedStack = false;  // a UBO2014 input kept factorized (values computed when read)
 };
 
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).

@@ -84,7 +84,8 @@ void enforceMemoryLimit(const MemoryEstimate& e, std::size_t limit, const std::s
   if (e.total() <= limit) return;
   std::ostringstream s;
   s << shape.width << " x " << shape.height << " texels x " << shape.images() << " images ("
-    << (shape.type == SampleType::Srgb8 ? "8-bit" : "half float") << ") need about " << formatBytes(e.total())
+    << (shape.computedBytes ? "computed from UBO2014 factors" : shape.type == SampleType::Srgb8 ? "8-bit" : "half float")
+    << ") need about " << formatBytes(e.total())
     << " of memory: the stack " << formatBytes(e.stack) << " + " << formatBytes(e.working) << " for the "
     << e.stage << " + " << formatBytes(e.process) << " for the program; " << limitText << " allows "
     << formatBytes(limit);

@@ -33,6 +33,11 @@ MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int 
 void enforceMemoryLimit(const MemoryEstimate& estimate, std::size_t limit, const std::string& limitText,
                         const std::string& input, const StackShape& shape);
 
+// The largest half-float expansion of a UBO2014 file (LoadOptions::expandUpTo) a run under
+// `limit` makes: half the limit. A larger one stays factorized, its values computed when read
+// (the same values, slower to read).
+inline std::size_t expandBudget(std::size_t limit) { return limit / 2; }
+
 // "the default --memory-limit (75% of the 23.4 GiB of physical memory)" or "--memory-limit 8G".
 std::string memoryLimitText(bool given, const std::string& value);
 

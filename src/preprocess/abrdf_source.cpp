@@ -1,10 +1,10 @@
 #include "preprocess/abrdf_source.h"
 
 #include <algorithm>
+#include <numeric>
 
 #include "io/color.h"
 #include "util/error.h"
-#include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -146,8 +146,10 @@ void standardizeRun(float* values, Eigen::Index n, float mean, float stddev) {
 void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const {
   const Eigen::Index m = rows();
   const bool srgb = stack_.sampleType() == SampleType::Srgb8;
+  std::vector<float> rgb(srgb ? 0 : static_cast<std::size_t>(m) * 3);  // half or computed: one linear image
   for (Eigen::Index image = c0 / 3; image <= (c1 - 1) / 3; ++image) {
-    const std::uint8_t* bytes = stack_.imageBytes(static_cast<int>(image));
+    const std::uint8_t* bytes = srgb ? stack_.imageBytes(static_cast<int>(image)) : nullptr;
+    if (!srgb) stack_.imageLinear(static_cast<int>(image), rgb.data());
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * image + c;
       if (d < c0 || d >= c1) continue;
@@ -156,8 +158,7 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
         const float* t = &table_[static_cast<std::size_t>(d) * 256];
         for (Eigen::Index i = 0; i < m; ++i) column[i] = t[bytes[3 * i + c]];
       } else {
-        const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(bytes);
-        for (Eigen::Index i = 0; i < m; ++i) column[i] = halfToFloat(h[3 * i + c]);
+        for (Eigen::Index i = 0; i < m; ++i) column[i] = rgb[3 * i + c];
         standardizeRun(column, m, s_.mean[d], s_.stddev[d]);
       }
     }
@@ -166,20 +167,21 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
 
 void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
   const Eigen::Index n = r1 - r0;
-  const bool srgb = stack_.sampleType() == SampleType::Srgb8;
+  if (stack_.sampleType() != SampleType::Srgb8) {
+    // Half or computed: the linear values of the slice, then log and standardize per dimension.
+    std::vector<int> texels(static_cast<std::size_t>(n));
+    std::iota(texels.begin(), texels.end(), static_cast<int>(r0));
+    stack_.gatherLinear(nullptr, 0, texels.data(), static_cast<int>(n), out);
+    for (Eigen::Index d = 0; d < cols(); ++d) standardizeRun(out + d * n, n, s_.mean[d], s_.stddev[d]);
+    return;
+  }
   for (int image = 0; image < stack_.numImages(); ++image) {
-    const std::uint8_t* bytes = stack_.imageBytes(image) + 3 * r0 * static_cast<Eigen::Index>(stack_.bytesPerSample());
+    const std::uint8_t* bytes = stack_.imageBytes(image) + 3 * r0;
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
+      const float* t = &table_[static_cast<std::size_t>(d) * 256];
       float* column = out + d * n;
-      if (srgb) {
-        const float* t = &table_[static_cast<std::size_t>(d) * 256];
-        for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
-      } else {
-        const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(bytes);
-        for (Eigen::Index i = 0; i < n; ++i) column[i] = halfToFloat(h[3 * i + c]);
-        standardizeRun(column, n, s_.mean[d], s_.stddev[d]);
-      }
+      for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
     }
   }
 }
