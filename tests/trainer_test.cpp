@@ -316,6 +316,25 @@ TEST(Trainer, ResumedTimeBudgetSpendsTheRemainingBudget) {
 // below by max(min_steps, min_steps_per_input x encoder inputs), above by max_steps; --epochs
 // (all bounds 0) means exactly that many epochs. (docs/model.md, *How much training the
 // default does*; measured in docs/BENCHMARKS.md, *Default amount of training*.)
+// optimizer.learning_rate_scaling "inputs" (the default): x sqrt(encoder inputs per step / 32),
+// from 1 (512 images or more per input: the recipe's 32 inputs) to 2.5 (81 images: 202 inputs).
+TEST(TrainPlan, LearningRateGrowsWithTheInputsAStepHolds) {
+  TrainConfig c;
+  EXPECT_EQ(c.learningRateScaling, "inputs");
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 6561).learningRateScale, 1.0);   // 32 inputs x 512 images
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 22801).learningRateScale, 1.0);
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 81).learningRateScale, 2.5);     // 202 inputs: sqrt 2.51, capped
+  const TrainPlan mid = planTraining(c, 500, 200);                        // 81 inputs x 200 images
+  EXPECT_EQ(mid.tiles, 81);
+  EXPECT_NEAR(mid.learningRateScale, std::sqrt(81.0 / 32.0), 1e-12);
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 1).learningRateScale, 2.5);      // never more than measured
+  c.learningRateScaling = "none";
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 81).learningRateScale, 1.0);
+  c.learningRateScaling = "inputs";
+  c.epochs = 0;  // a time budget only: the same rate
+  EXPECT_DOUBLE_EQ(planTraining(c, 500, 81).learningRateScale, 2.5);
+}
+
 TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
   TrainConfig c;  // the defaults: 20 epochs, 2000 .. 16000 steps, 16 steps per input, 16384 samples per step
   EXPECT_EQ(c.minSteps, 2000);
@@ -511,6 +530,8 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"training": {"batch_size": 0}})", "'training.batch_size' must be >= 1"},
       {R"({"model": {"latent_dim": 8,}})", "not valid JSON"},
       {R"({"model": {"direction_inputs": "half"}})", "'model.direction_inputs' is not valid: unknown direction encoding \"half\""},
+      {R"({"optimizer": {"learning_rate_scaling": "linear"}})",
+       "'optimizer.learning_rate_scaling' must be \"inputs\" or \"none\", got \"linear\""},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

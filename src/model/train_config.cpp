@@ -139,6 +139,7 @@ TrainConfig loadTrainConfig(const std::string& path) {
   Section opt(root, "optimizer", path);
   opt.read("name", c.optimizer);
   opt.read("learning_rate", c.learningRate);
+  opt.read("learning_rate_scaling", c.learningRateScaling);
   opt.read("momentum", c.momentum);
   opt.rejectUnknown();
 
@@ -191,6 +192,9 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (c.optimizer != "sgd" && c.optimizer != "adam")
     bad(source, "optimizer.name", "must be \"sgd\" or \"adam\", got \"" + c.optimizer + "\"");
   if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
+  if (c.learningRateScaling != "inputs" && c.learningRateScaling != "none")
+    bad(source, "optimizer.learning_rate_scaling",
+        "must be \"inputs\" or \"none\", got \"" + c.learningRateScaling + "\"");
   if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
   if (c.backend != "fused" && c.backend != "torch")
@@ -247,6 +251,8 @@ TrainPlan planTraining(const TrainConfig& c, std::int64_t encoderInputs, int tra
   p.batch = static_cast<std::int64_t>(p.tiles) * p.perTile;
   const double samplesPerEpoch = static_cast<double>(encoderInputs) * trainImages;
   p.stepsPerEpoch = std::max<std::int64_t>(1, std::llround(std::ceil(samplesPerEpoch / p.batch)));
+  if (c.learningRateScaling == "inputs")
+    p.learningRateScale = std::clamp(std::sqrt(p.tiles / kReferenceInputsPerStep), 1.0, kMaxLearningRateScale);
   if (c.epochs <= 0) return p;  // bounded by the time budget only
   p.totalSteps = p.stepsPerEpoch * c.epochs;
   // At least min_steps, and min_steps_per_input per encoder input (k, or texels per-texel):

@@ -204,7 +204,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   if (!device.is_cpu()) encoder->to(device), decoder->to(device);
   std::vector<torch::Tensor> params = encoder->parameters();
   for (auto& p : decoder->parameters()) params.push_back(p);
-  auto optimizer = makeOptimizer(config, params);
+  auto optimizer = makeOptimizer(config, params);  // its rate is set before every step
   DecoderBackprop backprop(decoder, latentDim);
   const Mlp decoderMlpShape = decoderShape(config.model);
   const double flopsPerSample = decoderMlpShape.flopsPerSample();
@@ -315,7 +315,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     }
     const double p = progressOf(step, elapsed);
     const bool polish = config.polishFraction > 0 && p >= 1 - config.polishFraction;
-    setLearningRate(*optimizer, config.learningRate * scheduleFactor(config, p));
+    setLearningRate(*optimizer, config.learningRate * geometry.learningRateScale * scheduleFactor(config, p));
 
     // Samples: which groups and images, then their directions and targets.
     auto tPhase = Clock::now();
@@ -417,7 +417,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       TrainStatus st;
       st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
       st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss * lossToTexelMse + withinTrain), st.samplesPerSecond = sps;
-      st.learningRate = config.learningRate * scheduleFactor(config, p), st.polish = polish;
+      st.learningRate = config.learningRate * geometry.learningRateScale * scheduleFactor(config, p), st.polish = polish;
       config.monitor(st);
     }
     if (since(lastStatus) > 0.5) {

@@ -87,6 +87,11 @@ struct TrainConfig {
   // ---- optimizer
   std::string optimizer = "adam";  // "sgd" | "adam"
   double learningRate = 2e-3;
+  // "inputs": the rate grows with the encoder inputs a step holds beyond the recipe's 32 (x the
+  // square root of inputs / 32, at most x kMaxLearningRateScale): stacks with fewer images than
+  // imagesPerInput put more inputs in a step, whose averaged gradients carry a larger step
+  // (measured: docs/BENCHMARKS.md, *Default amount of training*). "none": the rate as given.
+  std::string learningRateScaling = "inputs";
   double momentum = 0;             // sgd only
   // ---- training
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
@@ -148,7 +153,12 @@ void validateTrainConfig(const TrainConfig& config, const std::string& source);
 struct TrainPlan {
   std::int64_t batch = 0, stepsPerEpoch = 0, totalSteps = 0;
   int perTile = 0, tiles = 0;
+  double learningRateScale = 1;  // optimizer.learning_rate_scaling applied to this geometry
 };
+// The recipe's encoder inputs per step (16,384 samples / 512 images) and the largest factor
+// the "inputs" scaling gives (what was measured: 202 inputs of 81 images, x 2.5).
+constexpr double kReferenceInputsPerStep = 32;
+constexpr double kMaxLearningRateScale = 2.5;
 TrainPlan planTraining(const TrainConfig& config, std::int64_t encoderInputs, int trainImages);
 
 // What training needs. In the clustered mode the encoder sees one representative per

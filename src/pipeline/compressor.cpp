@@ -223,7 +223,10 @@ std::string trainConfigJson(const TrainConfig& c) {
   // Recorded only when not the paper's, so files of earlier configs keep their bytes.
   if (c.model.directionInputs != DirectionEncoding::Stereographic)
     j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
-  j["optimizer"] = {{"name", c.optimizer}, {"learning_rate", c.learningRate}, {"momentum", c.momentum}};
+  j["optimizer"] = {{"name", c.optimizer},
+                    {"learning_rate", c.learningRate},
+                    {"learning_rate_scaling", c.learningRateScaling},
+                    {"momentum", c.momentum}};
   j["training"] = {{"batch_size", c.batchSize},
                    {"images_per_input", c.imagesPerInput},
                    {"epochs", c.epochs},
