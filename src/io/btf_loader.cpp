@@ -190,17 +190,7 @@ bool keepFactorized(const Ubo2014Btf& btf, const LoadOptions& options) {
 }  // namespace
 
 Crop checkCrop(const std::string& path, const LoadOptions& options) {
-  if (looksLikeUbo2014(path)) {
-    Ubo2014Btf btf = Ubo2014Btf::read(path);
-    Crop crop = options.crop.empty() ? Crop{0, 0, btf.width(), btf.height()} : options.crop;
-    if (crop.x + crop.width > btf.width() || crop.y + crop.height > btf.height()) {
-      std::ostringstream s;
-      s << "crop " << crop.x << "," << crop.y << "," << crop.width << "," << crop.height << " lies outside the "
-        << btf.width() << " x " << btf.height() << " material";
-      throw fileError(path, s.str());
-    }
-    return crop;
-  }
+  if (looksLikeUbo2014(path)) return Ubo2014Btf::read(path).checkedCrop(options.crop);
   int srcW = 0, srcH = 0;
   return cropFor(path, listBtfStack(path, options.layout), options, srcW, srcH);
 }

@@ -129,12 +129,14 @@ class Ubo2014Btf {
   // stores them), computed on demand: it keeps `btf` (its factors) instead of crop texels x
   // images x 6 bytes. Slower to read: each value is three dot products of the components.
   static BtfStack computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& crop);
+  // The crop a load applies (empty = the whole material); throws naming the file when it lies
+  // outside the material.
+  Crop checkedCrop(const Crop& requested) const;
 
  private:
   // Undecorrelates one light/view pair's channel values (in place) into linear RGB.
   void toRgb(float* v, int lightIndex) const;
   int fileRow(int image) const;  // nbtf image -> the file's light/view row (light fastest)
-  Crop checkedCrop(const Crop& requested) const;  // empty = all; throws naming the file when outside
   void setProvenance(BtfStack& stack, const Crop& crop) const;
 
   Ubo2014Meta meta_;
