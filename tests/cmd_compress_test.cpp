@@ -324,7 +324,7 @@ TEST_F(CmdCompress, PcaCompressThenInfoEndToEnd) {
 
   RunResult info = run("info " + out);
   EXPECT_EQ(info.exitCode, 0) << info.output;
-  for (const char* part : {"format 1.1", "pca (classic baseline), C = 4 components", "coefficients   64 texels x 4",
+  for (const char* part : {"format 1.4", "pca (classic baseline), C = 4 components", "coefficients   64 texels x 4",
                            "mean", "basis", "raw float32", "ratio", "kept out of the PCA fit"})
     EXPECT_TRUE(contains(info.output, part)) << part << "\n" << info.output;
 

@@ -125,17 +125,20 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
 // whose texels differ by brightness, and its parts are stored compactly.
 TEST(Compressor, ModulatedCompactFileBeatsTheClusterFloor) {
   auto m = testing::makeTestMaterial();
-  for (int terms : {1, 2}) {
+  // The third run stores the decoder with 8-bit weights: measured through them too.
+  for (auto [terms, decoderStorage] : {std::pair<int, const char*>{1, "half"}, {2, "half"}, {1, "int8"}}) {
+    const bool int8 = std::string(decoderStorage) == "int8";
     CompressOptions o = quickOptions(4);
     o.train.modulation = ModulationConfig{"svd", terms, 6};
-    o.train.storage = StorageConfig{"half", "half", "zstd"};
+    o.train.storage = StorageConfig{decoderStorage, "half", "zstd", "zstd"};
     o.train.holdoutFraction = 0.1;
     o.train.epochs = 1200;  // one step per epoch here: the terms need more steps than the quick recipe
     CompressStats stats;
     CompressedBtf b = compressStack(m.stack, o, stats);
     ASSERT_EQ(b.modulation.terms, terms);
     EXPECT_EQ(b.decoder.outputSize(), 3 * terms);
-    EXPECT_TRUE(b.storage.decoderHalf && b.storage.latentsHalf && b.storage.idsZstd);
+    EXPECT_TRUE(b.storage.decoderHalf != int8 && b.storage.decoderInt8 == int8 && b.storage.latentsHalf &&
+                b.storage.idsZstd && b.storage.metadataZstd);
     const double floor = clusterMeanRmse(m.stack, m.alpha, b.ids, 4);
     EXPECT_NEAR(stats.rmseFloor, floor, 0.1 * floor);  // over the training images there
     EXPECT_LT(stats.rmseFloorModulated, 0.2 * stats.rmseFloor);
@@ -154,7 +157,9 @@ TEST(Compressor, ModulatedCompactFileBeatsTheClusterFloor) {
     }
     EXPECT_NEAR(std::sqrt(sse / count), stats.rmseTrain, 1e-5);
     EXPECT_GT(stats.sizes.modulation, 0u);
-    EXPECT_EQ(stats.sizes.decoder, 2 * b.decoder.parameterCount());
+    std::uint64_t outputs = 0;
+    for (const DenseLayer& l : b.decoder.layers) outputs += l.out;
+    EXPECT_EQ(stats.sizes.decoder, int8 ? b.decoder.parameterCount() + 3 * outputs : 2 * b.decoder.parameterCount());
   }
 }
 

@@ -13,6 +13,7 @@
 #include "codec_fixtures.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/half.h"
 #include "test_util.h"
 
 namespace nbtf {
@@ -48,9 +49,14 @@ CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6) {
 // The files every damage test runs on: clustered neural, the PCA baseline (whose sections
 // have their own size fields and checks) and a compact 1.2 file (zstd frames, half floats).
 std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
+  CompressedBtf compactMetadata = makeCompactBtf();  // and an 8-bit decoder
+  compactMetadata.storage.metadataZstd = compactMetadata.storage.decoderInt8 = true;
+  compactMetadata.storage.decoderHalf = false;
+  roundToStorage(compactMetadata);
   return {{"clustered", serializeNbtf(makeBtf(5))},
           {"pca", serializeNbtf(makePcaBtf())},
-          {"compact", serializeNbtf(makeCompactBtf())}};
+          {"compact", serializeNbtf(makeCompactBtf())},
+          {"compact metadata", serializeNbtf(compactMetadata)}};
 }
 
 std::string errorOf(const std::vector<std::uint8_t>& bytes, std::size_t size = SIZE_MAX,
@@ -443,6 +449,170 @@ TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
   }
 }
 
+// storage.metadata "zstd" (format 1.4): the metadata JSON and the hold-out list (as a bit mask
+// over the images) are zstd frames, METZ and HOLZ; they read back to the same values.
+TEST(NbtfFile, CompactMetadataRoundTripsAndIsSmaller) {
+  CompressedBtf b = makeBtf(5, 4, 3);
+  b.lights.assign(9, Direction{10, 0});
+  b.views.assign(9, Direction{20, 0});
+  for (std::size_t i = 0; i < b.lights.size(); ++i) b.lights[i].phiDeg = b.views[i].phiDeg = 40.0 * i;
+  b.holdoutImages = {0, 7, 8, 9, 40, 80};  // first and last of 81 images, a byte boundary
+  std::string json = R"({"source": {"path": "/data/captures/fabric"}, "config": {"epochs": 20}, "fingerprint": [)";
+  for (int i = 0; i < 200; ++i) json += (i ? ", " : "") + std::to_string(0.25 + 0.001 * i);
+  b.metadataJson = json + "]}";
+  const std::vector<std::uint8_t> raw = serializeNbtf(b);
+  b.storage.metadataZstd = true;
+  const std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_EQ(bytes[10], 4);  // format 1.4
+  EXPECT_EQ(raw[10], 0);    // the same material stored raw stays 1.0
+  EXPECT_NE(findSection(bytes, "METZ"), 0u);
+  EXPECT_NE(findSection(bytes, "HOLZ"), 0u);
+  EXPECT_EQ(findSection(bytes, "META"), 0u);
+  EXPECT_EQ(findSection(bytes, "HOLD"), 0u);
+  EXPECT_LT(bytes.size() + 500, raw.size()) << "compact " << bytes.size() << " B, raw " << raw.size() << " B";
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(back.formatMinor, 4);
+  EXPECT_TRUE(back.storage.metadataZstd);
+  EXPECT_EQ(back.metadataJson, b.metadataJson);
+  EXPECT_EQ(back.holdoutImages, b.holdoutImages);
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  // No hold-out images: no HOLZ section, and the file still reads.
+  b.holdoutImages.clear();
+  const std::vector<std::uint8_t> none = serializeNbtf(b);
+  EXPECT_EQ(findSection(none, "HOLZ"), 0u);
+  EXPECT_TRUE(parseNbtf(none.data(), none.size(), "mem").holdoutImages.empty());
+}
+
+// storage.decoder "int8" (DEC8, format 1.4): each weight is a signed 8-bit code times its
+// output row's half scale, within half a step of the trained value; the file holds exactly the
+// rounded values and reads back to them.
+TEST(NbtfFile, Int8DecoderRoundTripsWithinItsStatedError) {
+  CompressedBtf b = makeBtf(5);
+  std::mt19937 rng(3);
+  b.decoder = makeDecoder(b.latentDim, {40, 30}, rng);
+  b.decoder.layers[1].weight[7] = 1e-6f;  // a lone tiny weight in a row of ordinary ones
+  std::fill_n(b.decoder.layers[1].weight.begin() + 40, 40, 1e-7f);  // a row of tiny weights
+  const Mlp trained = b.decoder;
+  b.storage.decoderInt8 = true;
+  test::expectErrorContaining([&] { serializeNbtf(b); }, {"8-bit weights", "roundToStorage"});
+  roundToStorage(b);
+  for (std::size_t l = 0; l < trained.layers.size(); ++l) {
+    const DenseLayer &t = trained.layers[l], &q = b.decoder.layers[l];
+    for (int o = 0; o < t.out; ++o) {
+      float largest = 0;
+      for (int i = 0; i < t.in; ++i) largest = std::max(largest, std::fabs(t.weight[o * t.in + i]));
+      const float step = std::max(largest / 127.f * (1 + 1.f / 1024), 6.103515625e-05f);
+      for (int i = 0; i < t.in; ++i)
+        ASSERT_LE(std::fabs(q.weight[o * t.in + i] - t.weight[o * t.in + i]), step / 2 + 1e-12f)
+            << "layer " << l << " row " << o << " input " << i;
+    }
+    for (int o = 0; o < t.out; ++o) EXPECT_EQ(q.bias[o], roundToHalf(t.bias[o]));
+  }
+  const std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_EQ(bytes[10], 4);  // format 1.4
+  EXPECT_NE(findSection(bytes, "DEC8"), 0u);
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_TRUE(back.storage.decoderInt8);
+  EXPECT_FALSE(back.storage.decoderHalf);
+  for (std::size_t l = 0; l < trained.layers.size(); ++l) {
+    EXPECT_EQ(back.decoder.layers[l].weight, b.decoder.layers[l].weight);
+    EXPECT_EQ(back.decoder.layers[l].bias, b.decoder.layers[l].bias);
+  }
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  // Rounding again changes nothing.
+  roundToStorage(back);
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  // Sizes: one byte a weight, two for each row's scale and bias.
+  NbtfSizes sizes = computeSizes(b);
+  std::uint64_t weights = 0, outputs = 0;
+  for (const DenseLayer& l : b.decoder.layers) weights += l.weight.size(), outputs += l.bias.size();
+  EXPECT_EQ(sizes.decoder, weights + 4 * outputs);
+  EXPECT_TRUE(contains(formatSizeTable(sizes), "8-bit weights, half scale per row")) << formatSizeTable(sizes);
+  EXPECT_EQ(storageDescription(b), "decoder int8, latents float32, ids raw, metadata raw");
+}
+
+TEST(NbtfFile, Int8DecoderContentIsCheckedByName) {
+  CompressedBtf b = makeBtf(5);
+  b.storage.decoderInt8 = true;
+  roundToStorage(b);
+  const std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  const std::size_t at = findSection(bytes, "DEC8");
+  ASSERT_NE(at, 0u);
+  // Layer 0 (12 inputs, 6 outputs): header at payload + 4, scales at + 16, codes at + 28.
+  const std::size_t scales = at + 24 + 4 + 12, codes = scales + 2 * 6;
+  auto errorWith = [&](std::size_t offset, std::uint8_t value) {
+    std::vector<std::uint8_t> bad = bytes;
+    bad[offset] = value;
+    resealSection(bad, at);
+    return errorOf(bad);
+  };
+  EXPECT_TRUE(contains(errorWith(codes + 3, 0x80), "layer 0 row 0: code -128")) << errorWith(codes + 3, 0x80);
+  // Every code of row 0 made small: the scale no longer fits the row.
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    for (int i = 0; i < 12; ++i) bad[codes + i] = 1;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), "layer 0 row 0: largest code 1, expected 127")) << errorOf(bad);
+  }
+  // A scale of infinity (half 0x7C00).
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    bad[scales] = 0x00;
+    bad[scales + 1] = 0x7C;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), "is not a finite half value")) << errorOf(bad);
+  }
+  // Two encodings of the decoder.
+  std::vector<std::uint8_t> two = serializeNbtf(makeCompactBtf());
+  const std::size_t half = findSection(two, "DECH");
+  std::uint64_t size = 0;
+  for (int i = 0; i < 8; ++i) size |= std::uint64_t(bytes[at + 8 + i]) << (8 * i);
+  appendSection(two, "DEC8", 1, std::vector<std::uint8_t>(bytes.begin() + at + 24, bytes.begin() + at + 24 + size));
+  EXPECT_TRUE(contains(errorOf(two), "both section 'DECH'")) << errorOf(two);
+  EXPECT_NE(half, 0u);
+}
+
+// The compact sections' own fields are checked against the material, by name.
+TEST(NbtfFile, CompactMetadataContentIsCheckedByName) {
+  CompressedBtf b = makeCompactBtf();
+  b.storage.metadataZstd = true;
+  const std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  const std::size_t hol = findSection(bytes, "HOLZ");
+  ASSERT_NE(hol, 0u);
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, hol + 24, 3);  // the mask holds 2 images
+    resealSection(bad, hol);
+    EXPECT_TRUE(contains(errorOf(bad), "the mask holds 2 images, the section says 3")) << errorOf(bad);
+  }
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, hol + 28, 7);  // 6 images in the material
+    resealSection(bad, hol);
+    EXPECT_TRUE(contains(errorOf(bad), "a mask of 7 images, the material has 6")) << errorOf(bad);
+  }
+  const std::size_t meta = findSection(bytes, "METZ");
+  ASSERT_NE(meta, 0u);
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, meta + 24, 5);  // not the frame's size
+    resealSection(bad, meta);
+    const std::string e = errorOf(bad);
+    EXPECT_TRUE(contains(e, "mat.nbtf") && contains(e, "section 'METZ' (metadata, zstd-coded)")) << e;
+  }
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, meta + 24, 0xFFFFFFFFu);
+    resealSection(bad, meta);
+    EXPECT_TRUE(contains(errorOf(bad), "more than the 67108864 allowed")) << errorOf(bad);
+  }
+  // Both encodings of the metadata in one file.
+  std::vector<std::uint8_t> two = bytes;
+  const std::string text = "{}";
+  appendSection(two, "META", 0, std::vector<std::uint8_t>(text.begin(), text.end()));
+  EXPECT_TRUE(contains(errorOf(two), "both section 'META'")) << errorOf(two);
+}
+
 TEST(NbtfFile, PaperStyleFilesStayFormat10) {
   // Without compact parts or modulation the writer still writes 1.0, readable by older nbtf.
   std::vector<std::uint8_t> bytes = serializeNbtf(makeBtf(5));
@@ -558,7 +728,7 @@ TEST(NbtfFile, TruncationIsCaughtStructurallyWithoutChecksums) {
   // itself must catch every cut, except one that removes whole optional trailing sections.
   for (const auto& [kind, bytes] : damageTestFiles()) {
     std::vector<std::size_t> boundaries;
-    for (const char* tag : {"HOLD", "META"}) boundaries.push_back(findSection(bytes, tag));
+    for (const char* tag : {"HOLD", "META", "HOLZ", "METZ"}) boundaries.push_back(findSection(bytes, tag));
     NbtfParseOptions noCrc;
     noCrc.verifyChecksums = false;
     for (std::size_t n = 32; n < bytes.size(); ++n) {

@@ -92,11 +92,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
       field("modulation", std::to_string(btf.modulation.terms) + " RGB term" + (btf.modulation.terms > 1 ? "s" : "") +
                               " per cluster, mixed by per-texel coefficients (" + std::to_string(btf.modulation.bits) +
                               "-bit codes, refit to the trained terms)");
-    field("storage", std::string("decoder ") + (btf.storage.decoderHalf ? "half" : "float32") + ", latents " +
-                         (btf.storage.latentsHalf ? "half" : "float32") +
-                         (btf.method == CodecMethod::ClusteredNeural
-                              ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
-                              : std::string()));
+    field("storage", storageDescription(btf));
   }
   if (btf.holdoutImages.empty()) {
     field("hold-out", btf.isPca() ? "none (every image was used in the PCA fit)"

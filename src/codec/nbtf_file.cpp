@@ -33,6 +33,7 @@ constexpr std::uint32_t kMaxPcaComponents = 1u << 16;
 constexpr std::uint32_t kMaxLayers = 256;
 constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
 constexpr int kMaxJsonDepth = 64;
+constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;  // METZ: bounds the allocation a hostile size asks for
 constexpr float kMaxModulationMagnitude = 1e6f;  // coefficient ranges: no overflow in products
 
 constexpr std::uint32_t tag(const char (&s)[5]) {
@@ -43,7 +44,7 @@ constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag
                         kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
                         kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC"),
                         kDecoderHalf = tag("DECH"), kLatentsHalf = tag("LATH"), kIdsZstd = tag("TXIZ"),
-                        kModulation = tag("TXSC");
+                        kModulation = tag("TXSC"), kDecoderInt8 = tag("DEC8"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -73,9 +74,12 @@ std::string sectionLabel(std::uint32_t t) {
                      : t == kPcaBasis ? "PCA basis"
                      : t == kPcaCoefficients ? "PCA coefficients"
                      : t == kDecoderHalf ? "decoder, half precision"
+                     : t == kDecoderInt8 ? "decoder, 8-bit weights"
                      : t == kLatentsHalf ? "latents, half precision"
                      : t == kIdsZstd ? "id list, zstd-coded"
                      : t == kModulation ? "per-texel modulation"
+                     : t == kMetaZstd ? "metadata, zstd-coded"
+                     : t == kHoldoutZstd ? "hold-out images, zstd-coded"
                                      : nullptr;
   return "section '" + tagText(t) + "'" + (what ? std::string(" (") + what + ")" : std::string());
 }
@@ -165,10 +169,48 @@ std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
   return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
 }
 
+// ---- 8-bit decoder weights (DEC8)
+
+// The smallest normal half value 2^-14: a row's scale is never below it, so a row of tiny
+// weights keeps codes below 127 and still re-quantizes to itself.
+constexpr float kMinInt8Scale = 6.103515625e-05f;
+
+// Scale of one output row: the smallest half value s >= 2^-14 with max|w| / s <= 127. Then
+// the row's largest weight is code +-127 (unless the scale is the minimum), and quantizing
+// q x s again gives the same scale and codes: the writer re-derives them from the values.
+float int8RowScale(const float* w, int n) {
+  float m = 0;
+  for (int i = 0; i < n; ++i) m = std::max(m, std::fabs(w[i]));
+  float s = std::max(roundToHalf(m / 127.f), kMinInt8Scale);
+  if (m / s > 127.f) s = halfToFloat(static_cast<std::uint16_t>(floatToHalf(s) + 1));  // next half up
+  return s;
+}
+int int8Code(float w, float scale) {
+  return static_cast<int>(std::clamp(std::nearbyint(w / scale), -127.f, 127.f));
+}
+
 }  // namespace
 
+std::string storageDescription(const CompressedBtf& btf) {
+  if (btf.isPca()) return std::string("float32 parts, metadata ") + (btf.storage.metadataZstd ? "zstd" : "raw");
+  return std::string("decoder ") + (btf.storage.decoderInt8 ? "int8" : btf.storage.decoderHalf ? "half" : "float32") +
+         ", latents " + (btf.storage.latentsHalf ? "half" : "float32") +
+         (btf.method == CodecMethod::ClusteredNeural ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
+                                                     : std::string()) +
+         ", metadata " + (btf.storage.metadataZstd ? "zstd" : "raw");
+}
+
 void roundToStorage(CompressedBtf& btf) {
-  if (btf.storage.decoderHalf)
+  if (btf.storage.decoderInt8)
+    for (DenseLayer& l : btf.decoder.layers) {
+      for (int o = 0; o < l.out; ++o) {
+        float* row = l.weight.data() + static_cast<std::size_t>(o) * l.in;
+        const float scale = int8RowScale(row, l.in);
+        for (int i = 0; i < l.in; ++i) row[i] = static_cast<float>(int8Code(row[i], scale)) * scale;
+      }
+      for (float& b : l.bias) b = roundToHalf(b);
+    }
+  else if (btf.storage.decoderHalf)
     for (DenseLayer& l : btf.decoder.layers) {
       for (float& w : l.weight) w = roundToHalf(w);
       for (float& b : l.bias) b = roundToHalf(b);
@@ -197,9 +239,11 @@ int idWidthForClusters(std::int64_t k) {
 NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   NbtfSizes s;
   for (const auto& layer : btf.decoder.layers) s.decoderParameters += layer.parameterCount();
-  s.decoderBytesPerValue = btf.storage.decoderHalf ? 2 : 4;
+  s.decoderBytesPerValue = btf.storage.decoderInt8 ? 1 : btf.storage.decoderHalf ? 2 : 4;
   s.latentBytesPerValue = btf.storage.latentsHalf ? 2 : 4;
   s.decoder = s.decoderParameters * s.decoderBytesPerValue;
+  if (btf.storage.decoderInt8)  // 1-byte weights, a 2-byte scale and a 2-byte bias per output
+    for (const auto& layer : btf.decoder.layers) s.decoder += 3 * layer.bias.size();
   s.latentRows = static_cast<std::uint64_t>(std::max(btf.latentRows, 0));
   s.latentDim = btf.latentDim;
   const std::uint64_t latentValues = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0));
@@ -285,7 +329,10 @@ std::string formatSizeTable(const NbtfSizes& s) {
   }
   std::string out = "sizes (as in the paper's Table 1, as stored; KiB = 1024 bytes, the paper's KB)\n";
   auto precision = [](int bytes) { return bytes == 2 ? std::string(" x 2 bytes (half)") : std::string(" x 4 bytes (float32)"); };
-  out += row("decoder", s.decoder, withCommas(s.decoderParameters) + " parameters" + precision(s.decoderBytesPerValue));
+  out += row("decoder", s.decoder,
+             withCommas(s.decoderParameters) + " parameters" +
+                 (s.decoderBytesPerValue == 1 ? std::string(": 8-bit weights, half scale per row, half biases")
+                                              : precision(s.decoderBytesPerValue)));
   out += row("latents", s.latents,
              withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
   if (s.idWidth && s.idsZstd) {
@@ -467,6 +514,19 @@ void CompressedBtf::validateNeural(const std::string& name) const {
   auto halfExact = [](const std::vector<float>& v) {
     return std::all_of(v.begin(), v.end(), [](float x) { return roundToHalf(x) == x; });
   };
+  if (storage.decoderInt8 && storage.decoderHalf) throw fail("decoder storage is both half and 8-bit");
+  if (storage.decoderInt8)
+    for (const DenseLayer& l : decoder.layers) {
+      bool exact = halfExact(l.bias);
+      for (int o = 0; o < l.out && exact; ++o) {
+        const float* row = l.weight.data() + static_cast<std::size_t>(o) * l.in;
+        const float scale = int8RowScale(row, l.in);
+        for (int i = 0; i < l.in && exact; ++i) exact = static_cast<float>(int8Code(row[i], scale)) * scale == row[i];
+      }
+      if (!exact)
+        throw fail("decoder is to be stored with 8-bit weights and half biases but holds values they cannot "
+                   "represent (round them with roundToStorage first)");
+    }
   if (storage.decoderHalf)
     for (const DenseLayer& l : decoder.layers)
       if (!halfExact(l.weight) || !halfExact(l.bias))
@@ -541,7 +601,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)
+  file.u16(btf.storage.metadataZstd || btf.storage.decoderInt8         ? std::uint16_t(4)
+           : btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)
            : usesFormat12(btf)                                       ? std::uint16_t(2)
            : btf.isPca()                                             ? std::uint16_t(1)
                                                                      : std::uint16_t(0));
@@ -602,6 +663,10 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     addSection(file, kPcaCoefficients, true, coefficients);
   }
   if (!btf.isPca()) {
+    // Per layer: u32 in, u32 out, u8 activation, 3 reserved, then float32 or half weights and
+    // biases; DEC8: out half scales, out x in signed 8-bit codes (weight = code x its row's
+    // scale), out half biases.
+    const bool int8 = btf.storage.decoderInt8;
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.decoder.layers.size()));
     for (const DenseLayer& l : btf.decoder.layers) {
@@ -609,10 +674,19 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
       w.u32(static_cast<std::uint32_t>(l.out));
       w.u8(static_cast<std::uint8_t>(l.activation));
       w.zeros(3);
-      writeValues(w, l.weight, btf.storage.decoderHalf);
-      writeValues(w, l.bias, btf.storage.decoderHalf);
+      if (int8) {
+        std::vector<float> scales(l.out);
+        for (int o = 0; o < l.out; ++o) scales[o] = int8RowScale(l.weight.data() + static_cast<std::size_t>(o) * l.in, l.in);
+        writeValues(w, scales, true);
+        for (std::size_t i = 0; i < l.weight.size(); ++i)
+          w.u8(static_cast<std::uint8_t>(static_cast<std::int8_t>(int8Code(l.weight[i], scales[i / l.in]))));
+        writeValues(w, l.bias, true);
+      } else {
+        writeValues(w, l.weight, btf.storage.decoderHalf);
+        writeValues(w, l.bias, btf.storage.decoderHalf);
+      }
     }
-    addSection(file, btf.storage.decoderHalf ? kDecoderHalf : kDecoder, true, w);
+    addSection(file, int8 ? kDecoderInt8 : btf.storage.decoderHalf ? kDecoderHalf : kDecoder, true, w);
   }
   if (!btf.isPca()) {
     ByteWriter w;
@@ -663,7 +737,17 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     w.raw(coded.data(), coded.size());
     addSection(file, kModulation, true, w);
   }
-  if (!btf.holdoutImages.empty()) {
+  if (!btf.holdoutImages.empty() && btf.storage.metadataZstd) {
+    // u32 count, u32 images, a zstd frame of the images' bit mask (bit i of byte i / 8).
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.holdoutImages.size()));
+    w.u32(static_cast<std::uint32_t>(btf.numImages()));
+    std::vector<std::uint8_t> mask((static_cast<std::size_t>(btf.numImages()) + 7) / 8, 0);
+    for (int h : btf.holdoutImages) mask[h / 8] |= static_cast<std::uint8_t>(1u << (h % 8));
+    auto coded = zstdCompress(mask.data(), mask.size());
+    w.raw(coded.data(), coded.size());
+    addSection(file, kHoldoutZstd, false, w);
+  } else if (!btf.holdoutImages.empty()) {
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.holdoutImages.size()));
     for (int h : btf.holdoutImages) w.u32(static_cast<std::uint32_t>(h));
@@ -674,7 +758,14 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     w.raw(btf.encoderState.data(), btf.encoderState.size());
     addSection(file, kEncoder, false, w);
   }
-  {
+  if (btf.storage.metadataZstd) {
+    // u32 size of the JSON text, a zstd frame of it.
+    ByteWriter w;
+    w.u32(static_cast<std::uint32_t>(btf.metadataJson.size()));
+    auto coded = zstdCompress(reinterpret_cast<const std::uint8_t*>(btf.metadataJson.data()), btf.metadataJson.size());
+    w.raw(coded.data(), coded.size());
+    addSection(file, kMetaZstd, false, w);
+  } else {
     ByteWriter w;
     w.raw(btf.metadataJson.data(), btf.metadataJson.size());
     addSection(file, kMeta, false, w);
@@ -818,8 +909,9 @@ std::vector<float> readValues(ByteReader& r, std::uint64_t count, bool half, con
 }
 
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
-  const bool half = s.tag == kDecoderHalf;
+  const bool int8 = s.tag == kDecoderInt8, half = s.tag == kDecoderHalf;
   btf.storage.decoderHalf = half;
+  btf.storage.decoderInt8 = int8;
   ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
   std::uint32_t count = r.u32();
   if (count < 1 || count > kMaxLayers) throw r.fail("layer count " + std::to_string(count) + " is out of range");
@@ -833,8 +925,33 @@ void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& na
     if (act > 2) throw r.fail("layer " + std::to_string(i) + " has unknown activation code " + std::to_string(act));
     l.activation = static_cast<Activation>(act);
     r.take(3, "reserved");
-    l.weight = readValues(r, static_cast<std::uint64_t>(l.in) * static_cast<std::uint64_t>(l.out), half, "layer weights");
-    l.bias = readValues(r, static_cast<std::uint64_t>(l.out), half, "layer biases");
+    const std::uint64_t weights = static_cast<std::uint64_t>(l.in) * static_cast<std::uint64_t>(l.out);
+    if (int8) {
+      const std::vector<float> scales = readValues(r, static_cast<std::uint64_t>(l.out), true, "row scales");
+      r.needItems(weights, 1, "layer weights");
+      l.weight.resize(static_cast<std::size_t>(weights));
+      for (int o = 0; o < l.out; ++o) {
+        const float scale = scales[o];
+        if (!(scale >= kMinInt8Scale) || !std::isfinite(scale))
+          throw r.fail("layer " + std::to_string(i) + " row " + std::to_string(o) + ": scale " + std::to_string(scale) +
+                       " is not a finite half value >= 2^-14");
+        int largest = 0;
+        for (int c = 0; c < l.in; ++c) {
+          const int code = static_cast<std::int8_t>(r.u8());
+          if (code == -128) throw r.fail("layer " + std::to_string(i) + " row " + std::to_string(o) + ": code -128 (codes are -127..127)");
+          largest = std::max(largest, std::abs(code));
+          l.weight[static_cast<std::size_t>(o) * l.in + c] = static_cast<float>(code) * scale;
+        }
+        // The writer's scale is the smallest that fits the row: its largest code is 127.
+        if (largest != 127 && scale != kMinInt8Scale)
+          throw r.fail("layer " + std::to_string(i) + " row " + std::to_string(o) + ": largest code " +
+                       std::to_string(largest) + ", expected 127 for scale " + std::to_string(scale));
+      }
+      l.bias = readValues(r, static_cast<std::uint64_t>(l.out), true, "layer biases");
+    } else {
+      l.weight = readValues(r, weights, half, "layer weights");
+      l.bias = readValues(r, static_cast<std::uint64_t>(l.out), half, "layer biases");
+    }
   }
   if (r.remaining()) throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after the last layer");
 }
@@ -974,6 +1091,39 @@ void parseHoldout(const SectionRef& s, CompressedBtf& btf, const std::string& na
   for (int& h : btf.holdoutImages) h = checkedInt(r, r.u32(), INT_MAX, "hold-out image index");
 }
 
+// HOLZ: see the writer. Follows DIRS, so the image count is known.
+void parseHoldoutZstd(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t count = r.u32(), images = r.u32();
+  if (static_cast<std::int64_t>(images) != btf.numImages())
+    throw r.fail("a mask of " + std::to_string(images) + " images, the material has " +
+                 std::to_string(btf.numImages()) + " (directions section)");
+  const std::size_t rest = r.remaining();
+  auto mask = zstdDecompress(r.take(rest, "mask"), rest, (static_cast<std::size_t>(images) + 7) / 8, name,
+                             sectionLabel(s.tag));
+  btf.holdoutImages.clear();
+  for (std::uint32_t i = 0; i < images; ++i)
+    if (mask[i / 8] >> (i % 8) & 1u) btf.holdoutImages.push_back(static_cast<int>(i));
+  if (images % 8 && mask.back() >> (images % 8)) throw r.fail("the mask has bits set past the last image");
+  if (btf.holdoutImages.size() != count)
+    throw r.fail("the mask holds " + std::to_string(btf.holdoutImages.size()) + " images, the section says " +
+                 std::to_string(count));
+  btf.storage.metadataZstd = true;
+}
+
+// METZ: u32 size, a zstd frame of the JSON text.
+void parseMetadataZstd(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint32_t size = r.u32();
+  if (size > kMaxMetadataBytes)
+    throw r.fail(std::to_string(size) + " bytes of metadata, more than the " + std::to_string(kMaxMetadataBytes) +
+                 " allowed");
+  const std::size_t rest = r.remaining();
+  auto text = zstdDecompress(r.take(rest, "metadata"), rest, size, name, sectionLabel(s.tag));
+  btf.metadataJson.assign(text.begin(), text.end());
+  btf.storage.metadataZstd = true;
+}
+
 }  // namespace
 
 CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::string& name,
@@ -1030,12 +1180,14 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
                                 std::to_string(s.offset));
     if (s.tag == kInfo) parseInfo(s, btf, name);
     else if (s.tag == kDirs) parseDirections(s, btf, name);
-    else if (s.tag == kDecoder || s.tag == kDecoderHalf) parseDecoder(s, btf, name);
+    else if (s.tag == kDecoder || s.tag == kDecoderHalf || s.tag == kDecoderInt8) parseDecoder(s, btf, name);
     else if (s.tag == kLatents || s.tag == kLatentsHalf) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
     else if (s.tag == kIdsZstd) parseIdsZstd(s, btf, name);
     else if (s.tag == kModulation) parseModulation(s, btf, name);
     else if (s.tag == kHoldout) parseHoldout(s, btf, name);
+    else if (s.tag == kHoldoutZstd) parseHoldoutZstd(s, btf, name);
+    else if (s.tag == kMetaZstd) parseMetadataZstd(s, btf, name);
     else if (s.tag == kPcaMean) parsePcaMean(s, btf, name);
     else if (s.tag == kPcaBasis) {
       std::uint64_t rows = 0;
@@ -1058,12 +1210,14 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
   auto has = [&](std::uint32_t t) { return std::find(seen.begin(), seen.end(), t) != seen.end(); };
   if (!has(kDirs)) throw fileError(name, "missing " + sectionLabel(kDirs));
   // Alternative encodings of one part (float32 or half, raw or zstd): exactly one of a pair.
-  for (auto pair : {std::make_pair(kDecoder, kDecoderHalf), std::make_pair(kLatents, kLatentsHalf),
-                    std::make_pair(kIds, kIdsZstd)})
+  for (auto pair : {std::make_pair(kDecoder, kDecoderHalf), std::make_pair(kDecoder, kDecoderInt8),
+                    std::make_pair(kDecoderHalf, kDecoderInt8), std::make_pair(kLatents, kLatentsHalf),
+                    std::make_pair(kIds, kIdsZstd), std::make_pair(kMeta, kMetaZstd),
+                    std::make_pair(kHoldout, kHoldoutZstd)})
     if (has(pair.first) && has(pair.second))
       throw fileError(name, "both " + sectionLabel(pair.first) + " and " + sectionLabel(pair.second) + " present");
   auto hasPart = [&](std::uint32_t t) {
-    return has(t) || (t == kDecoder && has(kDecoderHalf)) || (t == kLatents && has(kLatentsHalf)) ||
+    return has(t) || (t == kDecoder && (has(kDecoderHalf) || has(kDecoderInt8))) || (t == kLatents && has(kLatentsHalf)) ||
            (t == kIds && has(kIdsZstd));
   };
   const bool pca = btf.method == CodecMethod::Pca;
@@ -1080,7 +1234,7 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
     throw fileError(name, sectionLabel(kIds) + " present, but the method is " + codecMethodName(btf.method));
   if (btf.method != CodecMethod::ClusteredNeural && has(kModulation))
     throw fileError(name, sectionLabel(kModulation) + " present, but the method is " + codecMethodName(btf.method));
-  if (!has(kMeta)) btf.metadataJson = "{}";
+  if (!has(kMeta) && !has(kMetaZstd)) btf.metadataJson = "{}";
   btf.validate(name);
   return btf;
 }

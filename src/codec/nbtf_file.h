@@ -26,9 +26,10 @@ namespace nbtf {
 // writes the lowest version that describes the file: 1.0 for the neural methods stored as in
 // 1.0 (float32 parts, raw ids), 1.1 for the PCA baseline (method 3, added in 1.1), 1.2 for
 // files with per-texel modulation or compact parts (half floats, zstd-coded ids), 1.3 for
-// decoders with a direction encoding other than the paper's stereographic pair.
+// decoders with a direction encoding other than the paper's stereographic pair, 1.4 for 8-bit
+// decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 3;
+constexpr std::uint16_t kNbtfFormatMinor = 4;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -62,9 +63,11 @@ struct TexelModulation {
 // in memory are then exactly the stored ones (roundToStorage rounds them before writing).
 struct PartStorage {
   bool decoderHalf = false;     // DECH instead of DECD
+  bool decoderInt8 = false;     // DEC8 (format 1.4): 8-bit weights, a half scale per output row, half biases
   bool latentsHalf = false;     // LATH instead of LATN
   bool idsZstd = false;         // TXIZ (zstd over byte planes) instead of TXID
   bool modulationZstd = true;   // TXSC codes zstd-coded
+  bool metadataZstd = false;    // METZ and HOLZ (zstd-coded, format 1.4) instead of META and HOLD
 };
 
 struct CompressedBtf {
@@ -128,6 +131,10 @@ struct CompressedBtf {
 // in memory (and measured) is exactly what the file will hold.
 void roundToStorage(CompressedBtf& btf);
 
+// "decoder int8, latents half, ids zstd, metadata zstd": how the parts are stored, for info
+// and reports.
+std::string storageDescription(const CompressedBtf& btf);
+
 // Smallest unsigned integer width (1, 2 or 4 bytes) that holds every id in [0, k).
 int idWidthForClusters(std::int64_t k);
 
@@ -143,7 +150,7 @@ struct NbtfSizes {
   std::uint64_t latentRows = 0, texels = 0, images = 0;
   int latentDim = 0;
   std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
-  int decoderBytesPerValue = 4, latentBytesPerValue = 4;
+  int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationBits = 0;
   std::uint64_t rawFloat32 = 0;

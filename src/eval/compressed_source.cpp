@@ -160,10 +160,9 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
                                                       (btf.modulation.terms > 1 ? "s" : "") +
                                                       " per cluster, mixed by per-texel coefficients (" +
                                                       std::to_string(btf.modulation.bits) + "-bit codes)"});
-  if (btf.storage.decoderHalf || btf.storage.latentsHalf || btf.storage.idsZstd)
-    in.details.push_back({"storage", std::string("decoder ") + (btf.storage.decoderHalf ? "half" : "float32") +
-                                         ", latents " + (btf.storage.latentsHalf ? "half" : "float32") + ", ids " +
-                                         (btf.storage.idsZstd ? "zstd" : "raw")});
+  if (btf.storage.decoderHalf || btf.storage.decoderInt8 || btf.storage.latentsHalf || btf.storage.idsZstd ||
+      btf.storage.metadataZstd)
+    in.details.push_back({"storage", storageDescription(btf)});
   return in;
 }
 

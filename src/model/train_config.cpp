@@ -175,6 +175,7 @@ TrainConfig loadTrainConfig(const std::string& path) {
   st.read("decoder", c.storage.decoder);
   st.read("latents", c.storage.latents);
   st.read("ids", c.storage.ids);
+  st.read("metadata", c.storage.metadata);
   st.rejectUnknown();
 
   validateTrainConfig(c, path);
@@ -235,12 +236,14 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "modulation.mode", "must be \"none\" or \"svd\", got \"" + m.mode + "\"");
   if (m.terms < 1 || m.terms > 8) bad(source, "modulation.terms", "must be in 1..8");
   if (m.bits < 1 || m.bits > 16) bad(source, "modulation.bits", "must be in 1..16");
-  for (auto [key, value] : {std::make_pair("storage.decoder", &c.storage.decoder),
-                            std::make_pair("storage.latents", &c.storage.latents)})
-    if (*value != "float32" && *value != "half")
-      bad(source, key, "must be \"float32\" or \"half\", got \"" + *value + "\"");
+  if (c.storage.decoder != "float32" && c.storage.decoder != "half" && c.storage.decoder != "int8")
+    bad(source, "storage.decoder", "must be \"float32\", \"half\" or \"int8\", got \"" + c.storage.decoder + "\"");
+  if (c.storage.latents != "float32" && c.storage.latents != "half")
+    bad(source, "storage.latents", "must be \"float32\" or \"half\", got \"" + c.storage.latents + "\"");
   if (c.storage.ids != "raw" && c.storage.ids != "zstd")
     bad(source, "storage.ids", "must be \"raw\" or \"zstd\", got \"" + c.storage.ids + "\"");
+  if (c.storage.metadata != "raw" && c.storage.metadata != "zstd")
+    bad(source, "storage.metadata", "must be \"raw\" or \"zstd\", got \"" + c.storage.metadata + "\"");
 }
 
 TrainPlan planTraining(const TrainConfig& c, std::int64_t encoderInputs, int trainImages) {

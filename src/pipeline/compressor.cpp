@@ -149,8 +149,10 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
   b.encoderState = std::move(train.encoderState);
   b.storage.decoderHalf = config.storage.decoder == "half";
+  b.storage.decoderInt8 = config.storage.decoder == "int8";
   b.storage.latentsHalf = config.storage.latents == "half";
   b.storage.idsZstd = config.storage.ids == "zstd";
+  b.storage.metadataZstd = config.storage.metadata == "zstd";
   roundToStorage(b);
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
@@ -173,7 +175,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
         fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress);
     b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
   }
-  if (b.storage.decoderHalf || b.storage.latentsHalf || modulated) {
+  if (b.storage.decoderHalf || b.storage.decoderInt8 || b.storage.latentsHalf || modulated) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
@@ -241,7 +243,8 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"seed", c.seed},
                    {"threads", c.threads}};
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
-  j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids}};
+  j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
+                  {"metadata", c.storage.metadata}};
   return j.dump();
 }
 

@@ -158,6 +158,7 @@ CompressedBtf compressPcaStack(const BtfStack& stack, const CompressOptions& o, 
     }
   }
   b.holdoutImages = holdout;
+  b.storage.metadataZstd = o.train.storage.metadata == "zstd";
   stats.holdoutImages = static_cast<int>(holdout.size());
 
   // ---- RMSE of eq. (10), by decoding the result (the stored float32 values, as eval does)
