@@ -130,7 +130,7 @@ TEST(Compressor, ModulatedCompactFileBeatsTheClusterFloor) {
     const bool int8 = std::string(decoderStorage) == "int8";
     CompressOptions o = quickOptions(4);
     o.train.modulation = ModulationConfig{"svd", terms, 6};
-    o.train.storage = StorageConfig{decoderStorage, "half", "zstd", "zstd"};
+    o.train.storage = StorageConfig{decoderStorage, "half", "zstd", "zstd", "zstd"};
     o.train.holdoutFraction = 0.1;
     o.train.epochs = 1200;  // one step per epoch here: the terms need more steps than the quick recipe
     CompressStats stats;

@@ -51,6 +51,7 @@ CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6) {
 std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
   CompressedBtf compactMetadata = makeCompactBtf();  // and an 8-bit decoder
   compactMetadata.storage.metadataZstd = compactMetadata.storage.decoderInt8 = true;
+  compactMetadata.storage.directionsZstd = true;
   compactMetadata.storage.decoderHalf = false;
   roundToStorage(compactMetadata);
   return {{"clustered", serializeNbtf(makeBtf(5))},
@@ -449,30 +450,35 @@ TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
   }
 }
 
-// storage.metadata "zstd" (format 1.4): the metadata JSON and the hold-out list (as a bit mask
-// over the images) are zstd frames, METZ and HOLZ; they read back to the same values.
+// storage.metadata and storage.directions "zstd" (format 1.4): the metadata JSON, the hold-out
+// list (as a bit mask over the images) and the directions (byte planes of their f64 values)
+// are zstd frames, METZ, HOLZ and DIRZ; they read back to the same values, bit for bit.
 TEST(NbtfFile, CompactMetadataRoundTripsAndIsSmaller) {
   CompressedBtf b = makeBtf(5, 4, 3);
   b.lights.assign(9, Direction{10, 0});
   b.views.assign(9, Direction{20, 0});
   for (std::size_t i = 0; i < b.lights.size(); ++i) b.lights[i].phiDeg = b.views[i].phiDeg = 40.0 * i;
+  b.lights[3].thetaDeg = 17.123456789012345;  // an irregular angle (UTIA's shifted lights) stays exact
   b.holdoutImages = {0, 7, 8, 9, 40, 80};  // first and last of 81 images, a byte boundary
   std::string json = R"({"source": {"path": "/data/captures/fabric"}, "config": {"epochs": 20}, "fingerprint": [)";
   for (int i = 0; i < 200; ++i) json += (i ? ", " : "") + std::to_string(0.25 + 0.001 * i);
   b.metadataJson = json + "]}";
   const std::vector<std::uint8_t> raw = serializeNbtf(b);
-  b.storage.metadataZstd = true;
+  b.storage.metadataZstd = b.storage.directionsZstd = true;
   const std::vector<std::uint8_t> bytes = serializeNbtf(b);
   EXPECT_EQ(bytes[10], 4);  // format 1.4
   EXPECT_EQ(raw[10], 0);    // the same material stored raw stays 1.0
-  EXPECT_NE(findSection(bytes, "METZ"), 0u);
-  EXPECT_NE(findSection(bytes, "HOLZ"), 0u);
-  EXPECT_EQ(findSection(bytes, "META"), 0u);
-  EXPECT_EQ(findSection(bytes, "HOLD"), 0u);
+  for (const char* tag : {"METZ", "HOLZ", "DIRZ"}) EXPECT_NE(findSection(bytes, tag), 0u) << tag;
+  for (const char* tag : {"META", "HOLD", "DIRS"}) EXPECT_EQ(findSection(bytes, tag), 0u) << tag;
   EXPECT_LT(bytes.size() + 500, raw.size()) << "compact " << bytes.size() << " B, raw " << raw.size() << " B";
   CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
   EXPECT_EQ(back.formatMinor, 4);
-  EXPECT_TRUE(back.storage.metadataZstd);
+  EXPECT_TRUE(back.storage.metadataZstd && back.storage.directionsZstd);
+  for (std::size_t i = 0; i < b.lights.size(); ++i) {
+    EXPECT_EQ(back.lights[i].thetaDeg, b.lights[i].thetaDeg);
+    EXPECT_EQ(back.lights[i].phiDeg, b.lights[i].phiDeg);
+    EXPECT_EQ(back.views[i].phiDeg, b.views[i].phiDeg);
+  }
   EXPECT_EQ(back.metadataJson, b.metadataJson);
   EXPECT_EQ(back.holdoutImages, b.holdoutImages);
   EXPECT_EQ(serializeNbtf(back), bytes);
@@ -528,7 +534,7 @@ TEST(NbtfFile, Int8DecoderRoundTripsWithinItsStatedError) {
   for (const DenseLayer& l : b.decoder.layers) weights += l.weight.size(), outputs += l.bias.size();
   EXPECT_EQ(sizes.decoder, weights + 4 * outputs);
   EXPECT_TRUE(contains(formatSizeTable(sizes), "8-bit weights, half scale per row")) << formatSizeTable(sizes);
-  EXPECT_EQ(storageDescription(b), "decoder int8, latents float32, ids raw, metadata raw");
+  EXPECT_EQ(storageDescription(b), "decoder int8, latents float32, ids raw, directions f64, metadata raw");
 }
 
 TEST(NbtfFile, Int8DecoderContentIsCheckedByName) {
@@ -575,7 +581,7 @@ TEST(NbtfFile, Int8DecoderContentIsCheckedByName) {
 // The compact sections' own fields are checked against the material, by name.
 TEST(NbtfFile, CompactMetadataContentIsCheckedByName) {
   CompressedBtf b = makeCompactBtf();
-  b.storage.metadataZstd = true;
+  b.storage.metadataZstd = b.storage.directionsZstd = true;
   const std::vector<std::uint8_t> bytes = serializeNbtf(b);
   const std::size_t hol = findSection(bytes, "HOLZ");
   ASSERT_NE(hol, 0u);
@@ -590,6 +596,21 @@ TEST(NbtfFile, CompactMetadataContentIsCheckedByName) {
     putU32(bad, hol + 28, 7);  // 6 images in the material
     resealSection(bad, hol);
     EXPECT_TRUE(contains(errorOf(bad), "a mask of 7 images, the material has 6")) << errorOf(bad);
+  }
+  const std::size_t dirs = findSection(bytes, "DIRZ");
+  ASSERT_NE(dirs, 0u);
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, dirs + 24, 4);  // 3 lights in the frame
+    resealSection(bad, dirs);
+    const std::string e = errorOf(bad);
+    EXPECT_TRUE(contains(e, "section 'DIRZ' (directions, zstd-coded)")) << e;
+  }
+  {
+    std::vector<std::uint8_t> bad = bytes;
+    putU32(bad, dirs + 28, 0x7FFFFFFFu);
+    resealSection(bad, dirs);
+    EXPECT_TRUE(contains(errorOf(bad), "at most 1048576 each")) << errorOf(bad);
   }
   const std::size_t meta = findSection(bytes, "METZ");
   ASSERT_NE(meta, 0u);

@@ -33,7 +33,8 @@ constexpr std::uint32_t kMaxPcaComponents = 1u << 16;
 constexpr std::uint32_t kMaxLayers = 256;
 constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
 constexpr int kMaxJsonDepth = 64;
-constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;  // METZ: bounds the allocation a hostile size asks for
+constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;
+constexpr std::uint64_t kMaxDirections = 1u << 20;      // DIRZ: lights or views (bounds the frame's size)  // METZ: bounds the allocation a hostile size asks for
 constexpr float kMaxModulationMagnitude = 1e6f;  // coefficient ranges: no overflow in products
 
 constexpr std::uint32_t tag(const char (&s)[5]) {
@@ -44,7 +45,7 @@ constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag
                         kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
                         kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC"),
                         kDecoderHalf = tag("DECH"), kLatentsHalf = tag("LATH"), kIdsZstd = tag("TXIZ"),
-                        kModulation = tag("TXSC"), kDecoderInt8 = tag("DEC8"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
+                        kModulation = tag("TXSC"), kDecoderInt8 = tag("DEC8"), kDirsZstd = tag("DIRZ"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -64,6 +65,7 @@ std::string tagText(std::uint32_t t) {
 std::string sectionLabel(std::uint32_t t) {
   const char* what = t == kInfo      ? "material info"
                      : t == kDirs    ? "directions"
+                     : t == kDirsZstd ? "directions, zstd-coded"
                      : t == kDecoder ? "decoder"
                      : t == kLatents ? "latents"
                      : t == kIds     ? "id list"
@@ -152,6 +154,22 @@ std::vector<std::uint32_t> fromBytePlanes(const std::vector<std::uint8_t>& plane
   return values;
 }
 
+// Records of `width` bytes as byte planes (byte 0 of every record, then byte 1...), and back.
+std::vector<std::uint8_t> bytePlanesOf(const std::vector<std::uint8_t>& records, int width) {
+  const std::size_t n = records.size() / width;
+  std::vector<std::uint8_t> planes(records.size());
+  for (int b = 0; b < width; ++b)
+    for (std::size_t i = 0; i < n; ++i) planes[b * n + i] = records[i * width + b];
+  return planes;
+}
+std::vector<std::uint8_t> bytesFromPlanes(const std::vector<std::uint8_t>& planes, int width) {
+  const std::size_t n = planes.size() / width;
+  std::vector<std::uint8_t> records(planes.size());
+  for (int b = 0; b < width; ++b)
+    for (std::size_t i = 0; i < n; ++i) records[i * width + b] = planes[b * n + i];
+  return records;
+}
+
 int modulationCodeBytes(int bits) { return bits <= 8 ? 1 : 2; }
 
 std::vector<std::uint8_t> codedIds(const CompressedBtf& btf) {
@@ -192,12 +210,15 @@ int int8Code(float w, float scale) {
 }  // namespace
 
 std::string storageDescription(const CompressedBtf& btf) {
-  if (btf.isPca()) return std::string("float32 parts, metadata ") + (btf.storage.metadataZstd ? "zstd" : "raw");
+  if (btf.isPca())
+    return std::string("float32 parts, directions ") + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
+           (btf.storage.metadataZstd ? "zstd" : "raw");
   return std::string("decoder ") + (btf.storage.decoderInt8 ? "int8" : btf.storage.decoderHalf ? "half" : "float32") +
          ", latents " + (btf.storage.latentsHalf ? "half" : "float32") +
          (btf.method == CodecMethod::ClusteredNeural ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
                                                      : std::string()) +
-         ", metadata " + (btf.storage.metadataZstd ? "zstd" : "raw");
+         ", directions " + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
+         (btf.storage.metadataZstd ? "zstd" : "raw");
 }
 
 void roundToStorage(CompressedBtf& btf) {
@@ -601,7 +622,7 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(btf.storage.metadataZstd || btf.storage.decoderInt8         ? std::uint16_t(4)
+  file.u16(btf.storage.metadataZstd || btf.storage.decoderInt8 || btf.storage.directionsZstd ? std::uint16_t(4)
            : btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)
            : usesFormat12(btf)                                       ? std::uint16_t(2)
            : btf.isPca()                                             ? std::uint16_t(1)
@@ -634,15 +655,25 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     addSection(file, kInfo, true, w);
   }
   {
+    // u32 lights, u32 views, then (f64 theta, f64 phi) per direction, lights first; DIRZ:
+    // those pairs as 8 byte planes in one zstd frame (regular grids leave most planes zero).
+    ByteWriter pairs;
+    for (const auto* set : {&btf.lights, &btf.views})
+      for (const Direction& d : *set) {
+        pairs.f64(d.thetaDeg);
+        pairs.f64(d.phiDeg);
+      }
     ByteWriter w;
     w.u32(static_cast<std::uint32_t>(btf.lights.size()));
     w.u32(static_cast<std::uint32_t>(btf.views.size()));
-    for (const auto* set : {&btf.lights, &btf.views})
-      for (const Direction& d : *set) {
-        w.f64(d.thetaDeg);
-        w.f64(d.phiDeg);
-      }
-    addSection(file, kDirs, true, w);
+    if (btf.storage.directionsZstd) {
+      auto planes = bytePlanesOf(pairs.bytes(), 8);
+      auto coded = zstdCompress(planes.data(), planes.size());
+      w.raw(coded.data(), coded.size());
+    } else {
+      w.raw(pairs.bytes().data(), pairs.size());
+    }
+    addSection(file, btf.storage.directionsZstd ? kDirsZstd : kDirs, true, w);
   }
   if (btf.isPca()) {
     // Mean, basis and coefficients (docs/file_format.md): all required, so a 1.0 reader
@@ -887,9 +918,7 @@ void parseInfo(const SectionRef& s, CompressedBtf& btf, const std::string& name)
   r.u32();  // reserved; fields appended by later minor versions follow and are ignored
 }
 
-void parseDirections(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
-  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
-  std::uint64_t lights = r.u32(), views = r.u32();
+void readDirectionPairs(ByteReader& r, std::uint64_t lights, std::uint64_t views, CompressedBtf& btf) {
   r.needItems(lights + views, 16, "direction count");
   btf.lights.resize(static_cast<std::size_t>(lights));
   btf.views.resize(static_cast<std::size_t>(views));
@@ -898,6 +927,24 @@ void parseDirections(const SectionRef& s, CompressedBtf& btf, const std::string&
       d.thetaDeg = r.f64();
       d.phiDeg = r.f64();
     }
+  if (r.remaining()) throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after the directions");
+}
+
+void parseDirections(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  std::uint64_t lights = r.u32(), views = r.u32();
+  if (s.tag == kDirs) return readDirectionPairs(r, lights, views, btf);
+  // DIRZ: the counts bound the frame's size before anything is allocated.
+  if (lights > kMaxDirections || views > kMaxDirections)
+    throw r.fail(std::to_string(lights) + " lights and " + std::to_string(views) + " views, at most " +
+                 std::to_string(kMaxDirections) + " each");
+  const std::size_t rest = r.remaining();
+  auto planes = zstdDecompress(r.take(rest, "directions"), rest, static_cast<std::size_t>(lights + views) * 16, name,
+                               sectionLabel(s.tag));
+  const std::vector<std::uint8_t> pairs = bytesFromPlanes(planes, 8);
+  ByteReader pr(pairs.data(), pairs.size(), name, sectionLabel(s.tag), s.offset + kSectionHeaderSize + 8);
+  readDirectionPairs(pr, lights, views, btf);
+  btf.storage.directionsZstd = true;
 }
 
 std::vector<float> readValues(ByteReader& r, std::uint64_t count, bool half, const char* field) {
@@ -1179,7 +1226,7 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
       throw fileError(name, "corrupted: checksum mismatch in " + sectionLabel(s.tag) + " at offset " +
                                 std::to_string(s.offset));
     if (s.tag == kInfo) parseInfo(s, btf, name);
-    else if (s.tag == kDirs) parseDirections(s, btf, name);
+    else if (s.tag == kDirs || s.tag == kDirsZstd) parseDirections(s, btf, name);
     else if (s.tag == kDecoder || s.tag == kDecoderHalf || s.tag == kDecoderInt8) parseDecoder(s, btf, name);
     else if (s.tag == kLatents || s.tag == kLatentsHalf) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
@@ -1208,11 +1255,11 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
       btf.skippedSections.push_back(tagText(s.tag));
   }
   auto has = [&](std::uint32_t t) { return std::find(seen.begin(), seen.end(), t) != seen.end(); };
-  if (!has(kDirs)) throw fileError(name, "missing " + sectionLabel(kDirs));
+  if (!has(kDirs) && !has(kDirsZstd)) throw fileError(name, "missing " + sectionLabel(kDirs));
   // Alternative encodings of one part (float32 or half, raw or zstd): exactly one of a pair.
   for (auto pair : {std::make_pair(kDecoder, kDecoderHalf), std::make_pair(kDecoder, kDecoderInt8),
                     std::make_pair(kDecoderHalf, kDecoderInt8), std::make_pair(kLatents, kLatentsHalf),
-                    std::make_pair(kIds, kIdsZstd), std::make_pair(kMeta, kMetaZstd),
+                    std::make_pair(kIds, kIdsZstd), std::make_pair(kMeta, kMetaZstd), std::make_pair(kDirs, kDirsZstd),
                     std::make_pair(kHoldout, kHoldoutZstd)})
     if (has(pair.first) && has(pair.second))
       throw fileError(name, "both " + sectionLabel(pair.first) + " and " + sectionLabel(pair.second) + " present");

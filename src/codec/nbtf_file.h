@@ -68,6 +68,7 @@ struct PartStorage {
   bool idsZstd = false;         // TXIZ (zstd over byte planes) instead of TXID
   bool modulationZstd = true;   // TXSC codes zstd-coded
   bool metadataZstd = false;    // METZ and HOLZ (zstd-coded, format 1.4) instead of META and HOLD
+  bool directionsZstd = false;  // DIRZ (byte planes, zstd-coded, format 1.4) instead of DIRS
 };
 
 struct CompressedBtf {
@@ -131,7 +132,7 @@ struct CompressedBtf {
 // in memory (and measured) is exactly what the file will hold.
 void roundToStorage(CompressedBtf& btf);
 
-// "decoder int8, latents half, ids zstd, metadata zstd": how the parts are stored, for info
+// "decoder int8, latents half, ids zstd, directions zstd, metadata zstd": how the parts are stored, for info
 // and reports.
 std::string storageDescription(const CompressedBtf& btf);
 

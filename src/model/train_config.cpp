@@ -175,6 +175,7 @@ TrainConfig loadTrainConfig(const std::string& path) {
   st.read("decoder", c.storage.decoder);
   st.read("latents", c.storage.latents);
   st.read("ids", c.storage.ids);
+  st.read("directions", c.storage.directions);
   st.read("metadata", c.storage.metadata);
   st.rejectUnknown();
 
@@ -242,6 +243,8 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "storage.latents", "must be \"float32\" or \"half\", got \"" + c.storage.latents + "\"");
   if (c.storage.ids != "raw" && c.storage.ids != "zstd")
     bad(source, "storage.ids", "must be \"raw\" or \"zstd\", got \"" + c.storage.ids + "\"");
+  if (c.storage.directions != "f64" && c.storage.directions != "zstd")
+    bad(source, "storage.directions", "must be \"f64\" or \"zstd\", got \"" + c.storage.directions + "\"");
   if (c.storage.metadata != "raw" && c.storage.metadata != "zstd")
     bad(source, "storage.metadata", "must be \"raw\" or \"zstd\", got \"" + c.storage.metadata + "\"");
 }

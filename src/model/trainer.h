@@ -61,9 +61,10 @@ struct ModulationConfig {
 // How the decoding parts are stored in the .nbtf (the "storage" object of a config). Defaults:
 // the compact storage; configs/paper-clustered.json keeps the paper's (float32, raw ids).
 struct StorageConfig {
-  std::string decoder = "half";     // "float32" | "half" | "int8" (a half scale per output row)
+  std::string decoder = "int8";     // "float32" | "half" | "int8" (a half scale per output row)
   std::string latents = "half";     // "float32" | "half"
   std::string ids = "zstd";         // "raw" (smallest integer width) | "zstd"
+  std::string directions = "zstd";  // "f64" | "zstd" (format 1.4)
   std::string metadata = "zstd";    // "raw" | "zstd": the metadata and hold-out list (format 1.4)
 };
 

@@ -153,6 +153,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   b.storage.latentsHalf = config.storage.latents == "half";
   b.storage.idsZstd = config.storage.ids == "zstd";
   b.storage.metadataZstd = config.storage.metadata == "zstd";
+  b.storage.directionsZstd = config.storage.directions == "zstd";
   roundToStorage(b);
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
@@ -244,7 +245,7 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"threads", c.threads}};
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
   j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
-                  {"metadata", c.storage.metadata}};
+                  {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};
   return j.dump();
 }
 

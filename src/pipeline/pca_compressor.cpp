@@ -159,6 +159,7 @@ CompressedBtf compressPcaStack(const BtfStack& stack, const CompressOptions& o, 
   }
   b.holdoutImages = holdout;
   b.storage.metadataZstd = o.train.storage.metadata == "zstd";
+  b.storage.directionsZstd = o.train.storage.directions == "zstd";
   stats.holdoutImages = static_cast<int>(holdout.size());
 
   // ---- RMSE of eq. (10), by decoding the result (the stored float32 values, as eval does)
