@@ -2,7 +2,7 @@
 # Quality per byte (issue 14): on each synthetic preset (100 x 100 texels, UBO2003 layout), side
 # by side with the same training recipe and work: the per-texel neural BTF, the paper-style clustered model
 # (k = 500, float32 parts, configs/paper-clustered.json), nbtf's default (per-texel modulation,
-# half-precision parts, zstd ids; configs/default.json) and the PCA baseline at its smallest
+# 8-bit decoder, half latents, zstd ids and metadata; configs/default.json) and the PCA baseline at its smallest
 # sizes. Every file is evaluated with `nbtf eval` against its stack; the table (bytes by part,
 # ratio, RMSE, held-out RMSE, PSNR, mean-brightness-map RMSE, blur sigma, cluster-mean floor,
 # training seconds) goes to quality.md, the rate-distortion plot to rd_<preset>.png.

@@ -10,6 +10,8 @@
 #include <fstream>
 #include <random>
 
+#include <nlohmann/json.hpp>
+
 #include "codec/pca_model.h"
 #include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
@@ -260,6 +262,18 @@ TEST(Decoder, CommittedFormat10FileDecodesAsBefore) { expectCommittedAnswers("le
 // Format 1.2 with every compact part (half decoder and latents, zstd ids, per-texel
 // modulation), written by commit 12d31f5 before the library split of issue 16.
 TEST(Decoder, CommittedFormat12FileDecodesAsBefore) { expectCommittedAnswers("compact_v1_2", 2, 6); }
+
+// Format 1.4 (8-bit decoder, zstd-coded directions, metadata and hold-out list; half latents,
+// zstd ids, modulation), written by commit b352ae2's `nbtf compress` of a 16 x 16 satin
+// (`nbtf-synth --preset satin --size 16x16 --layout ubo2003 --seed 3`; `--clusters 8 --epochs 2
+// --holdout 0.1 --seed 5 --threads 1`, the default config).
+TEST(Decoder, CommittedFormat14FileDecodesAsBefore) {
+  expectCommittedAnswers("compact_v1_4", 4, 6);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_4.nbtf");
+  EXPECT_TRUE(b.storage.decoderInt8 && b.storage.directionsZstd && b.storage.metadataZstd);
+  EXPECT_EQ(b.holdoutImages.size(), 656u);
+  EXPECT_EQ(nlohmann::json::parse(b.metadataJson)["clustering"]["k"].get<int>(), 8);
+}
 
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);

@@ -532,6 +532,9 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"model": {"direction_inputs": "half"}})", "'model.direction_inputs' is not valid: unknown direction encoding \"half\""},
       {R"({"optimizer": {"learning_rate_scaling": "linear"}})",
        "'optimizer.learning_rate_scaling' must be \"inputs\" or \"none\", got \"linear\""},
+      {R"({"storage": {"decoder": "int4"}})", "'storage.decoder' must be \"float32\", \"half\" or \"int8\", got \"int4\""},
+      {R"({"storage": {"directions": "f32"}})", "'storage.directions' must be \"f64\" or \"zstd\", got \"f32\""},
+      {R"({"storage": {"metadata": "gzip"}})", "'storage.metadata' must be \"raw\" or \"zstd\", got \"gzip\""},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

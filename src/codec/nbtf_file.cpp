@@ -227,6 +227,7 @@ void roundToStorage(CompressedBtf& btf) {
       for (int o = 0; o < l.out; ++o) {
         float* row = l.weight.data() + static_cast<std::size_t>(o) * l.in;
         const float scale = int8RowScale(row, l.in);
+        if (!std::isfinite(scale)) continue;  // weights beyond 127 x 65504: the writer refuses them by name
         for (int i = 0; i < l.in; ++i) row[i] = static_cast<float>(int8Code(row[i], scale)) * scale;
       }
       for (float& b : l.bias) b = roundToHalf(b);
