@@ -138,23 +138,9 @@ void checkMetadata(const std::string& json, const std::string& name) {
 
 // ---- Coded parts (format 1.2), shared by the writer and computeSizes
 
-// Values of `width` bytes as byte planes (all low bytes, then the next...): neighbouring
-// texels share clusters and codes, and the planes put the repetitive bytes together for zstd.
-std::vector<std::uint8_t> toBytePlanes(const std::vector<std::uint32_t>& values, int width) {
-  const std::size_t n = values.size();
-  std::vector<std::uint8_t> planes(n * width);
-  for (int b = 0; b < width; ++b)
-    for (std::size_t i = 0; i < n; ++i) planes[b * n + i] = static_cast<std::uint8_t>(values[i] >> (8 * b));
-  return planes;
-}
-std::vector<std::uint32_t> fromBytePlanes(const std::vector<std::uint8_t>& planes, std::size_t n, int width) {
-  std::vector<std::uint32_t> values(n, 0);
-  for (int b = 0; b < width; ++b)
-    for (std::size_t i = 0; i < n; ++i) values[i] |= static_cast<std::uint32_t>(planes[b * n + i]) << (8 * b);
-  return values;
-}
-
-// Records of `width` bytes as byte planes (byte 0 of every record, then byte 1...), and back.
+// Records of `width` bytes as byte planes (byte 0 of every record, then byte 1...), and back:
+// neighbouring texels share clusters and codes, and the planes put the repetitive bytes
+// together for zstd.
 std::vector<std::uint8_t> bytePlanesOf(const std::vector<std::uint8_t>& records, int width) {
   const std::size_t n = records.size() / width;
   std::vector<std::uint8_t> planes(records.size());
@@ -168,6 +154,21 @@ std::vector<std::uint8_t> bytesFromPlanes(const std::vector<std::uint8_t>& plane
   for (int b = 0; b < width; ++b)
     for (std::size_t i = 0; i < n; ++i) records[i * width + b] = planes[b * n + i];
   return records;
+}
+
+// Integers of `width` bytes (little-endian) as byte planes, and back.
+std::vector<std::uint8_t> toBytePlanes(const std::vector<std::uint32_t>& values, int width) {
+  std::vector<std::uint8_t> records(values.size() * width);
+  for (std::size_t i = 0; i < values.size(); ++i)
+    for (int b = 0; b < width; ++b) records[i * width + b] = static_cast<std::uint8_t>(values[i] >> (8 * b));
+  return bytePlanesOf(records, width);
+}
+std::vector<std::uint32_t> fromBytePlanes(const std::vector<std::uint8_t>& planes, std::size_t n, int width) {
+  const std::vector<std::uint8_t> records = bytesFromPlanes(planes, width);
+  std::vector<std::uint32_t> values(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int b = 0; b < width; ++b) values[i] |= static_cast<std::uint32_t>(records[i * width + b]) << (8 * b);
+  return values;
 }
 
 int modulationCodeBytes(int bits) { return bits <= 8 ? 1 : 2; }
