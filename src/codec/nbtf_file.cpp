@@ -33,8 +33,8 @@ constexpr std::uint32_t kMaxPcaComponents = 1u << 16;
 constexpr std::uint32_t kMaxLayers = 256;
 constexpr std::uint32_t kMaxLayerWidth = 1u << 16;
 constexpr int kMaxJsonDepth = 64;
-constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;
-constexpr std::uint64_t kMaxDirections = 1u << 20;      // DIRZ: lights or views (bounds the frame's size)  // METZ: bounds the allocation a hostile size asks for
+constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;  // METZ: bounds the allocation a hostile size asks for
+constexpr std::uint64_t kMaxDirections = 1u << 20;      // DIRZ: lights or views (bounds the frame's size)
 constexpr float kMaxModulationMagnitude = 1e6f;  // coefficient ranges: no overflow in products
 
 constexpr std::uint32_t tag(const char (&s)[5]) {

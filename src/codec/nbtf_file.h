@@ -69,6 +69,10 @@ struct PartStorage {
   bool modulationZstd = true;   // TXSC codes zstd-coded
   bool metadataZstd = false;    // METZ and HOLZ (zstd-coded, format 1.4) instead of META and HOLD
   bool directionsZstd = false;  // DIRZ (byte planes, zstd-coded, format 1.4) instead of DIRS
+  // Any part stored otherwise than in format 1.0 (the paper's float32 parts, raw ids).
+  bool anyCompact() const {
+    return decoderHalf || decoderInt8 || latentsHalf || idsZstd || metadataZstd || directionsZstd;
+  }
 };
 
 struct CompressedBtf {

@@ -160,8 +160,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
                                                       (btf.modulation.terms > 1 ? "s" : "") +
                                                       " per cluster, mixed by per-texel coefficients (" +
                                                       std::to_string(btf.modulation.bits) + "-bit codes)"});
-  if (btf.storage.decoderHalf || btf.storage.decoderInt8 || btf.storage.latentsHalf || btf.storage.idsZstd ||
-      btf.storage.metadataZstd)
+  if (btf.storage.anyCompact())
     in.details.push_back({"storage", storageDescription(btf)});
   return in;
 }
