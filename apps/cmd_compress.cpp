@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "cli_common.h"
-#include "pipeline/compressor.h"
+#include "pipeline/compress_config.h"
 #include "commands.h"
 #include "util/atomic_file.h"
 #include "util/memory.h"
@@ -47,10 +47,15 @@ std::string number(double v) {
   return buf;
 }
 
-// Config file (or the compiled-in defaults, identical to configs/default.json), then the
-// command-line options on top.
-TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string& output, const std::string& program) {
-  TrainConfig c = args.count("config") ? loadTrainConfig(args["config"].as<std::string>()) : TrainConfig{};
+// What a value checked after the command line was applied came from, for its error.
+std::string configSource(const cxxopts::ParseResult& args) {
+  return args.count("config") ? args["config"].as<std::string>() + " + command line" : "command line";
+}
+
+// The config file's recipe (or the compiled-in defaults, identical to configs/default.json),
+// with the command-line options on top.
+TrainConfig buildTrainConfig(TrainConfig c, const cxxopts::ParseResult& args, const std::string& output,
+                             const std::string& program) {
   // Threads: --threads (capped, with its warning, by applyCommonOptions) over the config file's
   // training.threads, which is capped by the same rule.
   if (args.count("threads"))
@@ -80,7 +85,7 @@ TrainConfig buildTrainConfig(const cxxopts::ParseResult& args, const std::string
   }
   if (args.count("resume")) c.resume = true;
   if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
-  validateTrainConfig(c, args.count("config") ? args["config"].as<std::string>() + " + command line" : "command line");
+  validateTrainConfig(c, configSource(args));
   return c;
 }
 
@@ -111,16 +116,17 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
   }
 }
 
-// --adaptive and its targets; the targets without --adaptive are errors.
-void applyAdaptive(const cxxopts::ParseResult& args, CompressOptions& o) {
-  const bool adaptive = args.count("adaptive") > 0;
+// --adaptive and its targets over the config file's "adaptive" object (`a`); the targets
+// without adaptive clusters are errors.
+void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, CompressOptions& o) {
+  if (args.count("adaptive")) a.enabled = true;
   for (const char* key : {"target-rmse", "max-clusters", "size-budget", "stages", "initial-clusters"})
-    if (args.count(key) && !adaptive) throw Error(std::string("--") + key + " needs --adaptive");
-  if (!adaptive) return;
-  if (o.pcaBaseline || o.clusters == 0) throw Error("--adaptive needs the clustered method (--clusters > 0)");
-  if (o.train.resume) throw Error("--resume does not apply to --adaptive (its stages change the clusters)");
-  AdaptiveOptions& a = o.adaptive;
-  a.enabled = true;
+    if (args.count(key) && !a.enabled)
+      throw Error(std::string("--") + key + " needs --adaptive (or \"adaptive\": {\"enabled\": true} in the config)");
+  if (!a.enabled) return;
+  const std::string given = args.count("adaptive") ? "--adaptive" : "adaptive.enabled in the config";
+  if (o.pcaBaseline || o.clusters == 0) throw Error(given + " needs the clustered method (--clusters > 0)");
+  // On the command line 0 is not a target: the options take positive values.
   if (args.count("target-rmse")) {
     a.targetRmse = args["target-rmse"].as<double>();
     if (!(a.targetRmse > 0 && std::isfinite(a.targetRmse)))
@@ -135,15 +141,14 @@ void applyAdaptive(const cxxopts::ParseResult& args, CompressOptions& o) {
     if (bytes < 1) throw Error("--size-budget must be a positive number of bytes, got " + std::to_string(bytes));
     a.sizeBudget = static_cast<std::uint64_t>(bytes);
   }
-  if (args.count("stages")) {
-    a.stages = args["stages"].as<int>();
-    if (a.stages < 1 || a.stages > 20) throw Error("--stages must be in 1..20, got " + std::to_string(a.stages));
-  }
+  if (args.count("stages")) a.stages = args["stages"].as<int>();
   if (args.count("initial-clusters")) {
     a.initialClusters = args["initial-clusters"].as<int>();
     if (a.initialClusters < 1)
       throw Error("--initial-clusters must be >= 1, got " + std::to_string(a.initialClusters));
   }
+  validateAdaptiveOptions(a, configSource(args));
+  o.adaptive = a;
 }
 
 }  // namespace
@@ -160,7 +165,9 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<std::string>()->default_value("clustered"))(
         "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
         cxxopts::value<int>()->default_value("500"))(
-        "config", "Training config JSON (default: built-in, identical to configs/default.json)",
+        "config",
+        "Config JSON: the training recipe and the adaptive clusters (default: built-in, identical to "
+        "configs/default.json)",
         cxxopts::value<std::string>())("crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "layout", "Force the input layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
@@ -203,8 +210,10 @@ int compressMain(int argc, char** argv) {
     const std::string input = args["input"].as<std::string>();
     const std::string output = args["output"].as<std::string>();
 
+    const CompressConfig config =
+        args.count("config") ? loadCompressConfig(args["config"].as<std::string>()) : CompressConfig{};
     CompressOptions o;
-    o.train = buildTrainConfig(args, output, options.program());
+    o.train = buildTrainConfig(config.train, args, output, options.program());
     if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
     o.clusters = args["clusters"].as<int>();
     if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
@@ -219,7 +228,7 @@ int compressMain(int argc, char** argv) {
     if (dist.enabled() && !args.count("master")) throw Error("--world-size > 1 needs --master HOST:PORT");
     if (dist.enabled() && o.pcaBaseline) throw Error("--world-size: the PCA baseline has no training to distribute");
     validateDistributedConfig(dist);
-    applyAdaptive(args, o);
+    applyAdaptive(args, config.adaptive, o);
     if (dist.enabled() && o.adaptive.enabled)
       throw Error("--adaptive cannot be used with --world-size > 1 (its stages restart from checkpoints)");
     if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
@@ -249,10 +258,7 @@ int compressMain(int argc, char** argv) {
     CompressStats stats = compressBtf(input, output, o);
     if (stats.interrupted) {
       std::error_code ec;
-      if (o.adaptive.enabled)
-        std::fprintf(stderr, "nbtf compress: interrupted; nothing written to %s (an --adaptive run restarts from the "
-                     "beginning).\n", output.c_str());
-      else if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
+      if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
         std::fprintf(stderr,
                      "nbtf compress: interrupted; nothing written to %s. Training state is in %s: run the same "
                      "command with --resume to continue.\n",

@@ -2,10 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+
 #include <nlohmann/json.hpp>
 
 #include "codec/nbtf_file.h"
 #include "model_test_material.h"
+#include "test_util.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -131,6 +136,73 @@ TEST(Adaptive, OptionsAreChecked) {
   o = adaptiveOptions();
   o.clusters = 0;
   EXPECT_THROW(compressStack(m.stack, o, stats), Error);
+}
+
+// Ctrl-C anywhere in an adaptive run, then --resume: the same bytes as one uninterrupted run
+// (mid first stage, exactly at a stage's end, mid a later stage, twice in one run).
+TEST(Adaptive, InterruptedRunResumesToTheSameBytes) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  test::TempDir dir;
+  CompressOptions o = adaptiveOptions();
+  o.checkpointPath = dir / "run.ckpt";
+  CompressStats whole;
+  const std::vector<std::uint8_t> expected = serializeNbtf(compressStack(m.stack, o, whole));
+  ASSERT_EQ(whole.adaptiveStages.size(), 3u);
+  const std::int64_t end1 = whole.adaptiveStages[0].steps, end2 = whole.adaptiveStages[1].steps;
+  ASSERT_GT(end1, 2);
+  ASSERT_GT(end2, end1 + 2);
+  for (const std::vector<std::int64_t>& stops :
+       {std::vector<std::int64_t>{end1 / 2}, {end1}, {(end1 + end2) / 2}, {end1 / 2, end2 + 1}}) {
+    std::filesystem::remove(o.checkpointPath);
+    std::filesystem::remove(adaptiveStatePath(o.checkpointPath));
+    CompressOptions run = o;
+    std::atomic<bool> stop{false};
+    std::int64_t stopAt = 0;
+    run.stopFlag = &stop;
+    run.train.monitor = [&](const TrainStatus& s) {
+      if (s.step >= stopAt) stop = true;
+    };
+    for (std::int64_t at : stops) {
+      stopAt = at;
+      stop = false;
+      CompressStats stats;
+      compressStack(m.stack, run, stats);
+      ASSERT_TRUE(stats.interrupted) << "stop at " << at;
+      EXPECT_TRUE(std::filesystem::exists(adaptiveStatePath(o.checkpointPath)));
+      run.train.resume = true;
+    }
+    run.train.monitor = nullptr;
+    stop = false;
+    CompressStats stats;
+    EXPECT_EQ(serializeNbtf(compressStack(m.stack, run, stats)), expected) << "stopped at " << stops.front();
+    EXPECT_EQ(stats.clusters, whole.clusters);
+  }
+}
+
+TEST(Adaptive, ResumeRefusesAnotherRunsState) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  test::TempDir dir;
+  CompressOptions o = adaptiveOptions();
+  o.checkpointPath = dir / "run.ckpt";
+  std::atomic<bool> stop{false};
+  o.stopFlag = &stop;
+  o.train.monitor = [&](const TrainStatus& s) {
+    if (s.step >= 3) stop = true;
+  };
+  CompressStats stats;
+  compressStack(m.stack, o, stats);
+  ASSERT_TRUE(stats.interrupted);
+  stop = false;
+  o.train.monitor = nullptr;
+  o.train.resume = true;
+  o.adaptive.maxClusters = 10;  // other options: the saved clusters are not this run's
+  test::expectErrorContaining([&] { compressStack(m.stack, o, stats); },
+                              {adaptiveStatePath(o.checkpointPath), "other options"});
+  // A damaged state names its file.
+  o.adaptive.maxClusters = 12;
+  std::ofstream(adaptiveStatePath(o.checkpointPath)) << "{\"format\": \"nbtf adaptive state 1\"";
+  test::expectErrorContaining([&] { compressStack(m.stack, o, stats); },
+                              {adaptiveStatePath(o.checkpointPath), "damaged"});
 }
 
 }  // namespace

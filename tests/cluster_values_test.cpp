@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <Eigen/Eigenvalues>
@@ -137,6 +138,65 @@ TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
   // Half-float storage of the stack limits the precision of the values, not the method.
   for (std::size_t j = 0; j < mix.size(); ++j) EXPECT_NEAR(fit[j], mix[j], 2e-3) << j;
   EXPECT_THROW(fitTexelCoefficients(stack, 2.0f, ids, clusters, all, std::vector<float>(5), terms, false), Error);
+}
+
+// The mean-weighted refit: one term, e = (<f, y> + w n F.Y) / (<f, f> + w n F.F) with F, Y
+// the per-channel means over the images (brute force here); w = 0 is plain least squares,
+// and a larger w brings every texel's mean closer to its data's.
+TEST(ClusterValues, MeanWeightedFitMatchesTheClosedFormAndKeepsTexelMeans) {
+  const int width = 4, height = 3, texels = 12, clusters = 2;
+  const auto& h81 = hemisphere81();
+  std::vector<Direction> dirs(h81.begin(), h81.begin() + 3);
+  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  const int images = stack.numImages();
+  std::vector<std::int32_t> ids(texels);
+  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.1f, 1.0f);
+  std::vector<float> f(static_cast<std::size_t>(clusters) * images * 3), y(static_cast<std::size_t>(texels) * images * 3);
+  for (float& x : f) x = u(rng);
+  for (float& x : y) x = u(rng);  // not a multiple of the term: the fit leaves a residual
+  std::vector<float> rgb(3 * texels);
+  for (int i = 0; i < images; ++i) {
+    for (int t = 0; t < texels; ++t)
+      for (int c = 0; c < 3; ++c) rgb[3 * t + c] = y[(static_cast<std::size_t>(t) * images + i) * 3 + c];
+    stack.setImageLinear(i, rgb.data());
+    stack.imageLinear(i, rgb.data());  // the stored (half-rounded) values are the data
+    for (int t = 0; t < texels; ++t)
+      for (int c = 0; c < 3; ++c) y[(static_cast<std::size_t>(t) * images + i) * 3 + c] = rgb[3 * t + c];
+  }
+  std::vector<int> all(images);
+  for (int i = 0; i < images; ++i) all[i] = i;
+  auto meanError = [&](const std::vector<float>& e) {
+    double sse = 0;
+    for (int t = 0; t < texels; ++t)
+      for (int c = 0; c < 3; ++c) {
+        double d = 0;
+        for (int i = 0; i < images; ++i)
+          d += e[t] * f[(static_cast<std::size_t>(ids[t]) * images + i) * 3 + c] - y[(static_cast<std::size_t>(t) * images + i) * 3 + c];
+        sse += d * d;
+      }
+    return sse;
+  };
+  double previous = std::numeric_limits<double>::infinity();
+  for (double w : {0.0, 1.0, 100.0}) {
+    std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, all, f, 1, false, w);
+    for (int t = 0; t < texels; ++t) {
+      double fy = 0, ff = 0, F[3] = {0, 0, 0}, Y[3] = {0, 0, 0};
+      for (int i = 0; i < images; ++i)
+        for (int c = 0; c < 3; ++c) {
+          const double fv = f[(static_cast<std::size_t>(ids[t]) * images + i) * 3 + c];
+          const double yv = y[(static_cast<std::size_t>(t) * images + i) * 3 + c];
+          fy += fv * yv, ff += fv * fv, F[c] += fv / images, Y[c] += yv / images;
+        }
+      double num = fy, den = ff;
+      for (int c = 0; c < 3; ++c) num += w * images * F[c] * Y[c], den += w * images * F[c] * F[c];
+      EXPECT_NEAR(fit[t], num / den, 1e-5) << "w " << w << " texel " << t;
+    }
+    const double err = meanError(fit);
+    EXPECT_LT(err, previous) << "w " << w;
+    previous = err;
+  }
 }
 
 TEST(ClusterValues, CoefficientsUseOnlyTheGivenImagesAndAnyThreadCount) {

@@ -416,9 +416,25 @@ TEST_F(CmdCompress, AdaptiveStagesBudgetAndSameSeed) {
   }
   EXPECT_EQ(readFileBytes(a), readFileBytes(b));
 
+  // The same run from a config file's "adaptive" object: the same bytes.
+  nlohmann::json config = nlohmann::json::parse(std::ifstream(writeQuickConfig(60)));
+  config["adaptive"] = {{"enabled", true}, {"initial_clusters", 3}, {"stages", 3}};
+  writeFileAtomic(path("adaptive.json"), config.dump());
+  const std::string fromConfig = path("config.nbtf");
+  r = run("compress " + stack + " -o " + fromConfig + " --clusters 8 --seed 2 --threads 1 --max-clusters 12 --config " +
+          path("adaptive.json") + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(readFileBytes(fromConfig), readFileBytes(free));
+  EXPECT_EQ(nlohmann::json::parse(readNbtf(fromConfig).metadataJson)["adaptive"]["config"]["max_clusters"], 12);
+  config["adaptive"]["stages"] = 30;
+  writeFileAtomic(path("adaptive.json"), config.dump());
+  r = run("compress " + stack + " -o " + path("bad.nbtf") + " --config " + path("adaptive.json") + " -q");
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_TRUE(contains(r.output, "adaptive.json: 'adaptive.stages' (--stages) must be in 1..20, got 30")) << r.output;
+
   for (const std::string& bad : {std::string(" --target-rmse 0.1"), std::string(" --max-clusters 9"),
                                  std::string(" --adaptive --method pca --components 3"),
-                                 std::string(" --adaptive --resume"), std::string(" --adaptive --size-budget 0"),
+                                 std::string(" --adaptive --stages 21"), std::string(" --adaptive --size-budget 0"),
                                  std::string(" --adaptive --clusters 0")}) {
     r = run("compress " + stack + " -o " + path("bad.nbtf") + bad + " -q");
     EXPECT_NE(r.exitCode, 0) << bad << ": " << r.output;

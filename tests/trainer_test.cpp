@@ -483,7 +483,8 @@ TEST(TrainConfig, ReadsEveryComponent) {
     "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
                  "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
-                 "resume": true, "progress": false}
+                 "resume": true, "progress": false},
+    "modulation": {"mode": "svd", "terms": 2, "bits": 5, "mean_weight": 4}
   })");
   TrainConfig c = loadTrainConfig(path);
   EXPECT_EQ(c.model.latentDim, 6);
@@ -509,6 +510,9 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.checkpointPath, "x.ckpt");
   EXPECT_TRUE(c.resume);
   EXPECT_FALSE(c.progress);
+  EXPECT_EQ(c.modulation.terms, 2);
+  EXPECT_EQ(c.modulation.bits, 5);
+  EXPECT_DOUBLE_EQ(c.modulation.meanWeight, 4);
   std::filesystem::remove(path);
 }
 
@@ -535,6 +539,7 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"storage": {"decoder": "int4"}})", "'storage.decoder' must be \"float32\", \"half\" or \"int8\", got \"int4\""},
       {R"({"storage": {"directions": "f32"}})", "'storage.directions' must be \"f64\" or \"zstd\", got \"f32\""},
       {R"({"storage": {"metadata": "gzip"}})", "'storage.metadata' must be \"raw\" or \"zstd\", got \"gzip\""},
+      {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

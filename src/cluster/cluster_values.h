@@ -58,8 +58,11 @@ void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t s
 // per texel their dot products with its own values, one small solve. `terms` holds, for each
 // cluster and each of `images` in order, its 3 x terms values (term r, channel c at 3 r + c):
 // clusters x images.size() x 3 terms. Texels x terms; deterministic for any thread count.
+// meanWeight w > 0 also fits each texel's mean over the images (per channel), weighted as w x
+// images squared errors: w n |mean of the texel's decoded values - mean of its values|^2 joins
+// the sum, so the per-texel mean brightness (what a viewer sees as grain) is kept closer.
 std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                         int clusters, const std::vector<int>& images, const std::vector<float>& terms,
-                                        int termCount, bool progress);
+                                        int termCount, bool progress, double meanWeight = 0);
 
 }  // namespace nbtf

@@ -4,101 +4,14 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <set>
 
+#include "model/config_section.h"
 #include "model/trainer.h"
 #include "util/error.h"
 
 namespace nbtf {
 namespace {
-
-using json = nlohmann::json;
-
-std::string typeName(const json& v) {
-  if (v.is_number_integer()) return "an integer";
-  if (v.is_number()) return "a number";
-  return std::string("a ") + v.type_name();
-}
-
-// Reads the keys of one component object, remembering which were consumed.
-class Section {
- public:
-  Section(const json& root, const std::string& name, const std::string& file) : name_(name), file_(file) {
-    auto it = root.find(name);
-    if (it == root.end()) return;
-    if (!it->is_object()) fail(name, "must be an object, got " + typeName(*it));
-    obj_ = &*it;
-  }
-
-  void read(const char* key, int& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_number_integer()) fail(path(key), "must be an integer, got " + typeName(*v));
-      auto x = v->get<std::int64_t>();
-      if (x < INT32_MIN || x > INT32_MAX) fail(path(key), "is out of range");
-      out = static_cast<int>(x);
-    }
-  }
-  void read(const char* key, std::uint64_t& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_number_integer() || (!v->is_number_unsigned() && v->get<std::int64_t>() < 0))
-        fail(path(key), "must be a non-negative integer, got " + typeName(*v));
-      out = v->get<std::uint64_t>();
-    }
-  }
-  void read(const char* key, double& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_number()) fail(path(key), "must be a number, got " + typeName(*v));
-      out = v->get<double>();
-    }
-  }
-  void read(const char* key, bool& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_boolean()) fail(path(key), "must be true or false, got " + typeName(*v));
-      out = v->get<bool>();
-    }
-  }
-  void read(const char* key, std::string& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_string()) fail(path(key), "must be a string, got " + typeName(*v));
-      out = v->get<std::string>();
-    }
-  }
-  void read(const char* key, std::vector<int>& out) {
-    if (const json* v = find(key)) {
-      if (!v->is_array()) fail(path(key), "must be an array of integers, got " + typeName(*v));
-      out.clear();
-      for (const json& e : *v) {
-        if (!e.is_number_integer()) fail(path(key), "must be an array of integers, has " + typeName(e));
-        out.push_back(e.get<int>());
-      }
-    }
-  }
-
-  // After all reads: any key not consumed is a typo or an option that does not exist.
-  void rejectUnknown() const {
-    if (!obj_) return;
-    for (auto it = obj_->begin(); it != obj_->end(); ++it)
-      if (!seen_.count(it.key())) fail(path(it.key()), "unknown key");
-  }
-
- private:
-  const json* find(const char* key) {
-    seen_.insert(key);
-    if (!obj_) return nullptr;
-    auto it = obj_->find(key);
-    return it == obj_->end() ? nullptr : &*it;
-  }
-  std::string path(const std::string& key) const { return name_ + "." + key; }
-  [[noreturn]] void fail(const std::string& key, const std::string& msg) const {
-    throw fileError(file_, "'" + key + "' " + msg);
-  }
-
-  std::string name_, file_;
-  const json* obj_ = nullptr;
-  std::set<std::string> seen_;
-};
 
 [[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& msg) {
   throw fileError(source, "'" + key + "' " + msg);
@@ -107,22 +20,12 @@ class Section {
 }  // namespace
 
 TrainConfig loadTrainConfig(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw fileError(path, "cannot open config file");
-  json root;
-  try {
-    root = json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
-    throw fileError(path, std::string("not valid JSON: ") + e.what());
-  }
-  if (!root.is_object()) throw fileError(path, "must be a JSON object with \"model\", \"optimizer\", \"training\"");
-  static const std::set<std::string> kSections = {"model", "optimizer", "training", "modulation", "storage"};
-  for (auto it = root.begin(); it != root.end(); ++it)
-    if (!kSections.count(it.key()))
-      throw fileError(path, "'" + it.key() + "' unknown key (expected model, optimizer, training, modulation, storage)");
+  return trainConfigFromJson(readConfigFile(path, kTrainConfigSections), path);
+}
 
+TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& path) {
   TrainConfig c;
-  Section model(root, "model", path);
+  ConfigSection model(root, "model", path);
   model.read("latent_dim", c.model.latentDim);
   model.read("encoder_channels", c.model.encoderChannels);
   model.read("decoder_width", c.model.decoderWidth);
@@ -136,14 +39,14 @@ TrainConfig loadTrainConfig(const std::string& path) {
   }
   model.rejectUnknown();
 
-  Section opt(root, "optimizer", path);
+  ConfigSection opt(root, "optimizer", path);
   opt.read("name", c.optimizer);
   opt.read("learning_rate", c.learningRate);
   opt.read("learning_rate_scaling", c.learningRateScaling);
   opt.read("momentum", c.momentum);
   opt.rejectUnknown();
 
-  Section tr(root, "training", path);
+  ConfigSection tr(root, "training", path);
   tr.read("batch_size", c.batchSize);
   tr.read("images_per_input", c.imagesPerInput);
   tr.read("epochs", c.epochs);
@@ -165,13 +68,14 @@ TrainConfig loadTrainConfig(const std::string& path) {
   tr.read("device", c.device);
   tr.rejectUnknown();
 
-  Section mod(root, "modulation", path);
+  ConfigSection mod(root, "modulation", path);
   mod.read("mode", c.modulation.mode);
   mod.read("terms", c.modulation.terms);
   mod.read("bits", c.modulation.bits);
+  mod.read("mean_weight", c.modulation.meanWeight);
   mod.rejectUnknown();
 
-  Section st(root, "storage", path);
+  ConfigSection st(root, "storage", path);
   st.read("decoder", c.storage.decoder);
   st.read("latents", c.storage.latents);
   st.read("ids", c.storage.ids);
@@ -237,6 +141,8 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "modulation.mode", "must be \"none\" or \"svd\", got \"" + m.mode + "\"");
   if (m.terms < 1 || m.terms > 8) bad(source, "modulation.terms", "must be in 1..8");
   if (m.bits < 1 || m.bits > 16) bad(source, "modulation.bits", "must be in 1..16");
+  if (!finite(m.meanWeight) || m.meanWeight < 0)
+    bad(source, "modulation.mean_weight", "must be a number >= 0 (0 = plain least squares)");
   if (c.storage.decoder != "float32" && c.storage.decoder != "half" && c.storage.decoder != "int8")
     bad(source, "storage.decoder", "must be \"float32\", \"half\" or \"int8\", got \"" + c.storage.decoder + "\"");
   if (c.storage.latents != "float32" && c.storage.latents != "half")

@@ -56,6 +56,9 @@ struct ModulationConfig {
   std::string mode = "svd";   // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
   int terms = 1;              // RGB terms per cluster, each texel mixing them with its own coefficients (1..8)
   int bits = 6;               // linear code bits per coefficient (1..16)
+  // The refit after training also fits each texel's mean over the images, weighted as this many
+  // images' squared errors (cluster/cluster_values.h, fitTexelCoefficients; 0 = least squares).
+  double meanWeight = 0;
 };
 
 // How the decoding parts are stored in the .nbtf (the "storage" object of a config). Defaults:

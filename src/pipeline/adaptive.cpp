@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numeric>
 #include <tuple>
@@ -13,8 +14,10 @@
 #include "cluster/cluster_edit.h"
 #include "cluster/cluster_values.h"
 #include "codec/decoder.h"
+#include "pipeline/compress_config.h"
 #include "model/training_set.h"
 #include "pipeline/compressor_internal.h"
+#include "util/atomic_file.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -31,7 +34,6 @@ using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
 constexpr std::uint64_t kSplitStream = 0x73706c6974ull;  // "split"
-constexpr int kMaxStages = 20;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -94,7 +96,91 @@ std::uint64_t writtenBytes(CompressedBtf& b) {
   return bytes;
 }
 
+// ---- Resuming (--resume): the clusters of the stage in progress, saved beside the training
+// checkpoint at the start of every stage (adaptiveStatePath).
+struct StageState {
+  int stage = 0;                 // the stage in progress
+  std::int64_t startStep = 0;    // the schedule's step at its start
+  int k = 0;
+  std::vector<std::int32_t> ids;
+  std::vector<int> generation;
+  std::vector<AdaptiveStage> stages;  // the entries of the stages before it
+  std::string stopReason;
+};
+constexpr const char* kStateFormat = "nbtf adaptive state 1";
+
+std::string hex64(std::uint64_t v) {
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
+// What must match for a state to be resumed: the options (recipe, targets, k, seed) and the
+// data (its shape and the initial k-means labels, which hash the ABRDFs' clustering).
+std::uint64_t runFingerprint(const CompressOptions& o, const std::vector<std::int32_t>& initialIds, int images,
+                             int pcaComponents) {
+  const std::string text = trainConfigJson(o.train) + adaptiveConfigJson(o.adaptive);
+  std::uint64_t h = SplitMix64::mix(0x6164617074ull, text.size());  // "adapt"
+  for (unsigned char ch : text) h = SplitMix64::mix(h, ch);
+  for (std::uint64_t v : {static_cast<std::uint64_t>(o.clusters), o.train.seed, static_cast<std::uint64_t>(images),
+                          static_cast<std::uint64_t>(pcaComponents), static_cast<std::uint64_t>(initialIds.size())})
+    h = SplitMix64::mix(h, v);
+  for (std::int32_t id : initialIds) h = SplitMix64::mix(h, static_cast<std::uint32_t>(id));
+  return h;
+}
+
+void saveStageState(const std::string& path, std::uint64_t fingerprint, const StageState& s) {
+  json stages = json::array();
+  for (const AdaptiveStage& st : s.stages)
+    stages.push_back({st.clusters, st.steps, st.rmseTrain, st.bytes, st.splits, st.merges, st.pruned});
+  json j = {{"format", kStateFormat}, {"fingerprint", hex64(fingerprint)}, {"stage", s.stage},
+            {"start_step", s.startStep}, {"k", s.k},  {"stop_reason", s.stopReason},
+            {"stages", stages},          {"generation", s.generation}, {"ids", s.ids}};
+  writeFileAtomic(path, j.dump());
+}
+
+StageState loadStageState(const std::string& path, std::uint64_t fingerprint, std::int64_t texels, int stagesPlanned,
+                          std::int64_t totalSteps) {
+  StageState s;
+  try {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw fileError(path, "cannot open the adaptive run's saved state");
+    const json j = json::parse(in);
+    if (!j.is_object() || j.value("format", "") != kStateFormat)
+      throw fileError(path, "not an nbtf adaptive state file (\"format\" is not \"" + std::string(kStateFormat) + "\")");
+    if (j.at("fingerprint").get<std::string>() != hex64(fingerprint))
+      throw fileError(path, "saved by a run with other options or data; rerun without --resume to start afresh");
+    s.stage = j.at("stage").get<int>();
+    s.startStep = j.at("start_step").get<std::int64_t>();
+    s.k = j.at("k").get<int>();
+    s.stopReason = j.at("stop_reason").get<std::string>();
+    s.ids = j.at("ids").get<std::vector<std::int32_t>>();
+    s.generation = j.at("generation").get<std::vector<int>>();
+    for (const json& e : j.at("stages")) {
+      AdaptiveStage st;
+      st.clusters = e.at(0).get<int>();
+      st.steps = e.at(1).get<std::int64_t>();
+      st.rmseTrain = e.at(2).get<double>();
+      st.bytes = e.at(3).get<std::uint64_t>();
+      st.splits = e.at(4).get<int>();
+      st.merges = e.at(5).get<int>();
+      st.pruned = e.at(6).get<int>();
+      s.stages.push_back(st);
+    }
+  } catch (const json::exception& e) {
+    throw fileError(path, std::string("damaged adaptive state: ") + e.what());
+  }
+  const bool idsOk = std::all_of(s.ids.begin(), s.ids.end(), [&](std::int32_t id) { return id >= 0 && id < s.k; });
+  if (s.stage < 0 || s.stage >= stagesPlanned || static_cast<int>(s.stages.size()) != s.stage || s.startStep < 0 ||
+      s.startStep > totalSteps || s.k < 1 || static_cast<std::int64_t>(s.ids.size()) != texels || !idsOk ||
+      static_cast<int>(s.generation.size()) != s.k)
+    throw fileError(path, "damaged adaptive state: its stage, steps, clusters or ids do not fit this run");
+  return s;
+}
+
 }  // namespace
+
+std::string adaptiveStatePath(const std::string& checkpointPath) { return checkpointPath + ".adaptive.json"; }
 
 std::vector<double> clusterErrorShares(const std::vector<float>& decoded, const std::vector<float>& best,
                                        const std::vector<int>& sizes, const std::vector<std::int32_t>& ids,
@@ -187,13 +273,7 @@ namespace detail {
 
 int initialAdaptiveClusters(const CompressOptions& o, std::int64_t texels) {
   const AdaptiveOptions& a = o.adaptive;
-  if (a.stages < 1 || a.stages > kMaxStages)
-    throw Error("--stages must be in 1.." + std::to_string(kMaxStages) + ", got " + std::to_string(a.stages));
-  if (a.maxClusters < 0) throw Error("--max-clusters must be >= 0, got " + std::to_string(a.maxClusters));
-  if (a.initialClusters < 0)
-    throw Error("--initial-clusters must be >= 0, got " + std::to_string(a.initialClusters));
-  if (!(a.targetRmse >= 0)) throw Error("--target-rmse must be >= 0");
-  if (!(a.growthFraction > 0 && a.growthFraction < 1)) throw Error("adaptive growth fraction must be in (0, 1)");
+  validateAdaptiveOptions(a, "adaptive options");
   int k0 = a.initialClusters;
   if (k0 == 0) {
     const int reference = a.maxClusters > 0 ? a.maxClusters : o.clusters;
@@ -216,9 +296,7 @@ std::string adaptiveMetadataJson(const CompressOptions& o, const std::vector<Ada
                     {"merges", s.merges},
                     {"pruned", s.pruned}});
   a["stages"] = list;
-  a["target_rmse"] = o.adaptive.targetRmse > 0 ? json(o.adaptive.targetRmse) : json(nullptr);
-  a["max_clusters"] = o.adaptive.maxClusters > 0 ? json(o.adaptive.maxClusters) : json(nullptr);
-  a["size_budget"] = o.adaptive.sizeBudget > 0 ? json(o.adaptive.sizeBudget) : json(nullptr);
+  a["config"] = json::parse(adaptiveConfigJson(o.adaptive));  // the settings that ran
   a["stop_reason"] = stopReason;
   std::string digits(generation.size(), '0');
   for (std::size_t c = 0; c < generation.size(); ++c) digits[c] = generationDigit(generation[c]);
@@ -232,8 +310,6 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   const bool say = o.progress && !Progress::quiet();  // stage lines, as the progress bars
   const std::int64_t texels = stack.numTexels();
   const int images = stack.numImages();
-  if (o.train.resume)
-    throw Error("--resume does not apply to --adaptive (its stages change the clusters; rerun from the start)");
   auto tEdit = Clock::now();
 
   const std::vector<std::uint8_t> holdout = holdoutImageMask(images, o.train.holdoutFraction, o.train.seed);
@@ -269,14 +345,17 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
                                                     : config.checkpointPath;
   config.resume = false;
   stats.checkpointPath = temporaryCheckpoint ? "" : config.checkpointPath;
+  const std::string statePath = adaptiveStatePath(config.checkpointPath);
   struct RemoveTemporary {
-    const std::string& path;
+    std::vector<std::string> paths;
     bool active;
     ~RemoveTemporary() {
       std::error_code ec;
-      if (active) std::filesystem::remove(path, ec);
+      if (active)
+        for (const std::string& p : paths) std::filesystem::remove(p, ec);
     }
-  } removeTemporary{config.checkpointPath, temporaryCheckpoint};
+  } removeTemporary{{config.checkpointPath, statePath}, temporaryCheckpoint};
+  const std::uint64_t fingerprint = runFingerprint(o, clustering.ids, images, pcaComponents);
 
   const std::vector<double> energy = texelEnergies(stack, alpha, trainImages);
   const MatrixXfCol& scores = clustering.scores;
@@ -305,7 +384,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   std::int64_t stepsDone = 0;
   // Trains from the current step to `end` on the current clusters (a warm start after the
   // first stage) and assembles the model; false when the user interrupted.
-  auto runStage = [&](std::int64_t end, bool first) {
+  auto runStage = [&](std::int64_t end, bool warm) {
     auto tc = Clock::now();
     coefficients = modulated ? trainingCoefficients(stack, alpha, ids, k, holdout, mc.terms, false)
                              : std::vector<float>{};
@@ -318,7 +397,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     inputs.texelCoefficients = coefficients;
     inputs.coefficientTerms = modulated ? mc.terms : 0;
     TrainConfig stageConfig = config;
-    stageConfig.warmStart = !first;
+    stageConfig.warmStart = warm;
     stageConfig.stopAtStep = end < totalSteps ? end : 0;
     auto tt = Clock::now();
     last = trainModel(inputs, stageConfig);
@@ -372,11 +451,37 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     shares = clusterErrorShares(decoded, best, clusterSizes(ids, k), ids, energy, trainImages, images, outs);
   };
 
-  for (int stage = 0; stage < stagesPlanned; ++stage) {
+  // ---- --resume: continue the stage in progress from its saved clusters and the checkpoint.
+  int firstStage = 0;
+  bool resumedWarm = false;  // the first stage run continues from the checkpoint
+  std::error_code ec;
+  if (o.train.resume && std::filesystem::exists(statePath, ec)) {
+    StageState saved = loadStageState(statePath, fingerprint, texels, stagesPlanned, totalSteps);
+    resumedWarm = std::filesystem::exists(config.checkpointPath, ec);
+    if (saved.stage > 0 && !resumedWarm)
+      throw fileError(statePath, "stage " + std::to_string(saved.stage + 1) + " of the adaptive run continues from \"" +
+                                     config.checkpointPath + "\", which does not exist; rerun without --resume");
+    firstStage = saved.stage;
+    stepsDone = saved.startStep;
+    k = saved.k;
+    ids = std::move(saved.ids);
+    generation = std::move(saved.generation);
+    stages = std::move(saved.stages);
+    stopReason = saved.stopReason;
+    if (firstStage > 0) representatives = clusterRepresentatives(x, ids, k, Representative::Median);
+    if (say)
+      std::fprintf(stderr, "adaptive: resuming stage %d/%d (k = %d) from %s\n", firstStage + 1, stagesPlanned, k,
+                   config.checkpointPath.c_str());
+  } else if (o.train.resume && say) {
+    std::fprintf(stderr, "adaptive: --resume: no saved state at %s, starting from the beginning\n", statePath.c_str());
+  }
+
+  for (int stage = firstStage; stage < stagesPlanned; ++stage) {
     if (say)
       std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training steps %lld..%lld\n", stage + 1, stagesPlanned, k,
                    static_cast<long long>(stepsDone), static_cast<long long>(stageEnd[stage]));
-    if (!runStage(stageEnd[stage], stage == 0)) {
+    saveStageState(statePath, fingerprint, StageState{stage, stepsDone, k, ids, generation, stages, stopReason});
+    if (!runStage(stageEnd[stage], stage > 0 || resumedWarm)) {
       stats.interrupted = true;
       return {};
     }
@@ -503,7 +608,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
                    static_cast<unsigned long long>(stages.back().bytes),
                    static_cast<unsigned long long>(a.sizeBudget), static_cast<int>(merges.size()), k);
     // Latents of the merged clusters from the trained encoder: a warm start with no steps left.
-    if (!runStage(totalSteps, false)) {
+    if (!runStage(totalSteps, true)) {
       stats.interrupted = true;
       return {};
     }

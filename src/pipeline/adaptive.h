@@ -11,6 +11,8 @@
 // none of their shapes depend on k. A cluster's latent is not a parameter but the encoder's
 // output on its representative (the median ABRDF), so new clusters get theirs from the
 // encoder on their new representatives and unchanged clusters keep theirs (docs/model.md).
+// An interrupted run resumes from the checkpoint and the stage's saved clusters
+// (adaptiveStatePath), and writes the same bytes as one uninterrupted run.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -45,6 +47,11 @@ std::vector<std::pair<int, int>> chooseMerges(const std::vector<float>& latents,
                                               const std::vector<int>& sizes, const std::vector<int>& trainImages,
                                               int images, int outs, double maxCost, int atLeast);
 
+// Where an adaptive run keeps the clusters of the stage in progress, beside its training
+// checkpoint, so that `--resume` continues an interrupted run: written at the start of every
+// stage, removed with the checkpoint.
+std::string adaptiveStatePath(const std::string& checkpointPath);
+
 namespace detail {
 
 // k of the first stage.
@@ -58,7 +65,8 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
                                ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats);
 
 // The "adaptive" object of the file's metadata: {"stages": [{k, steps, rmse_train, bytes,
-// splits, merges, pruned}], "generation": "<one base-36 digit per cluster>", ...}.
+// splits, merges, pruned}], "generation": "<one base-36 digit per cluster>", "stop_reason",
+// "config": the settings (adaptiveConfigJson)}.
 std::string adaptiveMetadataJson(const CompressOptions& o, const std::vector<AdaptiveStage>& stages,
                                  const std::vector<int>& generation, const std::string& stopReason);
 

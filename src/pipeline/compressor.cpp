@@ -173,7 +173,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
       }
     });
     std::vector<float> fitted =
-        fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress);
+        fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress, mc.meanWeight);
     b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
   }
   if (b.storage.decoderHalf || b.storage.decoderInt8 || b.storage.latentsHalf || modulated) {
@@ -244,6 +244,8 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"seed", c.seed},
                    {"threads", c.threads}};
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
+  // Recorded only when set, so files of earlier configs keep their bytes.
+  if (c.modulation.meanWeight > 0) j["modulation"]["mean_weight"] = c.modulation.meanWeight;
   j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
                   {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};
   return j.dump();
@@ -406,6 +408,10 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   } else {
     o.checkpointPath = checkpointPathFor(output, options);
     checkWritable(o.checkpointPath);
+    // A fixed-k run rewrites the checkpoint: an adaptive run's saved clusters would no longer
+    // belong to it.
+    std::error_code ec;
+    if (!o.adaptive.enabled) std::filesystem::remove(adaptiveStatePath(o.checkpointPath), ec);
   }
   if (!o.pcaBaseline && !o.load.crop.empty()) {
     checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
@@ -458,6 +464,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   if (!o.pcaBaseline && o.checkpointPath == defaultCheckpointPath(output)) {
     std::error_code ec;
     std::filesystem::remove(o.checkpointPath, ec);
+    std::filesystem::remove(adaptiveStatePath(o.checkpointPath), ec);
   }
   return stats;
 }

@@ -1,0 +1,121 @@
+#include "model/config_section.h"
+
+#include <algorithm>
+#include <climits>
+#include <fstream>
+
+#include "util/error.h"
+
+namespace nbtf {
+
+using json = nlohmann::json;
+
+const std::vector<std::string> kTrainConfigSections = {"model", "optimizer", "training", "modulation", "storage"};
+
+namespace {
+
+std::string typeName(const json& v) {
+  if (v.is_number_integer()) return "an integer";
+  if (v.is_number()) return "a number";
+  return std::string("a ") + v.type_name();
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (std::size_t i = 0; i < names.size(); ++i) s += (i ? ", " : "") + names[i];
+  return s;
+}
+
+}  // namespace
+
+json readConfigFile(const std::string& path, const std::vector<std::string>& sections) {
+  std::ifstream in(path);
+  if (!in) throw fileError(path, "cannot open config file");
+  json root;
+  try {
+    root = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+  } catch (const json::parse_error& e) {
+    throw fileError(path, std::string("not valid JSON: ") + e.what());
+  }
+  if (!root.is_object()) throw fileError(path, "must be a JSON object with " + joined(sections));
+  for (auto it = root.begin(); it != root.end(); ++it)
+    if (std::find(sections.begin(), sections.end(), it.key()) == sections.end())
+      throw fileError(path, "'" + it.key() + "' unknown key (expected " + joined(sections) + ")");
+  return root;
+}
+
+ConfigSection::ConfigSection(const json& root, const std::string& name, const std::string& file)
+    : name_(name), file_(file) {
+  auto it = root.find(name);
+  if (it == root.end()) return;
+  if (!it->is_object()) fail(name, "must be an object, got " + typeName(*it));
+  obj_ = &*it;
+}
+
+void ConfigSection::read(const char* key, int& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_number_integer()) fail(path(key), "must be an integer, got " + typeName(*v));
+    auto x = v->get<std::int64_t>();
+    if (x < INT32_MIN || x > INT32_MAX) fail(path(key), "is out of range");
+    out = static_cast<int>(x);
+  }
+}
+
+void ConfigSection::read(const char* key, std::uint64_t& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_number_integer() || (!v->is_number_unsigned() && v->get<std::int64_t>() < 0))
+      fail(path(key), "must be a non-negative integer, got " + typeName(*v));
+    out = v->get<std::uint64_t>();
+  }
+}
+
+void ConfigSection::read(const char* key, double& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_number()) fail(path(key), "must be a number, got " + typeName(*v));
+    out = v->get<double>();
+  }
+}
+
+void ConfigSection::read(const char* key, bool& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_boolean()) fail(path(key), "must be true or false, got " + typeName(*v));
+    out = v->get<bool>();
+  }
+}
+
+void ConfigSection::read(const char* key, std::string& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_string()) fail(path(key), "must be a string, got " + typeName(*v));
+    out = v->get<std::string>();
+  }
+}
+
+void ConfigSection::read(const char* key, std::vector<int>& out) {
+  if (const json* v = find(key)) {
+    if (!v->is_array()) fail(path(key), "must be an array of integers, got " + typeName(*v));
+    out.clear();
+    for (const json& e : *v) {
+      if (!e.is_number_integer()) fail(path(key), "must be an array of integers, has " + typeName(e));
+      out.push_back(e.get<int>());
+    }
+  }
+}
+
+void ConfigSection::rejectUnknown() const {
+  if (!obj_) return;
+  for (auto it = obj_->begin(); it != obj_->end(); ++it)
+    if (!seen_.count(it.key())) fail(path(it.key()), "unknown key");
+}
+
+const json* ConfigSection::find(const char* key) {
+  seen_.insert(key);
+  if (!obj_) return nullptr;
+  auto it = obj_->find(key);
+  return it == obj_->end() ? nullptr : &*it;
+}
+
+void ConfigSection::fail(const std::string& key, const std::string& msg) const {
+  throw fileError(file_, "'" + key + "' " + msg);
+}
+
+}  // namespace nbtf

@@ -1,0 +1,52 @@
+// Config files (configs/*.json): one JSON object per component. The reader every component's
+// loader uses, so all of them reject unknown keys and wrong types the same way, naming the
+// file and the key ("model.latent_dim"): a typo never silently runs with a default.
+#pragma once
+#include <cstdint>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace nbtf {
+
+struct TrainConfig;
+
+// The components loadTrainConfig reads.
+extern const std::vector<std::string> kTrainConfigSections;
+
+// Parses a config file (comments allowed): a JSON object whose keys are all in `sections`.
+nlohmann::json readConfigFile(const std::string& path, const std::vector<std::string>& sections);
+
+// The training recipe from a parsed config file's model, optimizer, training, modulation and
+// storage objects (other keys of `root` are left to their own readers); `path` names errors.
+TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& path);
+
+// Reads the keys of one component object, remembering which were consumed; a key that is
+// absent leaves its output as it was.
+class ConfigSection {
+ public:
+  ConfigSection(const nlohmann::json& root, const std::string& name, const std::string& file);
+
+  void read(const char* key, int& out);
+  void read(const char* key, std::uint64_t& out);
+  void read(const char* key, double& out);
+  void read(const char* key, bool& out);
+  void read(const char* key, std::string& out);
+  void read(const char* key, std::vector<int>& out);
+
+  // After all reads: any key not consumed is a typo or an option that does not exist.
+  void rejectUnknown() const;
+
+ private:
+  const nlohmann::json* find(const char* key);
+  std::string path(const std::string& key) const { return name_ + "." + key; }
+  [[noreturn]] void fail(const std::string& key, const std::string& msg) const;
+
+  std::string name_, file_;
+  const nlohmann::json* obj_ = nullptr;
+  std::set<std::string> seen_;
+};
+
+}  // namespace nbtf

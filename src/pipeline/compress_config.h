@@ -1,0 +1,29 @@
+// The config file of `nbtf compress`: the training recipe (model, optimizer, training,
+// modulation, storage: loadTrainConfig's objects) and the "adaptive" object, which turns on
+// adaptive clusters and sets their targets (pipeline/adaptive.h). The command line's
+// --adaptive, --target-rmse, ... override the file's values.
+#pragma once
+#include <string>
+
+#include "pipeline/compressor.h"
+
+namespace nbtf {
+
+struct CompressConfig {
+  TrainConfig train;
+  AdaptiveOptions adaptive;  // the "adaptive" object ("enabled": false when absent)
+};
+
+// Loads a compress config; unknown keys, wrong types and out-of-range values are errors that
+// name the file and the key.
+CompressConfig loadCompressConfig(const std::string& path);
+
+// Throws nbtf::Error naming `source` ("<file>", "command line"), the config key and its
+// command-line option when a value is out of range. 0 means "none" for the targets.
+void validateAdaptiveOptions(const AdaptiveOptions& adaptive, const std::string& source);
+
+// The "adaptive" object in the config-file format (every key, so a file's metadata says
+// exactly what ran; reloadable by loadCompressConfig).
+std::string adaptiveConfigJson(const AdaptiveOptions& adaptive);
+
+}  // namespace nbtf

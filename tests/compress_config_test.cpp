@@ -1,0 +1,96 @@
+#include "pipeline/compress_config.h"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+#include "util/atomic_file.h"
+
+namespace nbtf {
+namespace {
+
+std::string writeConfig(const test::TempDir& dir, const std::string& text) {
+  writeFileAtomic(dir / "config.json", text);
+  return dir / "config.json";
+}
+
+TEST(CompressConfig, ReadsTheAdaptiveObjectBesideTheRecipe) {
+  test::TempDir dir;
+  const std::string path = writeConfig(dir, R"({"training": {"epochs": 7},
+    "adaptive": {"enabled": true, "target_rmse": 0.03, "max_clusters": 900, "size_budget": 60000,
+                 "initial_clusters": 40, "stages": 4, "growth_fraction": 0.5, "merge_tolerance": 0.01}})");
+  CompressConfig c = loadCompressConfig(path);
+  EXPECT_EQ(c.train.epochs, 7);
+  EXPECT_TRUE(c.adaptive.enabled);
+  EXPECT_DOUBLE_EQ(c.adaptive.targetRmse, 0.03);
+  EXPECT_EQ(c.adaptive.maxClusters, 900);
+  EXPECT_EQ(c.adaptive.sizeBudget, 60000u);
+  EXPECT_EQ(c.adaptive.initialClusters, 40);
+  EXPECT_EQ(c.adaptive.stages, 4);
+  EXPECT_DOUBLE_EQ(c.adaptive.growthFraction, 0.5);
+  EXPECT_DOUBLE_EQ(c.adaptive.mergeTolerance, 0.01);
+
+  // What a file records is a config that loads back to the same settings.
+  const std::string recorded =
+      writeConfig(dir, "{\"adaptive\": " + adaptiveConfigJson(c.adaptive) + "}");
+  CompressConfig again = loadCompressConfig(recorded);
+  EXPECT_EQ(adaptiveConfigJson(again.adaptive), adaptiveConfigJson(c.adaptive));
+
+  // Absent: off, with the defaults; the recipe alone is still a valid compress config.
+  CompressConfig plain = loadCompressConfig(writeConfig(dir, R"({"training": {"epochs": 3}})"));
+  EXPECT_FALSE(plain.adaptive.enabled);
+  EXPECT_EQ(adaptiveConfigJson(plain.adaptive), adaptiveConfigJson(AdaptiveOptions{}));
+}
+
+// configs/adaptive.json is the default recipe with adaptive clusters on.
+TEST(CompressConfig, ShippedAdaptiveConfigIsTheDefaultRecipePlusAdaptive) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  CompressConfig c = loadCompressConfig(dir + "adaptive.json");
+  EXPECT_TRUE(c.adaptive.enabled);
+  AdaptiveOptions expected;
+  expected.enabled = true;
+  EXPECT_EQ(adaptiveConfigJson(c.adaptive), adaptiveConfigJson(expected));
+  EXPECT_EQ(trainConfigJson(c.train), trainConfigJson(loadTrainConfig(dir + "default.json")));
+  EXPECT_FALSE(loadCompressConfig(dir + "default.json").adaptive.enabled);
+}
+
+TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
+  test::TempDir dir;
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"adaptive": {"stage": 3}})", "'adaptive.stage' unknown key"},
+      {R"({"adaptive": {"enabled": 1}})", "'adaptive.enabled' must be true or false"},
+      {R"({"adaptive": {"stages": 0}})", "'adaptive.stages' (--stages) must be in 1..20, got 0"},
+      {R"({"adaptive": {"max_clusters": -2}})", "'adaptive.max_clusters' (--max-clusters) must be >= 0"},
+      {R"({"adaptive": {"size_budget": -1}})", "'adaptive.size_budget' must be a non-negative integer"},
+      {R"({"adaptive": {"target_rmse": -0.1}})", "'adaptive.target_rmse' (--target-rmse) must be a number >= 0"},
+      {R"({"adaptive": {"growth_fraction": 1}})", "'adaptive.growth_fraction' must be in (0, 1)"},
+      {R"({"adaptive": {"merge_tolerance": -1}})", "'adaptive.merge_tolerance' must be a number >= 0"},
+      {R"({"adaptive": 5})", "'adaptive' must be an object"},
+      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, optimizer, training, modulation, storage, adaptive)"},
+      {R"({"model": {"latent_dim": 0}, "adaptive": {}})", "'model.latent_dim' must be in 1..4096"},
+  };
+  for (const auto& [text, message] : cases) {
+    const std::string path = writeConfig(dir, text);
+    test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
+  }
+  // The training recipe's own loader knows no "adaptive" object: it says which objects it reads.
+  const std::string path = writeConfig(dir, R"({"adaptive": {"enabled": true}})");
+  test::expectErrorContaining([&] { loadTrainConfig(path); },
+                              {path, "'adaptive' unknown key (expected model, optimizer, training, modulation, storage)"});
+}
+
+TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {
+  AdaptiveOptions a;
+  EXPECT_NO_THROW(validateAdaptiveOptions(a, "command line"));
+  a.stages = 21;
+  test::expectErrorContaining([&] { validateAdaptiveOptions(a, "command line"); },
+                              {"command line: 'adaptive.stages' (--stages) must be in 1..20, got 21"});
+  a = AdaptiveOptions{};
+  a.initialClusters = -1;
+  test::expectErrorContaining([&] { validateAdaptiveOptions(a, "x.json + command line"); },
+                              {"x.json + command line: 'adaptive.initial_clusters' (--initial-clusters)"});
+}
+
+}  // namespace
+}  // namespace nbtf
