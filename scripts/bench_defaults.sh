@@ -10,7 +10,8 @@
 #
 # Data: one synthetic fabric, 128 x 128 texels (256 x 256 for points larger than 128), UTIA
 # layout (PNG), generated once; the grid's stacks are links to its files: "view1" = one view
-# (0/0) x 81 lights, "sub9x9" = 9 views x 9 lights (every 9th of each), "full" = all 6561
+# (0/0) x 81 lights, "views3" = 3 views (every 27th) x 81 lights (243 images: the learning-rate
+# rule's middle, x 1.45), "sub9x9" = 9 views x 9 lights (every 9th of each), "full" = all 6561
 # images. Texel counts come from --crop (the top-left S x S texels). On these stacks the
 # default trains max(2000, 16 k) steps, at most 16000, and the 4x run 4x that: from 10,000
 # steps a point (k <= 125) to 80,000 (k >= 1000), about 5 to 40 minutes a point on 2 idle
@@ -46,7 +47,8 @@ source_of() {
   echo "$src"
 }
 
-# view1: the first view folder whole (81 lights). sub9x9: 9 view folders, 9 lights in each.
+# view1: the first view folder whole (81 lights). views3: 3 view folders whole. sub9x9: 9 view
+# folders, 9 lights in each.
 # full: the whole stack.
 make_subset() {
   local name=$1 full=$2 out=$3
@@ -60,6 +62,7 @@ make_subset() {
   mapfile -t lights < <(find "$full/${views[0]}" -maxdepth 1 -name '*.png' -printf '%f\n' | sed 's/_tv.*//' | sort)
   local vstep=81 lstep=1
   [[ $name == sub9x9 ]] && vstep=9 lstep=9
+  [[ $name == views3 ]] && vstep=27
   for ((v = 0; v < ${#views[@]}; v += vstep)); do
     mkdir -p "$out.tmp/${views[v]}"
     for ((l = 0; l < ${#lights[@]}; l += lstep)); do
