@@ -36,10 +36,10 @@ make_subset() {
   local full=$1 out=$2
   [[ -d $out ]] && return
   mkdir -p "$out.tmp"
-  mapfile -t views < <(find "$full" -mindepth 1 -maxdepth 1 -type d -printf '%f\n' | sort)
+  mapfile -t views < <(find -H "$full" -mindepth 1 -maxdepth 1 -type d -printf '%f\n' | sort)
   for ((v = 0; v < ${#views[@]}; v += 9)); do
     mkdir -p "$out.tmp/${views[v]}"
-    mapfile -t files < <(find "$full/${views[v]}" -maxdepth 1 -type f -printf '%f\n' | sort)
+    mapfile -t files < <(find -H "$full/${views[v]}" -maxdepth 1 -type f -printf '%f\n' | sort)
     for ((l = 0; l < ${#files[@]}; l += 9)); do cp "$full/${views[v]}/${files[l]}" "$out.tmp/${views[v]}/"; done
   done
   mv "$out.tmp" "$out"

@@ -58,8 +58,8 @@ make_subset() {
     return
   fi
   mkdir -p "$out.tmp"
-  mapfile -t views < <(find "$full" -mindepth 1 -maxdepth 1 -type d -printf '%f\n' | sort)
-  mapfile -t lights < <(find "$full/${views[0]}" -maxdepth 1 -name '*.png' -printf '%f\n' | sed 's/_tv.*//' | sort)
+  mapfile -t views < <(find -H "$full" -mindepth 1 -maxdepth 1 -type d -printf '%f\n' | sort)
+  mapfile -t lights < <(find -H "$full/${views[0]}" -maxdepth 1 -name '*.png' -printf '%f\n' | sed 's/_tv.*//' | sort)
   local vstep=81 lstep=1
   [[ $name == sub9x9 ]] && vstep=9 lstep=9
   [[ $name == views3 ]] && vstep=27
