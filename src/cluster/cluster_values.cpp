@@ -235,23 +235,25 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   // texel's), enters too: + w n |sum_a e_a F_a - Y|^2, i.e. w n F F^T on the Gram matrix and
   // w n F Y on the right-hand side.
   std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(clusters);
-  std::vector<double> termMeans(static_cast<std::size_t>(clusters) * o, 0.0);  // F, per cluster: term a, channel c at 3 a + c
+  // F per cluster (term a, channel c at 3 a + c); only with meanWeight > 0.
+  std::vector<double> termMeans(meanWeight > 0 ? static_cast<std::size_t>(clusters) * o : 0, 0.0);
   parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
     for (std::size_t g = begin; g < end; ++g) {
       Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
       const float* f = &terms[g * n * o];
-      double* mean = &termMeans[g * o];
       for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c)
-          for (int a = 0; a < r; ++a) {
-            mean[3 * a + c] += f[i * o + 3 * a + c];
+          for (int a = 0; a < r; ++a)
             for (int b = 0; b <= a; ++b) gram(a, b) += double(f[i * o + 3 * a + c]) * f[i * o + 3 * b + c];
-          }
-      for (std::size_t j = 0; j < o; ++j) mean[j] /= static_cast<double>(n);
-      if (meanWeight > 0)
+      if (meanWeight > 0) {
+        double* mean = &termMeans[g * o];
+        for (std::size_t i = 0; i < n; ++i)
+          for (std::size_t j = 0; j < o; ++j) mean[j] += f[i * o + j];
+        for (std::size_t j = 0; j < o; ++j) mean[j] /= static_cast<double>(n);
         for (int c = 0; c < 3; ++c)
           for (int a = 0; a < r; ++a)
             for (int b = 0; b <= a; ++b) gram(a, b) += meanWeight * n * mean[3 * a + c] * mean[3 * b + c];
+      }
       for (int a = 0; a < r; ++a)
         for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
       const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
@@ -279,17 +281,18 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
         if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
         const float* f = &terms[static_cast<std::size_t>(g) * n * o];
         rhs.setZero();
-        double texelMean[3] = {0, 0, 0};
         for (std::size_t i = 0; i < n; ++i)
           for (int c = 0; c < 3; ++c) {
             const double y = values[(3 * i + c) * count + k] * invAlpha;
-            texelMean[c] += y;
             for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
           }
         if (meanWeight > 0) {
+          double texelSum[3] = {0, 0, 0};
+          for (std::size_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) texelSum[c] += values[(3 * i + c) * count + k] * invAlpha;
           const double* mean = &termMeans[static_cast<std::size_t>(g) * o];
           for (int c = 0; c < 3; ++c)
-            for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelMean[c];  // w n F (sum / n)
+            for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSum[c];  // w n F (sum / n)
         }
         Eigen::VectorXd e = solvers[g].solve(rhs);
         for (int a = 0; a < r; ++a) out[t * r + a] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
