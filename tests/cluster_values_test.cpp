@@ -45,11 +45,13 @@ TEST(ClusterValues, ModulatedTargetsGiveTheExactPerTexelLoss) {
   const int M = m.stack.numTexels(), N = m.stack.numImages();
   std::mt19937 rng(3);
   std::normal_distribution<float> u(1.0f, 0.5f);
-  for (int terms : {1, 3}) {
-    std::vector<float> raw(static_cast<std::size_t>(M) * terms);
+  // (terms, channels): one coefficient per term, or one per term and channel (format 1.5).
+  for (auto [terms, channels] : {std::pair{1, 1}, std::pair{3, 1}, std::pair{1, 3}, std::pair{2, 3}}) {
+    const int columns = terms * channels;
+    std::vector<float> raw(static_cast<std::size_t>(M) * columns);
     for (float& x : raw) x = u(rng);
-    std::vector<float> e = orthonormalizeTexelCoefficients(raw, terms, m.ids, m.clusters);
-    ClusterValues cv = clusterValues(m.stack, m.alpha, m.ids, m.clusters, e.data(), terms, true, false);
+    std::vector<float> e = orthonormalizeTexelCoefficients(raw, terms, m.ids, m.clusters, channels);
+    ClusterValues cv = clusterValues(m.stack, m.alpha, m.ids, m.clusters, e.data(), terms, true, false, channels);
     std::vector<int> count(m.clusters, 0);
     for (int id : m.ids) ++count[id];
     const int o = 3 * terms;
@@ -61,13 +63,15 @@ TEST(ClusterValues, ModulatedTargetsGiveTheExactPerTexelLoss) {
       for (int t = 0; t < M; ++t)
         for (int c = 0; c < 3; ++c) {
           double model = 0;
-          for (int r = 0; r < terms; ++r) model += e[t * terms + r] * f[o * m.ids[t] + 3 * r + c];
+          for (int r = 0; r < terms; ++r)
+            model += e[t * columns + r * channels + (channels > 1 ? c : 0)] * f[o * m.ids[t] + 3 * r + c];
           brute += std::pow(model - m.stack.sample(image, t, c) / m.alpha, 2);
         }
       for (int g = 0; g < m.clusters; ++g)
         for (int k = 0; k < o; ++k)
           viaTargets += count[g] * std::pow(f[o * g + k] - cv.means[(static_cast<std::size_t>(g) * N + image) * o + k], 2);
-      EXPECT_NEAR(viaTargets, brute, 1e-4 * brute) << "image " << image << " terms " << terms;
+      EXPECT_NEAR(viaTargets, brute, 1e-4 * brute) << "image " << image << " terms " << terms << " channels "
+                                                    << channels;
     }
   }
 }
@@ -138,6 +142,61 @@ TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
   // Half-float storage of the stack limits the precision of the values, not the method.
   for (std::size_t j = 0; j < mix.size(); ++j) EXPECT_NEAR(fit[j], mix[j], 2e-3) << j;
   EXPECT_THROW(fitTexelCoefficients(stack, 2.0f, ids, clusters, all, std::vector<float>(5), terms, false), Error);
+}
+
+// A material whose texels are their cluster's profile times a colour of their own (r, g, b
+// factors that differ): one brightness factor per texel cannot explain it; one factor per
+// channel (channels 3) can, from the data's SVD, and the refit gives back the colours.
+TEST(ClusterValues, PerChannelCoefficientsRemoveThePerTexelColour) {
+  const int width = 6, height = 5, texels = 30, clusters = 3;
+  const auto& h81 = hemisphere81();
+  std::vector<Direction> dirs(h81.begin(), h81.begin() + 4);
+  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  const int images = stack.numImages();
+  std::vector<std::int32_t> ids(texels);
+  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> u(0.2f, 1.0f), colour(0.5f, 1.5f);
+  std::vector<float> profile(static_cast<std::size_t>(clusters) * images * 3), tint(3 * texels);
+  for (float& x : profile) x = u(rng);
+  for (float& x : tint) x = colour(rng);
+  std::vector<float> rgb(3 * texels);
+  for (int i = 0; i < images; ++i) {
+    for (int t = 0; t < texels; ++t)
+      for (int c = 0; c < 3; ++c) rgb[3 * t + c] = tint[3 * t + c] * profile[(static_cast<std::size_t>(ids[t]) * images + i) * 3 + c];
+    stack.setImageLinear(i, rgb.data());
+  }
+  const std::vector<std::uint8_t> use(images, 1);
+  auto floorOf = [&](int channels) {
+    std::vector<float> a = texelCoefficients(stack, 1.0f, ids, clusters, use, 1, false, channels);
+    EXPECT_EQ(a.size(), static_cast<std::size_t>(texels) * channels);
+    std::vector<float> e = orthonormalizeTexelCoefficients(a, 1, ids, clusters, channels);
+    return clusterValues(stack, 1.0f, ids, clusters, e.data(), 1, false, false, channels)
+        .floorRmse(allImages(images), texels);
+  };
+  const double plain = clusterValues(stack, 1.0f, ids, clusters, nullptr, 1, false, false).floorRmse(allImages(images), texels);
+  const double shared = floorOf(1), perChannel = floorOf(3);
+  EXPECT_LT(shared, plain);
+  EXPECT_GT(shared, 0.02 * plain) << "a brightness factor alone cannot explain a per-texel colour";
+  EXPECT_LT(perChannel, 2e-3 * plain) << "(half-float storage of the stack is all that is left)";
+  // The refit per channel to the cluster profiles gives each texel's colour back.
+  std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), profile, 1, false, 0, 3);
+  ASSERT_EQ(fit.size(), tint.size());
+  for (std::size_t j = 0; j < tint.size(); ++j) EXPECT_NEAR(fit[j], tint[j], 2e-3) << j;
+  // A large mean weight keeps every texel's per-channel mean over the images (its colour in
+  // the mean brightness map) whatever the terms: here terms that are not the profiles.
+  std::vector<float> wrong(profile);
+  for (std::size_t j = 0; j < wrong.size(); ++j) wrong[j] *= 0.5f + static_cast<float>(j % 5) * 0.25f;
+  std::vector<float> kept = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), wrong, 1, false, 1e6, 3);
+  for (int t = 0; t < texels; ++t)
+    for (int c = 0; c < 3; ++c) {
+      double decoded = 0, data = 0;
+      for (int i = 0; i < images; ++i) {
+        decoded += kept[3 * t + c] * wrong[(static_cast<std::size_t>(ids[t]) * images + i) * 3 + c];
+        data += stack.sample(i, t, c);
+      }
+      EXPECT_NEAR(decoded / images, data / images, 1e-4 * (data / images)) << "texel " << t << " channel " << c;
+    }
 }
 
 // The mean-weighted refit: one term, e = (<f, y> + w n F.Y) / (<f, f> + w n F.F) with F, Y

@@ -125,17 +125,27 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
 // whose texels differ by brightness, and its parts are stored compactly.
 TEST(Compressor, ModulatedCompactFileBeatsTheClusterFloor) {
   auto m = testing::makeTestMaterial();
-  // The third run stores the decoder with 8-bit weights: measured through them too.
-  for (auto [terms, decoderStorage] : {std::pair<int, const char*>{1, "half"}, {2, "half"}, {1, "int8"}}) {
+  // The third run stores the decoder with 8-bit weights: measured through them too; the fourth
+  // has one coefficient per channel (format 1.5).
+  struct Run {
+    int terms;
+    const char* decoderStorage;
+    int channels;
+  };
+  for (auto [terms, decoderStorage, channels] : {Run{1, "half", 1}, Run{2, "half", 1}, Run{1, "int8", 1}, Run{1, "int8", 3}}) {
+    SCOPED_TRACE("terms " + std::to_string(terms) + ", channels " + std::to_string(channels));
     const bool int8 = std::string(decoderStorage) == "int8";
     CompressOptions o = quickOptions(4);
     o.train.modulation = ModulationConfig{"svd", terms, 6};
+    o.train.modulation.channels = channels;
     o.train.storage = StorageConfig{decoderStorage, "half", "zstd", "zstd", "zstd"};
     o.train.holdoutFraction = 0.1;
     o.train.epochs = 1200;  // one step per epoch here: the terms need more steps than the quick recipe
     CompressStats stats;
     CompressedBtf b = compressStack(m.stack, o, stats);
     ASSERT_EQ(b.modulation.terms, terms);
+    ASSERT_EQ(b.modulation.channels, channels);
+    EXPECT_EQ(stats.modulationChannels, channels);
     EXPECT_EQ(b.decoder.outputSize(), 3 * terms);
     EXPECT_TRUE(b.storage.decoderHalf != int8 && b.storage.decoderInt8 == int8 && b.storage.latentsHalf &&
                 b.storage.idsZstd && b.storage.metadataZstd);

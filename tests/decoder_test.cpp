@@ -155,9 +155,11 @@ TEST(Decoder, ImageFromKEvaluationsEqualsPerTexelEvaluation) {
 }
 
 // Per-texel modulation: every path (image, single, batch by texel and by uv) gives, for
-// each texel, the sum of its cluster's R terms weighted by its coefficients.
-TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
-  const int terms = 3, k = 4;
+// each texel, the sum of its cluster's R terms weighted by its coefficients (one per term, or
+// with `channels` 3 one per term and channel).
+void checkModulatedTexelsMix(int channels) {
+  SCOPED_TRACE("channels " + std::to_string(channels));
+  const int terms = 3, k = 4, columns = terms * channels;
   CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 9, 6);
   CompressedBtf rowsOnly = b;  // the same network with R x 3 outputs, unmodulated, to read the terms
   std::mt19937 rng(4);
@@ -168,12 +170,13 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
   last.bias.resize(last.out);
   for (float& w : last.weight) w = normal(rng);
   for (float& x : last.bias) x = normal(rng);
-  std::vector<float> raw(54 * terms);
+  std::vector<float> raw(54 * columns);
   for (std::size_t i = 0; i < raw.size(); ++i) raw[i] = 0.4f - 0.05f * static_cast<float>((i * 7) % 23);
-  b.modulation = quantizeTexelCoefficients(raw, terms, 8);
+  b.modulation = quantizeTexelCoefficients(raw, terms, 8, channels);
   NbtfDecoder dec(b);
   ASSERT_TRUE(dec.modulated());
   EXPECT_EQ(dec.modulationTerms(), terms);
+  EXPECT_EQ(dec.modulationChannels(), channels);
   const std::vector<float> e = dequantizeTexelCoefficients(b.modulation);
   EXPECT_EQ(dec.texelCoefficients(), e);
   const Direction l{37.5, 200}, v{10, 45};
@@ -208,7 +211,10 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
     (void)mag;
     for (int c = 0; c < 3; ++c) {
       double want = 0, size = 0;
-      for (int r = 0; r < terms; ++r) want += e[t * terms + r] * term[3 * r + c], size += std::fabs(e[t * terms + r] * term[3 * r + c]);
+      for (int r = 0; r < terms; ++r) {
+        const double mixed = e[t * columns + r * channels + (channels > 1 ? c : 0)] * term[3 * r + c];
+        want += mixed, size += std::fabs(mixed);
+      }
       EXPECT_NEAR(img[3 * t + c], want, 1e-4 * (1 + size)) << "texel " << t;
       EXPECT_EQ(batch[3 * t + c], img[3 * t + c]);
       EXPECT_EQ(uvBatch[3 * t + c], img[3 * t + c]);
@@ -222,6 +228,11 @@ TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
   EXPECT_FLOAT_EQ(lin.g, norm.g * b.alpha);
   std::vector<float> rows(3 * k);
   test::expectErrorContaining([&] { dec.decodeRows(l, v, rows.data()); }, {"per-texel modulation", "decodeImage"});
+}
+
+TEST(Decoder, ModulatedTexelsMixTheirClusterTermsWithTheirCoefficients) {
+  checkModulatedTexelsMix(1);
+  checkModulatedTexelsMix(3);
 }
 
 // tests/data/legacy_v1_0.nbtf was written by nbtf before format 1.2 (commit 094d9fb, `nbtf

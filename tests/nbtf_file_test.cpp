@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -35,11 +36,11 @@ void setTerms(CompressedBtf& b, int terms) {
 
 // A format-1.2 file: per-texel modulation (3 terms, 6-bit codes), half-precision decoder
 // and latents, zstd-coded ids.
-CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6) {
+CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6, int channels = 1) {
   CompressedBtf b = makeBtf(k);
-  std::vector<float> coefficients(static_cast<std::size_t>(b.numTexels()) * terms);
+  std::vector<float> coefficients(static_cast<std::size_t>(b.numTexels()) * terms * channels);
   for (std::size_t i = 0; i < coefficients.size(); ++i) coefficients[i] = 0.5f - 0.11f * static_cast<float>(i % 9);
-  b.modulation = quantizeTexelCoefficients(coefficients, terms, bits);
+  b.modulation = quantizeTexelCoefficients(coefficients, terms, bits, channels);
   setTerms(b, terms);
   b.storage.decoderHalf = b.storage.latentsHalf = b.storage.idsZstd = true;
   roundToStorage(b);
@@ -432,6 +433,27 @@ TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
       EXPECT_EQ(back.decoder.layers[0].weight, b.decoder.layers[0].weight);
       EXPECT_TRUE(back.storage.decoderHalf && back.storage.latentsHalf && back.storage.idsZstd);
     }
+  // Per-channel coefficients (format 1.5, section TXCH, which readers before 1.5 refuse as an
+  // unknown required section): the same round trip, raw or zstd-coded codes.
+  for (bool zstd : {true, false}) {
+    CompressedBtf b = makeCompactBtf(5, 2, 6, 3);
+    b.storage.modulationZstd = zstd;
+    std::vector<std::uint8_t> bytes = serializeNbtf(b);
+    EXPECT_EQ(bytes[10], 5);  // format 1.5
+    EXPECT_NE(std::search(bytes.begin(), bytes.end(), std::begin("TXCH"), std::begin("TXCH") + 4), bytes.end());
+    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(serializeNbtf(back), bytes);
+    EXPECT_EQ(back.modulation.terms, 2);
+    EXPECT_EQ(back.modulation.channels, 3);
+    EXPECT_EQ(back.modulation.codes, b.modulation.codes);
+    EXPECT_EQ(back.modulation.minimum, b.modulation.minimum);
+    EXPECT_EQ(back.modulation.maximum, b.modulation.maximum);
+    EXPECT_TRUE(contains(formatSizeTable(computeSizes(back)), "6 coefficients (per RGB channel) x 6-bit codes"));
+    // A channel count other than 3 in TXCH is refused, naming the section.
+    CompressedBtf bad = b;
+    bad.modulation.channels = 2;
+    EXPECT_THROW(serializeNbtf(bad), Error);
+  }
   // Each compact part alone also round-trips, and raw modulation codes too.
   for (int part = 0; part < 4; ++part) {
     CompressedBtf b = makeBtf(300, 20, 20);

@@ -41,6 +41,8 @@ TEST(TexelModulation, BadInputIsRefused) {
   EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f}, 1, 17), Error);
   EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f}, 9, 8), Error);
   EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f, 3.0f}, 2, 8), Error);
+  EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f, 3.0f, 4.0f}, 1, 8, 2), Error);  // channels 1 or 3
+  EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f, 3.0f, 4.0f}, 1, 8, 3), Error);  // not texels x 3
   // A constant term quantizes to code 0 and decodes to its value.
   TexelModulation m = quantizeTexelCoefficients({2.5f, 2.5f, 2.5f}, 1, 8);
   EXPECT_EQ(dequantizeTexelCoefficient(m, 0, m.codes[1]), 2.5f);
@@ -67,6 +69,44 @@ TEST(TexelModulation, OrthonormalizedCoefficientsAreOrthonormalPerCluster) {
       for (int t = 1; t < texels; ++t)
         if (ids[t] == ids[0]) EXPECT_NEAR(e[t] / e[0], a[t] / a[0], 1e-5);
   }
+}
+
+// Per-channel coefficients (texels x terms x 3): each channel's columns are orthonormal per
+// cluster on their own, whatever the other channels hold, and each column has its own range.
+TEST(TexelModulation, PerChannelColumnsAreOrthonormalizedAndQuantizedApart) {
+  const int texels = 240, clusters = 7, channels = 3;
+  std::vector<std::int32_t> ids(texels);
+  for (int t = 0; t < texels; ++t) ids[t] = (t * 5 + t / 13) % clusters;
+  for (int terms : {1, 2}) {
+    const int columns = terms * channels;
+    std::vector<float> a = randomCoefficients(texels * columns, 11);
+    for (int t = 0; t < texels; ++t) a[t * columns + 2] *= 4.0f;  // channel 2 of term 0: a wider range
+    std::vector<float> e = orthonormalizeTexelCoefficients(a, terms, ids, clusters, channels);
+    ASSERT_EQ(e.size(), a.size());
+    for (int c = 0; c < channels; ++c) {
+      // The same as orthonormalizing that channel's columns alone.
+      std::vector<float> alone(static_cast<std::size_t>(texels) * terms);
+      for (int t = 0; t < texels; ++t)
+        for (int r = 0; r < terms; ++r) alone[t * terms + r] = a[t * columns + r * channels + c];
+      std::vector<float> want = orthonormalizeTexelCoefficients(alone, terms, ids, clusters);
+      for (int t = 0; t < texels; ++t)
+        for (int r = 0; r < terms; ++r)
+          ASSERT_EQ(e[t * columns + r * channels + c], want[t * terms + r]) << "channel " << c << " term " << r;
+    }
+    TexelModulation m = quantizeTexelCoefficients(a, terms, 8, channels);
+    EXPECT_EQ(m.channels, channels);
+    EXPECT_EQ(m.columns(), columns);
+    ASSERT_EQ(m.codes.size(), a.size());
+    EXPECT_GT(m.maximum[2] - m.minimum[2], 3.0f * (m.maximum[1] - m.minimum[1]));
+    const std::vector<float> back = dequantizeTexelCoefficients(m);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const int column = static_cast<int>(i % columns);
+      const double step = (static_cast<double>(m.maximum[column]) - m.minimum[column]) / 255;
+      if (a[i] >= m.minimum[column] && a[i] <= m.maximum[column])
+        EXPECT_LE(std::fabs(back[i] - a[i]), 0.5 * step + 1e-6) << i;
+    }
+  }
+  EXPECT_THROW(orthonormalizeTexelCoefficients(std::vector<float>(texels * 2), 1, ids, clusters, 3), Error);
 }
 
 TEST(TexelModulation, DecodingUsesTheDequantizedCodesAsTheyAre) {

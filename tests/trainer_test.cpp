@@ -484,7 +484,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
                  "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
                  "resume": true, "progress": false},
-    "modulation": {"mode": "svd", "terms": 2, "bits": 5, "mean_weight": 4}
+    "modulation": {"mode": "svd", "terms": 2, "bits": 5, "mean_weight": 4, "channels": 3}
   })");
   TrainConfig c = loadTrainConfig(path);
   EXPECT_EQ(c.model.latentDim, 6);
@@ -513,6 +513,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.modulation.terms, 2);
   EXPECT_EQ(c.modulation.bits, 5);
   EXPECT_DOUBLE_EQ(c.modulation.meanWeight, 4);
+  EXPECT_EQ(c.modulation.channels, 3);
   std::filesystem::remove(path);
 }
 
@@ -540,6 +541,7 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"storage": {"directions": "f32"}})", "'storage.directions' must be \"f64\" or \"zstd\", got \"f32\""},
       {R"({"storage": {"metadata": "gzip"}})", "'storage.metadata' must be \"raw\" or \"zstd\", got \"gzip\""},
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
+      {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

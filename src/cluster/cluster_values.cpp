@@ -22,12 +22,18 @@ double ClusterValues::floorRmse(const std::vector<int>& images, std::int64_t tex
 }
 
 ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
-                            const float* coef, int terms, bool keepMeans, bool progress) {
+                            const float* coef, int terms, bool keepMeans, bool progress, int channels) {
   const int images = stack.numImages();
   const std::int64_t texels = stack.numTexels();
   if (static_cast<std::int64_t>(ids.size()) != texels)
     throw Error("cluster values: " + std::to_string(ids.size()) + " ids for " + std::to_string(texels) + " texels");
   if (terms < 1 || (!coef && terms != 1)) throw Error("cluster values: " + std::to_string(terms) + " terms");
+  if (channels != 1 && channels != 3) throw Error("cluster values: " + std::to_string(channels) + " channels");
+  const int columns = terms * channels;
+  // Texel t's coefficient of term r in channel c (channels 1: the same for all three).
+  auto coefficient = [&](std::int64_t t, int r, int c) -> double {
+    return coef ? coef[t * columns + r * channels + (channels > 1 ? c : 0)] : 1.0;
+  };
   std::vector<int> sizes(clusters, 0);
   for (std::int32_t id : ids) {
     if (id < 0 || id >= clusters) throw Error("cluster values: cluster id " + std::to_string(id) + " out of range");
@@ -49,10 +55,8 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
       // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
       for (std::int64_t t = 0; t < texels; ++t) {
         double* s = &sums[static_cast<std::size_t>(ids[t]) * outputs];
-        for (int r = 0; r < terms; ++r) {
-          const double e = coef ? coef[t * terms + r] : 1.0;
-          for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * e;
-        }
+        for (int r = 0; r < terms; ++r)
+          for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coefficient(t, r, c);
       }
       for (int g = 0; g < clusters; ++g)
         for (int o = 0; o < outputs; ++o) {
@@ -65,7 +69,7 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
         const float* m = &mean[static_cast<std::size_t>(ids[t]) * outputs];
         for (int c = 0; c < 3; ++c) {
           double model = 0;
-          for (int r = 0; r < terms; ++r) model += (coef ? static_cast<double>(coef[t * terms + r]) : 1.0) * m[3 * r + c];
+          for (int r = 0; r < terms; ++r) model += coefficient(t, r, c) * m[3 * r + c];
           double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
           sse += d * d;
         }
@@ -139,11 +143,63 @@ void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t s
   if (iterationsOut) *iterationsOut = iteration + 1;
 }
 
+namespace {
+
+// The top `terms` left singular vectors of y (n x dims), each oriented to a positive sum, as
+// columns of u (n x terms; a column stays 0 where the singular value is negligible).
+Eigen::MatrixXd leadingLeftVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed) {
+  const Eigen::Index n = y.rows(), dims = y.cols();
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(n, terms);
+  if (std::min(n, dims) > kExactSvdUpTo) {
+    // Large clusters of long ABRDFs: subspace iteration for the top vectors only
+    // (n x dims x (terms + 6) per iteration instead of n x min(n, dims) x dims).
+    Eigen::MatrixXd u;
+    Eigen::VectorXd sigma;
+    topLeftSingularVectors(y, terms, seed, u, sigma);
+    for (int r = 0; r < terms && r < u.cols(); ++r) {
+      if (sigma(r) * sigma(r) <= 1e-12 * std::max(1.0, sigma(0) * sigma(0))) break;
+      out.col(r) = u.col(r).sum() < 0 ? Eigen::VectorXd(-u.col(r)) : Eigen::VectorXd(u.col(r));
+    }
+    return out;
+  }
+  // The left singular vectors of y come from the smaller of its two Gram matrices: the
+  // n x n one (y y^T: its eigenvectors), or, for clusters with more texels than values per
+  // ABRDF (few images, large clusters), the dims x dims one (y^T y: u = y v / sigma).
+  const bool texelSide = n <= dims;
+  Eigen::MatrixXd gram, yd;
+  if (texelSide) {
+    gram = (y * y.transpose()).cast<double>();
+  } else {
+    yd = y.cast<double>();  // in double: u = y v / sigma divides by small singular values
+    gram = yd.transpose() * yd;
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+  const Eigen::Index m = gram.rows();
+  for (int r = 0; r < terms && r < m; ++r) {
+    const double lambda = eig.eigenvalues()(m - 1 - r);  // eigenvalues ascend
+    if (lambda <= 1e-12 * std::max(1.0, eig.eigenvalues()(m - 1))) break;
+    Eigen::VectorXd u;
+    if (texelSide) {
+      u = eig.eigenvectors().col(m - 1 - r);
+    } else {
+      u = yd * eig.eigenvectors().col(m - 1 - r);
+      u.normalize();  // = y v / sigma, up to rounding
+    }
+    if (u.sum() < 0) u = -u;
+    out.col(r) = u;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
-                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress) {
+                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress,
+                                     int channels) {
   const int images = stack.numImages();
   const std::int64_t texels = stack.numTexels();
   if (terms < 1) throw Error("texel coefficients: terms must be >= 1");
+  if (channels != 1 && channels != 3) throw Error("texel coefficients: channels must be 1 or 3");
   if (static_cast<int>(useImage.size()) != images) throw Error("texel coefficients: image mask has the wrong size");
   if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("texel coefficients: one id per texel needed");
   std::vector<int> used;
@@ -156,62 +212,31 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
     members[ids[t]].push_back(static_cast<int>(t));
   }
   const float invAlpha = 1.0f / alpha;
-  const Eigen::Index dims = 3 * static_cast<Eigen::Index>(used.size());
-  std::vector<float> out(static_cast<std::size_t>(texels) * terms, 0.0f);
+  const Eigen::Index usedImages = static_cast<Eigen::Index>(used.size()), dims = 3 * usedImages;
+  const int columns = terms * channels;
+  std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
   parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
-    Eigen::MatrixXf y;
+    Eigen::MatrixXf y, channel;
     for (std::size_t g = begin; g < end; ++g) {
       const std::vector<int>& texelsOf = members[g];
       const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
       if (n == 0) continue;
-      // The cluster's ABRDFs as rows (linear / alpha), then its Gram matrix in double.
+      // The cluster's ABRDFs as rows (linear / alpha; column 3 j + c: image j, channel c).
       y.resize(n, dims);
       stack.gatherLinear(used.data(), static_cast<int>(used.size()), texelsOf.data(), static_cast<int>(n), y.data());
       y *= invAlpha;
       const double scale = std::sqrt(static_cast<double>(n));
-      if (std::min(n, dims) > kExactSvdUpTo) {
-        // Large clusters of long ABRDFs: subspace iteration for the top vectors only
-        // (n x dims x (terms + 6) per iteration instead of n x min(n, dims) x dims).
-        Eigen::MatrixXd u;
-        Eigen::VectorXd sigma;
-        topLeftSingularVectors(y, terms, SplitMix64::mix(0x5eed5eedULL, g), u, sigma);
-        for (int r = 0; r < terms && r < u.cols(); ++r) {
-          if (sigma(r) * sigma(r) <= 1e-12 * std::max(1.0, sigma(0) * sigma(0))) break;
-          Eigen::VectorXd ur = u.col(r);
-          if (ur.sum() < 0) ur = -ur;
+      const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
+      for (int c = 0; c < channels; ++c) {
+        if (channels > 1) {
+          channel.resize(n, usedImages);
+          for (Eigen::Index j = 0; j < usedImages; ++j) channel.col(j) = y.col(3 * j + c);
+        }
+        const Eigen::MatrixXd u = leadingLeftVectors(channels > 1 ? channel : y, terms, seed);
+        for (int r = 0; r < terms; ++r)
           for (Eigen::Index k = 0; k < n; ++k)
-            out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * ur(k));
-        }
-        bar.advance(static_cast<std::size_t>(n));
-        continue;
-      }
-      // The left singular vectors of y come from the smaller of its two Gram matrices: the
-      // n x n one (y y^T: its eigenvectors), or, for clusters with more texels than values per
-      // ABRDF (few images, large clusters), the dims x dims one (y^T y: u = y v / sigma).
-      const bool texelSide = n <= dims;
-      Eigen::MatrixXd gram, yd;
-      if (texelSide) {
-        gram = (y * y.transpose()).cast<double>();
-      } else {
-        yd = y.cast<double>();  // in double: u = y v / sigma divides by small singular values
-        gram = yd.transpose() * yd;
-      }
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
-      const Eigen::Index m = gram.rows();
-      for (int r = 0; r < terms && r < m; ++r) {
-        const double lambda = eig.eigenvalues()(m - 1 - r);  // eigenvalues ascend
-        if (lambda <= 1e-12 * std::max(1.0, eig.eigenvalues()(m - 1))) break;
-        Eigen::VectorXd u;
-        if (texelSide) {
-          u = eig.eigenvectors().col(m - 1 - r);
-        } else {
-          u = yd * eig.eigenvectors().col(m - 1 - r);
-          u.normalize();  // = y v / sigma, up to rounding
-        }
-        if (u.sum() < 0) u = -u;
-        for (Eigen::Index k = 0; k < n; ++k)
-          out[static_cast<std::size_t>(texelsOf[k]) * terms + r] = static_cast<float>(scale * u(k));
+            out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
       }
       bar.advance(static_cast<std::size_t>(n));
     }
@@ -222,47 +247,58 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
 
 std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                         int clusters, const std::vector<int>& images, const std::vector<float>& terms,
-                                        int r, bool progress, double meanWeight) {
+                                        int r, bool progress, double meanWeight, int channels) {
   const std::int64_t texels = stack.numTexels();
   const std::size_t n = images.size(), o = 3 * static_cast<std::size_t>(r);
   if (r < 1 || terms.size() != static_cast<std::size_t>(clusters) * n * o)
     throw Error("fit texel coefficients: " + std::to_string(terms.size()) + " term values for " +
                 std::to_string(clusters) + " clusters x " + std::to_string(n) + " images x " + std::to_string(o));
+  if (channels != 1 && channels != 3) throw Error("fit texel coefficients: channels must be 1 or 3");
   if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("fit texel coefficients: one id per texel needed");
-  // Per cluster: the Gram matrix of its terms over images and channels, regularized a little so
-  // that a term that is (nearly) zero everywhere gets coefficient 0 instead of noise.
-  // With meanWeight w > 0 the per-channel mean over the images, F (the cluster's) and Y (the
-  // texel's), enters too: + w n |sum_a e_a F_a - Y|^2, i.e. w n F F^T on the Gram matrix and
-  // w n F Y on the right-hand side.
-  std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(clusters);
+  // One least-squares problem per texel and channel group: all of RGB with one coefficient
+  // per term (channels 1), or each channel alone (channels 3).
+  const int columns = r * channels;
+  auto firstChannel = [channels](int q) { return channels > 1 ? q : 0; };
+  auto endChannel = [channels](int q) { return channels > 1 ? q + 1 : 3; };
+  // Per cluster and group: the Gram matrix of its terms over images and the group's channels,
+  // regularized a little so that a term that is (nearly) zero everywhere gets coefficient 0
+  // instead of noise. With meanWeight w > 0 the per-channel mean over the images, F (the
+  // cluster's) and Y (the texel's), enters too: + w n |sum_a e_a F_a - Y|^2, i.e. w n F F^T on
+  // the Gram matrix and w n F Y on the right-hand side.
+  std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(static_cast<std::size_t>(clusters) * channels);
   // F per cluster (term a, channel c at 3 a + c); only with meanWeight > 0.
   std::vector<double> termMeans(meanWeight > 0 ? static_cast<std::size_t>(clusters) * o : 0, 0.0);
   parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
     for (std::size_t g = begin; g < end; ++g) {
-      Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
       const float* f = &terms[g * n * o];
-      for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c)
-          for (int a = 0; a < r; ++a)
-            for (int b = 0; b <= a; ++b) gram(a, b) += double(f[i * o + 3 * a + c]) * f[i * o + 3 * b + c];
       if (meanWeight > 0) {
         double* mean = &termMeans[g * o];
         for (std::size_t i = 0; i < n; ++i)
           for (std::size_t j = 0; j < o; ++j) mean[j] += f[i * o + j];
         for (std::size_t j = 0; j < o; ++j) mean[j] /= static_cast<double>(n);
-        for (int c = 0; c < 3; ++c)
-          for (int a = 0; a < r; ++a)
-            for (int b = 0; b <= a; ++b) gram(a, b) += meanWeight * n * mean[3 * a + c] * mean[3 * b + c];
       }
-      for (int a = 0; a < r; ++a)
-        for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
-      const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
-      gram.diagonal().array() += ridge;
-      solvers[g].compute(gram);
+      for (int q = 0; q < channels; ++q) {
+        Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
+        for (std::size_t i = 0; i < n; ++i)
+          for (int c = firstChannel(q); c < endChannel(q); ++c)
+            for (int a = 0; a < r; ++a)
+              for (int b = 0; b <= a; ++b) gram(a, b) += double(f[i * o + 3 * a + c]) * f[i * o + 3 * b + c];
+        if (meanWeight > 0) {
+          const double* mean = &termMeans[g * o];
+          for (int c = firstChannel(q); c < endChannel(q); ++c)
+            for (int a = 0; a < r; ++a)
+              for (int b = 0; b <= a; ++b) gram(a, b) += meanWeight * n * mean[3 * a + c] * mean[3 * b + c];
+        }
+        for (int a = 0; a < r; ++a)
+          for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
+        const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
+        gram.diagonal().array() += ridge;
+        solvers[g * channels + q].compute(gram);
+      }
     }
   });
   const float invAlpha = 1.0f / alpha;
-  std::vector<float> out(static_cast<std::size_t>(texels) * r, 0.0f);
+  std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
   Progress bar("refit texel coefficients", static_cast<std::size_t>(texels), progress);
   constexpr std::size_t kChunk = 256;
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
@@ -280,22 +316,26 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
         const std::int32_t g = ids[t];
         if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
         const float* f = &terms[static_cast<std::size_t>(g) * n * o];
-        rhs.setZero();
-        for (std::size_t i = 0; i < n; ++i)
-          for (int c = 0; c < 3; ++c) {
-            const double y = values[(3 * i + c) * count + k] * invAlpha;
-            for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
-          }
-        if (meanWeight > 0) {
-          double texelSum[3] = {0, 0, 0};
+        double texelSum[3] = {0, 0, 0};
+        if (meanWeight > 0)
           for (std::size_t i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) texelSum[c] += values[(3 * i + c) * count + k] * invAlpha;
-          const double* mean = &termMeans[static_cast<std::size_t>(g) * o];
-          for (int c = 0; c < 3; ++c)
-            for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSum[c];  // w n F (sum / n)
+        for (int q = 0; q < channels; ++q) {
+          rhs.setZero();
+          for (std::size_t i = 0; i < n; ++i)
+            for (int c = firstChannel(q); c < endChannel(q); ++c) {
+              const double y = values[(3 * i + c) * count + k] * invAlpha;
+              for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
+            }
+          if (meanWeight > 0) {
+            const double* mean = &termMeans[static_cast<std::size_t>(g) * o];
+            for (int c = firstChannel(q); c < endChannel(q); ++c)
+              for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSum[c];  // w n F (sum / n)
+          }
+          Eigen::VectorXd e = solvers[static_cast<std::size_t>(g) * channels + q].solve(rhs);
+          for (int a = 0; a < r; ++a)
+            out[t * columns + a * channels + q] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
         }
-        Eigen::VectorXd e = solvers[g].solve(rhs);
-        for (int a = 0; a < r; ++a) out[t * r + a] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
       }
       bar.advance(static_cast<std::size_t>(count));
     }

@@ -23,22 +23,26 @@ struct ClusterValues {
 };
 
 // Parallel over images; each image's sums run in texel order, so the result does not depend
-// on the thread count. `coefficients`: texels x terms orthonormalized coefficients, or nullptr
-// (terms must be 1: plain cluster means).
+// on the thread count. `coefficients`: texels x terms x channels orthonormalized coefficients
+// (term r, channel c at r x channels + c; channels 3: channel c's values mix only its own), or
+// nullptr (terms must be 1: plain cluster means).
 ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
-                            const float* coefficients, int terms, bool keepMeans, bool progress);
+                            const float* coefficients, int terms, bool keepMeans, bool progress, int channels = 1);
 
 // Per-texel coefficients of the best rank-`terms` model of each cluster, from the images in
 // `useImage`: the cluster's texels (ABRDFs of 3 x images values, linear / alpha) are
 // factored by an SVD (eigenvectors of their Gram matrix); texel t's coefficients are
 // sqrt(n_c) x its entries of the top `terms` left singular vectors, the first oriented to a
 // positive sum (with terms = 1: a brightness factor of mean square 1). Texels x terms.
+// channels 3: the same per RGB channel, from the channel's values alone (texels x terms x 3,
+// term r and channel c at 3 r + c; with terms = 1 a colour factor).
 // Parallel over clusters, each computed alone: the same on any thread count. Costs
 // sum_c n_c x min(n_c, 3 x images) x 3 x images multiply-adds (clusters above kExactSvdUpTo:
 // about 40 x n_c x 3 x images x (terms + 6), subspace iteration) and n_c x 3 x images floats per
 // cluster in flight.
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
-                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress);
+                                     int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress,
+                                     int channels = 1);
 
 // Clusters whose min(n_c, 3 x images) is above this take the top `terms` singular vectors by
 // subspace iteration (topLeftSingularVectors) instead of the exact eigen-decomposition of a
@@ -61,8 +65,9 @@ void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t s
 // meanWeight w > 0 also fits each texel's mean over the images (per channel), weighted as w x
 // images squared errors: w n |mean of the texel's decoded values - mean of its values|^2 joins
 // the sum, so the per-texel mean brightness (what a viewer sees as grain) is kept closer.
+// channels 3: each channel's coefficients fit to that channel alone (texels x terms x 3).
 std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                         int clusters, const std::vector<int>& images, const std::vector<float>& terms,
-                                        int termCount, bool progress, double meanWeight = 0);
+                                        int termCount, bool progress, double meanWeight = 0, int channels = 1);
 
 }  // namespace nbtf

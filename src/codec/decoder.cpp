@@ -111,6 +111,7 @@ void NbtfDecoder::build(const DecoderOptions& options) {
   }
   coefficients_ = dequantizeTexelCoefficients(material_.modulation);  // shapes checked by validate()
   terms_ = material_.modulation.empty() ? 1 : material_.modulation.terms;
+  channels_ = material_.modulation.empty() ? 1 : material_.modulation.channels;
   packed_ = std::make_unique<detail::PackedDecoder>(
       detail::packDecoder(material_.decoder, material_.latentDim, directionInputs()));
   packed_->latents = material_.latents.data();
@@ -158,11 +159,12 @@ int NbtfDecoder::texelOfUv(float u, float v) const {
 
 namespace {
 // Modulated materials: one sample's RGB from its R terms (3R floats) and its texel's R
-// coefficients, summed in term order (every path uses this, so they agree bit for bit).
-inline void combineTerms(const float* e, const float* f, int terms, float* rgb) {
+// coefficients (3R with per-channel coefficients), summed in term order (every path uses this, so they agree bit for bit).
+inline void combineTerms(const float* e, const float* f, int terms, int channels, float* rgb) {
   for (int c = 0; c < 3; ++c) {
+    const float* ec = channels == 1 ? e : e + c;  // term k's coefficient at k x channels (+ c)
     float v = 0;
-    for (int k = 0; k < terms; ++k) v += e[k] * f[3 * k + c];
+    for (int k = 0; k < terms; ++k) v += ec[k * channels] * f[3 * k + c];
     rgb[c] = v;
   }
 }
@@ -171,10 +173,10 @@ using CombineFn = std::function<void(const float*, const std::int32_t*, int, flo
 CombineFn combinerOf(const NbtfDecoder& d) {
   if (!d.modulated()) return {};
   return [&d](const float* terms, const std::int32_t* texels, int n, float* rgb) {
-    const int r = d.modulationTerms();
+    const int r = d.modulationTerms(), channels = d.modulationChannels();
     for (int i = 0; i < n; ++i)
-      combineTerms(d.texelCoefficients().data() + static_cast<std::size_t>(texels[i]) * r,
-                   terms + static_cast<std::size_t>(i) * 3 * r, r, rgb + 3 * i);
+      combineTerms(d.texelCoefficients().data() + static_cast<std::size_t>(texels[i]) * r * channels,
+                   terms + static_cast<std::size_t>(i) * 3 * r, r, channels, rgb + 3 * i);
   };
 }
 }  // namespace
@@ -196,8 +198,8 @@ void NbtfDecoder::evaluateSamples(const std::int32_t* rows, const std::int32_t* 
     tile(*packed_, a);
     if (modulated())
       for (int i = 0; i < a.n; ++i)
-        combineTerms(coefficients_.data() + static_cast<std::size_t>(texels[begin + i]) * terms_,
-                     terms + static_cast<std::size_t>(i) * 3 * terms_, terms_, rgb + 3 * (begin + i));
+        combineTerms(coefficients_.data() + static_cast<std::size_t>(texels[begin + i]) * terms_ * channels_,
+                     terms + static_cast<std::size_t>(i) * 3 * terms_, terms_, channels_, rgb + 3 * (begin + i));
   }
   if (scale == OutputScale::Linear)
     for (std::size_t i = 0; i < 3 * n; ++i) rgb[i] *= material_.alpha;
@@ -468,8 +470,8 @@ void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, flo
       float* dst = rgb + static_cast<std::size_t>(y) * outWidth * 3;
       for (int x = 0, sx = 0; x < outWidth; ++x, sx = sx + 1 == width() ? 0 : sx + 1) {
         const int texel = sy * width() + sx;
-        combineTerms(coefficients_.data() + static_cast<std::size_t>(texel) * r,
-                     terms.data() + 3 * static_cast<std::size_t>(r) * latentRowOfTexel(texel), r, dst + 3 * x);
+        combineTerms(coefficients_.data() + static_cast<std::size_t>(texel) * r * channels_,
+                     terms.data() + 3 * static_cast<std::size_t>(r) * latentRowOfTexel(texel), r, channels_, dst + 3 * x);
         if (factor != 1.0f) dst[3 * x] *= factor, dst[3 * x + 1] *= factor, dst[3 * x + 2] *= factor;
       }
     }

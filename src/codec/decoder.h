@@ -22,7 +22,8 @@
 //
 // Per-texel modulation (format 1.2, codec/texel_modulation.h): a clustered material may have
 // a decoder with R RGB terms per latent row and coefficients per texel; every texel's value
-// is then sum_r e_tr x term r of its cluster. evaluate() and decodeImage() apply it;
+// is then sum_r e_tr x term r of its cluster (format 1.5: per channel, e_trc x term r's
+// channel c). evaluate() and decodeImage() apply it;
 // decodeRows() refuses such materials (their texels are not copies of rows).
 //
 // PCA files (the classic baseline, `nbtf compress --method pca`) are evaluated through the
@@ -115,10 +116,12 @@ class NbtfDecoder {
   // Decoder evaluations per image: k (clustered) or texels (per-texel, PCA).
   int latentRows() const { return material_.latentRows; }
   int latentRowOfTexel(int texel) const { return material_.latentRowOfTexel(texel); }
-  // Per-texel modulation: R terms per latent row (1 without), the effective coefficients
-  // (texels x R, orthonormal per cluster; empty without modulation).
+  // Per-texel modulation: R terms per latent row (1 without), the coefficients per term (1, or
+  // 3 per channel), the effective coefficients (texels x R x channels, term r and channel c at
+  // r x channels + c; empty without modulation).
   bool modulated() const { return !coefficients_.empty(); }
   int modulationTerms() const { return terms_; }
+  int modulationChannels() const { return channels_; }
   const std::vector<float>& texelCoefficients() const { return coefficients_; }
   DecoderIsa isa() const { return isa_; }
   DirectionEncoding directionEncoding() const { return material_.directionEncoding; }
@@ -183,8 +186,8 @@ class NbtfDecoder {
   DecoderIsa isa_ = DecoderIsa::Portable;
   std::unique_ptr<detail::PackedDecoder> packed_;  // neural methods
   std::unique_ptr<detail::PcaState> pca_;          // PCA baseline
-  std::vector<float> coefficients_;                // texels x terms_ effective coefficients; empty = none
-  int terms_ = 1;
+  std::vector<float> coefficients_;                // texels x terms_ x channels_ effective coefficients; empty = none
+  int terms_ = 1, channels_ = 1;
 };
 
 // The decoder's direction input for a (light, view) pair in `encoding` (util/directions.h),

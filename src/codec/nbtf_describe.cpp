@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "codec/pca_model.h"
+#include "codec/texel_modulation.h"
 
 namespace nbtf {
 namespace {
@@ -89,9 +90,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
     field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
     if (!btf.modulation.empty())
-      field("modulation", std::to_string(btf.modulation.terms) + " RGB term" + (btf.modulation.terms > 1 ? "s" : "") +
-                              " per cluster, mixed by per-texel coefficients (" + std::to_string(btf.modulation.bits) +
-                              "-bit codes, refit to the trained terms)");
+      field("modulation", modulationDescription(btf.modulation) + ", refit to the trained terms");
     field("storage", storageDescription(btf));
   }
   if (btf.holdoutImages.empty()) {

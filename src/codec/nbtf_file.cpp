@@ -45,7 +45,7 @@ constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag
                         kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
                         kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC"),
                         kDecoderHalf = tag("DECH"), kLatentsHalf = tag("LATH"), kIdsZstd = tag("TXIZ"),
-                        kModulation = tag("TXSC"), kDecoderInt8 = tag("DEC8"), kDirsZstd = tag("DIRZ"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
+                        kModulation = tag("TXSC"), kModulationRgb = tag("TXCH"), kDecoderInt8 = tag("DEC8"), kDirsZstd = tag("DIRZ"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -80,6 +80,7 @@ std::string sectionLabel(std::uint32_t t) {
                      : t == kLatentsHalf ? "latents, half precision"
                      : t == kIdsZstd ? "id list, zstd-coded"
                      : t == kModulation ? "per-texel modulation"
+                     : t == kModulationRgb ? "per-texel modulation, per channel"
                      : t == kMetaZstd ? "metadata, zstd-coded"
                      : t == kHoldoutZstd ? "hold-out images, zstd-coded"
                                      : nullptr;
@@ -178,12 +179,13 @@ std::vector<std::uint8_t> codedIds(const CompressedBtf& btf) {
   return zstdCompress(planes.data(), planes.size());
 }
 
-// The codes term by term (all texels' term 0, then term 1...), as byte planes.
+// The codes column by column (all texels' column 0, then column 1...), as byte planes.
 std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
-  const std::size_t texels = m.codes.size() / std::max(m.terms, 1);
+  const int columns = std::max(m.columns(), 1);
+  const std::size_t texels = m.codes.size() / columns;
   std::vector<std::uint32_t> byTerm(m.codes.size());
-  for (int r = 0; r < m.terms; ++r)
-    for (std::size_t t = 0; t < texels; ++t) byTerm[r * texels + t] = m.codes[t * m.terms + r];
+  for (int r = 0; r < columns; ++r)
+    for (std::size_t t = 0; t < texels; ++t) byTerm[r * texels + t] = m.codes[t * columns + r];
   auto planes = toBytePlanes(byTerm, modulationCodeBytes(m.bits));
   return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
 }
@@ -293,6 +295,7 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   }
   if (!btf.modulation.empty()) {
     s.modulationTerms = btf.modulation.terms;
+    s.modulationChannels = btf.modulation.channels;
     s.modulationBits = btf.modulation.bits;
     s.modulation = codedModulation(btf.modulation, btf.storage.modulationZstd).size();
   }
@@ -372,9 +375,11 @@ std::string formatSizeTable(const NbtfSizes& s) {
     out += row("id list", 0, "none (per-texel: one latent per texel)");
   }
   if (s.modulationTerms) {
-    char note[160];
-    std::snprintf(note, sizeof note, "%s texels x %d coefficient%s x %d-bit codes, %.2f bits per texel as stored",
-                  withCommas(s.texels).c_str(), s.modulationTerms, s.modulationTerms > 1 ? "s" : "", s.modulationBits,
+    char note[200];
+    const int columns = s.modulationTerms * s.modulationChannels;
+    std::snprintf(note, sizeof note, "%s texels x %d coefficient%s%s x %d-bit codes, %.2f bits per texel as stored",
+                  withCommas(s.texels).c_str(), columns, columns > 1 ? "s" : "",
+                  s.modulationChannels > 1 ? " (per RGB channel)" : "", s.modulationBits,
                   s.texels ? 8.0 * s.modulation / s.texels : 0.0);
     out += row("per-texel", s.modulation, note);
   }
@@ -569,21 +574,25 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                std::to_string(kMaxModulationTerms));
   if (modulation.bits < 1 || modulation.bits > 16)
     throw fail("modulation codes have " + std::to_string(modulation.bits) + " bits, expected 1 to 16");
-  if (modulation.codes.size() != static_cast<std::size_t>(texels) * modulation.terms)
+  if (modulation.channels != 1 && modulation.channels != 3)
+    throw fail("modulation has " + std::to_string(modulation.channels) + " channels, expected 1 or 3");
+  const int columns = modulation.columns();
+  if (modulation.codes.size() != static_cast<std::size_t>(texels) * columns)
     throw fail("modulation holds " + std::to_string(modulation.codes.size()) + " codes, expected " +
-               std::to_string(texels) + " texels x " + std::to_string(modulation.terms));
-  for (int r = 0; r < modulation.terms; ++r) {
+               std::to_string(texels) + " texels x " + std::to_string(columns));
+  for (int r = 0; r < columns; ++r) {
     const float lo = modulation.minimum[r], hi = modulation.maximum[r];
     if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi || lo < -kMaxModulationMagnitude ||
         hi > kMaxModulationMagnitude)
-      throw fail("modulation range of term " + std::to_string(r) + " is invalid (" + std::to_string(lo) + " .. " +
-                 std::to_string(hi) + ")");
+      throw fail("modulation range of term " + std::to_string(r / modulation.channels) +
+                 (modulation.channels > 1 ? ", channel " + std::to_string(r % modulation.channels) : std::string()) +
+                 " is invalid (" + std::to_string(lo) + " .. " + std::to_string(hi) + ")");
   }
   const std::uint32_t maxCode = (1u << modulation.bits) - 1;
   for (std::size_t i = 0; i < modulation.codes.size(); ++i)
     if (modulation.codes[i] > maxCode)
       throw fail("modulation code " + std::to_string(modulation.codes[i]) + " of texel " +
-                 std::to_string(i / modulation.terms) + " exceeds " + std::to_string(modulation.bits) + " bits");
+                 std::to_string(i / columns) + " exceeds " + std::to_string(modulation.bits) + " bits");
 }
 
 // ---- Writing
@@ -624,7 +633,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(btf.storage.metadataZstd || btf.storage.decoderInt8 || btf.storage.directionsZstd ? std::uint16_t(4)
+  file.u16(btf.modulation.channels != 1 ? std::uint16_t(5)
+           : btf.storage.metadataZstd || btf.storage.decoderInt8 || btf.storage.directionsZstd ? std::uint16_t(4)
            : btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)
            : usesFormat12(btf)                                       ? std::uint16_t(2)
            : btf.isPca()                                             ? std::uint16_t(1)
@@ -753,22 +763,25 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
     addSection(file, kIds, true, w);
   }
   if (!btf.modulation.empty()) {
-    // u32 texels, u8 terms, u8 bits, u8 coding (0 raw, 1 zstd), 1 reserved,
-    // terms x (f32 min, f32 max), then the codes (byte planes of the term planes).
+    // u32 texels, u8 terms, u8 bits, u8 coding (0 raw, 1 zstd), u8 channels (TXCH: 3; TXSC:
+    // reserved, 0), columns x (f32 min, f32 max), then the codes (byte planes of the column
+    // planes). Per-channel coefficients get their own tag, so that a reader before 1.5
+    // refuses them instead of misreading them.
     const TexelModulation& m = btf.modulation;
+    const bool perChannel = m.channels != 1;
     ByteWriter w;
-    w.u32(static_cast<std::uint32_t>(m.codes.size() / m.terms));
+    w.u32(static_cast<std::uint32_t>(m.codes.size() / m.columns()));
     w.u8(static_cast<std::uint8_t>(m.terms));
     w.u8(static_cast<std::uint8_t>(m.bits));
     w.u8(btf.storage.modulationZstd ? 1 : 0);
-    w.zeros(1);
-    for (int r = 0; r < m.terms; ++r) {
+    w.u8(perChannel ? static_cast<std::uint8_t>(m.channels) : 0);
+    for (int r = 0; r < m.columns(); ++r) {
       w.f32(m.minimum[r]);
       w.f32(m.maximum[r]);
     }
     auto coded = codedModulation(m, btf.storage.modulationZstd);
     w.raw(coded.data(), coded.size());
-    addSection(file, kModulation, true, w);
+    addSection(file, perChannel ? kModulationRgb : kModulation, true, w);
   }
   if (!btf.holdoutImages.empty() && btf.storage.metadataZstd) {
     // u32 count, u32 images, a zstd frame of the images' bit mask (bit i of byte i / 8).
@@ -1050,7 +1063,13 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
   ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
   std::uint32_t texels = r.u32();
   int terms = r.u8(), bits = r.u8(), coding = r.u8();
-  r.take(1, "reserved");
+  int channels = 1;
+  if (s.tag == kModulationRgb) {
+    channels = r.u8();
+    if (channels != 3) throw r.fail(std::to_string(channels) + " channels, expected 3");
+  } else {
+    r.take(1, "reserved");
+  }
   if (terms < 1 || terms > kMaxModulationTerms)
     throw r.fail(std::to_string(terms) + " terms, expected 1 to " + std::to_string(kMaxModulationTerms));
   if (bits < 1 || bits > 16) throw r.fail(std::to_string(bits) + " bits per code, expected 1 to 16");
@@ -1060,13 +1079,15 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
                  std::to_string(btf.height));
   TexelModulation& m = btf.modulation;
   m.terms = terms;
+  m.channels = channels;
   m.bits = bits;
-  for (int t = 0; t < terms; ++t) {
+  const int columns = m.columns();
+  for (int t = 0; t < columns; ++t) {
     m.minimum[t] = r.f32();
     m.maximum[t] = r.f32();
   }
   const int width = modulationCodeBytes(bits);
-  const std::size_t values = static_cast<std::size_t>(texels) * terms, expected = values * width;
+  const std::size_t values = static_cast<std::size_t>(texels) * columns, expected = values * width;
   const std::size_t rest = r.remaining();
   const std::uint8_t* data = r.take(rest, "codes");
   std::vector<std::uint8_t> planes;
@@ -1079,8 +1100,8 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
   }
   const std::vector<std::uint32_t> byTerm = fromBytePlanes(planes, values, width);
   m.codes.resize(values);
-  for (int q = 0; q < terms; ++q)
-    for (std::size_t t = 0; t < texels; ++t) m.codes[t * terms + q] = static_cast<std::uint16_t>(byTerm[q * texels + t]);
+  for (int q = 0; q < columns; ++q)
+    for (std::size_t t = 0; t < texels; ++t) m.codes[t * columns + q] = static_cast<std::uint16_t>(byTerm[q * texels + t]);
   btf.storage.modulationZstd = coding == 1;
 }
 
@@ -1233,7 +1254,7 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
     else if (s.tag == kLatents || s.tag == kLatentsHalf) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
     else if (s.tag == kIdsZstd) parseIdsZstd(s, btf, name);
-    else if (s.tag == kModulation) parseModulation(s, btf, name);
+    else if (s.tag == kModulation || s.tag == kModulationRgb) parseModulation(s, btf, name);
     else if (s.tag == kHoldout) parseHoldout(s, btf, name);
     else if (s.tag == kHoldoutZstd) parseHoldoutZstd(s, btf, name);
     else if (s.tag == kMetaZstd) parseMetadataZstd(s, btf, name);
@@ -1262,7 +1283,7 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
   for (auto pair : {std::make_pair(kDecoder, kDecoderHalf), std::make_pair(kDecoder, kDecoderInt8),
                     std::make_pair(kDecoderHalf, kDecoderInt8), std::make_pair(kLatents, kLatentsHalf),
                     std::make_pair(kIds, kIdsZstd), std::make_pair(kMeta, kMetaZstd), std::make_pair(kDirs, kDirsZstd),
-                    std::make_pair(kHoldout, kHoldoutZstd)})
+                    std::make_pair(kHoldout, kHoldoutZstd), std::make_pair(kModulation, kModulationRgb)})
     if (has(pair.first) && has(pair.second))
       throw fileError(name, "both " + sectionLabel(pair.first) + " and " + sectionLabel(pair.second) + " present");
   auto hasPart = [&](std::uint32_t t) {
@@ -1281,8 +1302,8 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
     throw fileError(name, "missing " + sectionLabel(kIds) + " (required by the clustered method)");
   if (btf.method != CodecMethod::ClusteredNeural && hasPart(kIds))
     throw fileError(name, sectionLabel(kIds) + " present, but the method is " + codecMethodName(btf.method));
-  if (btf.method != CodecMethod::ClusteredNeural && has(kModulation))
-    throw fileError(name, sectionLabel(kModulation) + " present, but the method is " + codecMethodName(btf.method));
+  if (btf.method != CodecMethod::ClusteredNeural && (has(kModulation) || has(kModulationRgb)))
+    throw fileError(name, sectionLabel(has(kModulation) ? kModulation : kModulationRgb) + " present, but the method is " + codecMethodName(btf.method));
   if (!has(kMeta) && !has(kMetaZstd)) btf.metadataJson = "{}";
   btf.validate(name);
   return btf;

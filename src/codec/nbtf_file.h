@@ -27,9 +27,10 @@ namespace nbtf {
 // 1.0 (float32 parts, raw ids), 1.1 for the PCA baseline (method 3, added in 1.1), 1.2 for
 // files with per-texel modulation or compact parts (half floats, zstd-coded ids), 1.3 for
 // decoders with a direction encoding other than the paper's stereographic pair, 1.4 for 8-bit
-// decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ).
+// decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ), 1.5 for per-channel
+// modulation coefficients (TXCH).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 4;
+constexpr std::uint16_t kNbtfFormatMinor = 5;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -50,13 +51,18 @@ enum class ValueSpace : std::uint8_t { LinearOverAlpha = 1 };
 // `bits`-bit linear codes over [minimum, maximum] of their term: a = minimum + code / (2^bits
 // - 1) x (maximum - minimum). Decoders orthonormalize the coefficients per cluster; empty
 // (terms 0) = no modulation (the decoder outputs one RGB term).
+// Format 1.5 (section TXCH): `channels` 3 gives every texel one coefficient per term and RGB
+// channel (a colour factor with one term) instead of one per term for all three.
 constexpr int kMaxModulationTerms = 8;
 struct TexelModulation {
-  int terms = 0;  // 0 = none, else 1..kMaxModulationTerms
-  int bits = 0;   // 1..16
-  std::array<float, kMaxModulationTerms> minimum{}, maximum{};
-  std::vector<std::uint16_t> codes;  // texels x terms, texel-major
+  int terms = 0;     // 0 = none, else 1..kMaxModulationTerms
+  int channels = 1;  // coefficients per term: 1 (shared by RGB) or 3 (one per channel)
+  int bits = 0;      // 1..16
+  // Per column (term r, channel c at r x channels + c).
+  std::array<float, 3 * kMaxModulationTerms> minimum{}, maximum{};
+  std::vector<std::uint16_t> codes;  // texels x columns, texel-major
   bool empty() const { return terms == 0; }
+  int columns() const { return terms * channels; }
 };
 
 // How the decoding parts are stored (format 1.2). Half floats are IEEE binary16: the values
@@ -157,7 +163,7 @@ struct NbtfSizes {
   std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
-  int modulationTerms = 0, modulationBits = 0;
+  int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;
   std::uint64_t rawFloat32 = 0;
   std::uint64_t fileBytes = 0;  // 0 when not known (not written yet)
   int idWidth = 0;              // bytes per id; 0 in per-texel mode

@@ -2,6 +2,10 @@
 // f_1..f_R(z_c, light, view), and each texel mixes them with coefficients of its own:
 //   value(t, image) = sum_r e_tr f_r(z_c, light, view).
 // With R = 1 that is a per-texel brightness factor; larger R is a per-cluster rank-R model.
+// With `channels` 3 (format 1.5) each texel has its own coefficient per term and RGB channel,
+// value_c(t, image) = sum_r e_trc f_rc(...): with R = 1 a per-texel colour factor. Coefficient
+// arrays are texels x columns, term r and channel c at column r x channels + c (c = 0 with one
+// channel).
 // Training uses coefficients from the data (an SVD per cluster, cluster/cluster_values.h)
 // made orthonormal per cluster (sum_{t in c} e_tr e_tr' = n_c delta_rr'), which makes the
 // trainer's per-cluster targets exact (model/training_set.h). After training the pipeline
@@ -10,27 +14,35 @@
 // dequantized codes as they are.
 #pragma once
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "codec/nbtf_file.h"
 
 namespace nbtf {
 
-// Quantizes coefficients (texels x terms, texel-major) to `bits`-bit linear codes over each
-// term's range: its 0.1% to 99.9% quantiles (min to max below 1000 texels; values outside are
-// clamped). Throws on non-finite input or out-of-range terms / bits.
-TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits);
+// Quantizes coefficients (texels x columns, texel-major) to `bits`-bit linear codes over each
+// column's range: its 0.1% to 99.9% quantiles (min to max below 1000 texels; values outside
+// are clamped). Throws on non-finite input or out-of-range terms / bits / channels.
+TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits,
+                                          int channels = 1);
 
-// The dequantized coefficient of `code` in term `term`: min + code / (2^bits - 1) x (max - min).
-float dequantizeTexelCoefficient(const TexelModulation& modulation, int term, std::uint32_t code);
+// The dequantized coefficient of `code` in `column`: min + code / (2^bits - 1) x (max - min).
+float dequantizeTexelCoefficient(const TexelModulation& modulation, int column, std::uint32_t code);
 
-// Per cluster, Gram-Schmidt on the coefficient columns in term order (sums in double, texels
-// in order), each column scaled to mean square 1 over the cluster; a column that is (nearly)
-// a combination of the earlier ones becomes 0. `ids` maps texels to clusters in [0, clusters).
+// Per cluster and channel, Gram-Schmidt on the coefficient columns in term order (sums in
+// double, texels in order), each column scaled to mean square 1 over the cluster; a column
+// that is (nearly) a combination of the channel's earlier ones becomes 0. `ids` maps texels to
+// clusters in [0, clusters).
 std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> coefficients, int terms,
-                                                   const std::vector<std::int32_t>& ids, int clusters);
+                                                   const std::vector<std::int32_t>& ids, int clusters,
+                                                   int channels = 1);
 
-// What decoding multiplies the terms by: the dequantized codes, texels x terms (empty
+// "2 RGB terms per cluster, mixed by per-texel coefficients (one per channel, 6-bit codes)":
+// what `info` and eval reports say about a file's modulation.
+std::string modulationDescription(const TexelModulation& modulation);
+
+// What decoding multiplies the terms by: the dequantized codes, texels x columns (empty
 // without modulation).
 std::vector<float> dequantizeTexelCoefficients(const TexelModulation& modulation);
 

@@ -101,7 +101,8 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
 std::string methodDescription(const CompressedBtf& btf) {
   if (btf.method == CodecMethod::ClusteredNeural && !btf.modulation.empty())
     return "clustered neural + per-texel modulation (" + std::to_string(btf.modulation.terms) + " term" +
-           (btf.modulation.terms > 1 ? "s" : "") + "), k = " + std::to_string(btf.latentRows);
+           (btf.modulation.terms > 1 ? "s" : "") + (btf.modulation.channels > 1 ? ", per channel" : "") +
+           "), k = " + std::to_string(btf.latentRows);
   if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
   if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
   if (btf.isPca()) return "PCA, C = " + std::to_string(btf.latentDim);
@@ -130,8 +131,10 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
       // The floor of any model mixing per-cluster terms with the file's coefficients: their
       // span per cluster, made orthonormal as clusterValues needs.
       in.texelCoefficients = orthonormalizeTexelCoefficients(reconstruction.decoder().texelCoefficients(),
-                                                             btf.modulation.terms, btf.ids, btf.latentRows);
+                                                             btf.modulation.terms, btf.ids, btf.latentRows,
+                                                             btf.modulation.channels);
       in.coefficientTerms = btf.modulation.terms;
+      in.coefficientChannels = btf.modulation.channels;
     }
   }
   if (btf.isPca()) in.methodParameter = btf.latentDim;
@@ -156,10 +159,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
                 {"decoder evaluations per image", std::to_string(reconstruction.evaluationsPerImage())},
                 {"held-out images", std::to_string(btf.holdoutImages.size())}};
   if (!btf.modulation.empty())
-    in.details.push_back({"per-texel modulation", std::to_string(btf.modulation.terms) + " RGB term" +
-                                                      (btf.modulation.terms > 1 ? "s" : "") +
-                                                      " per cluster, mixed by per-texel coefficients (" +
-                                                      std::to_string(btf.modulation.bits) + "-bit codes)"});
+    in.details.push_back({"per-texel modulation", modulationDescription(btf.modulation)});
   if (btf.storage.anyCompact())
     in.details.push_back({"storage", storageDescription(btf)});
   return in;

@@ -178,7 +178,7 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
                       .floorRmse(everyImage, ref.numTexels());
     if (!in.texelCoefficients.empty())
       r.floorRmseModulated = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, in.texelCoefficients.data(),
-                                           in.coefficientTerms, false, false)
+                                           in.coefficientTerms, false, false, in.coefficientChannels)
                                  .floorRmse(everyImage, ref.numTexels());
     // Where the latents went: the label image by split generation.
     const bool adaptive = !in.clusterGenerations.empty();

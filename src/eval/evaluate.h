@@ -70,6 +70,7 @@ struct EvalInputs {
   int clusters = 0;
   std::vector<float> texelCoefficients;
   int coefficientTerms = 0;
+  int coefficientChannels = 1;  // 3: per-channel coefficients (texels x terms x 3)
   // Adaptive files (nbtf compress --adaptive): each cluster's split generation (empty = none,
   // every cluster from the initial k-means), for the cluster map.
   std::vector<int> clusterGenerations;

@@ -72,6 +72,7 @@ TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& p
   mod.read("mode", c.modulation.mode);
   mod.read("terms", c.modulation.terms);
   mod.read("bits", c.modulation.bits);
+  mod.read("channels", c.modulation.channels);
   mod.read("mean_weight", c.modulation.meanWeight);
   mod.rejectUnknown();
 
@@ -141,6 +142,9 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "modulation.mode", "must be \"none\" or \"svd\", got \"" + m.mode + "\"");
   if (m.terms < 1 || m.terms > 8) bad(source, "modulation.terms", "must be in 1..8");
   if (m.bits < 1 || m.bits > 16) bad(source, "modulation.bits", "must be in 1..16");
+  if (m.channels != 1 && m.channels != 3)
+    bad(source, "modulation.channels", "must be 1 (one coefficient for RGB) or 3 (one per channel), got " +
+                                           std::to_string(m.channels));
   if (!finite(m.meanWeight) || m.meanWeight < 0)
     bad(source, "modulation.mean_weight", "must be a number >= 0 (0 = plain least squares)");
   if (c.storage.decoder != "float32" && c.storage.decoder != "half" && c.storage.decoder != "int8")

@@ -56,6 +56,9 @@ struct ModulationConfig {
   std::string mode = "svd";   // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
   int terms = 1;              // RGB terms per cluster, each texel mixing them with its own coefficients (1..8)
   int bits = 6;               // linear code bits per coefficient (1..16)
+  // Coefficients per term: 1 (one for RGB, a brightness factor with one term) or 3 (one per
+  // channel, a colour factor; format 1.5).
+  int channels = 1;
   // The refit after training also fits each texel's mean over the images, weighted as this many
   // images' squared errors (cluster/cluster_values.h, fitTexelCoefficients; 0 = least squares).
   double meanWeight = 0;
@@ -177,8 +180,11 @@ struct TrainInputs {
   // (codec/texel_modulation.h); texel t's model value is sum_r e_tr f_r(z_c, l, v), the
   // decoder giving 3 x terms outputs (model.outputTerms = terms). Empty = none (every texel of
   // a cluster has the same value).
+  // With coefficientChannels 3: M x terms x 3 (term r, channel c at 3 r + c), channel c's
+  // value mixing only its own.
   std::vector<float> texelCoefficients;
   int coefficientTerms = 0;
+  int coefficientChannels = 1;
 };
 
 struct TrainResult {

@@ -71,11 +71,15 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
 
   if (!perTexel_) {
     const float* coefficients = nullptr;
+    int channels = 1;
     if (!in.texelCoefficients.empty()) {
       terms_ = in.coefficientTerms;
-      if (terms_ < 1 || static_cast<std::int64_t>(in.texelCoefficients.size()) != texels_ * terms_)
+      channels = in.coefficientChannels;
+      if (terms_ < 1 || (channels != 1 && channels != 3) ||
+          static_cast<std::int64_t>(in.texelCoefficients.size()) != texels_ * terms_ * channels)
         throw Error("training: " + std::to_string(in.texelCoefficients.size()) + " per-texel coefficients for " +
-                    std::to_string(texels_) + " texels x " + std::to_string(in.coefficientTerms) + " terms");
+                    std::to_string(texels_) + " texels x " + std::to_string(in.coefficientTerms) + " terms x " +
+                    std::to_string(channels) + " channels");
       for (float f : in.texelCoefficients)
         if (!std::isfinite(f)) throw Error("training: per-texel coefficients must be finite");
       coefficients = in.texelCoefficients.data();
@@ -87,7 +91,7 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
       }
       coefficientHash_ = h;
     }
-    ClusterValues values = clusterValues(stack, alpha_, in.ids, groups_, coefficients, terms_, true, progress);
+    ClusterValues values = clusterValues(stack, alpha_, in.ids, groups_, coefficients, terms_, true, progress, channels);
     means_ = std::move(values.means);
     withinSse_ = std::move(values.withinSse);
   } else if (!in.texelCoefficients.empty()) {

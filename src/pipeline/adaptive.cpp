@@ -320,7 +320,8 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   const bool modulated = mc.mode != "none";
   const int terms = modulated ? mc.terms : 1, outs = 3 * terms;
   stats.modulationMode = mc.mode;
-  if (modulated) stats.modulationTerms = mc.terms, stats.modulationBits = mc.bits;
+  const int channels = modulated ? mc.channels : 1;
+  if (modulated) stats.modulationTerms = mc.terms, stats.modulationChannels = channels, stats.modulationBits = mc.bits;
 
   // ---- One schedule of T steps for all stages: the plan of a fixed-k run with k = --clusters.
   TrainConfig config = o.train;
@@ -386,7 +387,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   // first stage) and assembles the model; false when the user interrupted.
   auto runStage = [&](std::int64_t end, bool warm) {
     auto tc = Clock::now();
-    coefficients = modulated ? trainingCoefficients(stack, alpha, ids, k, holdout, mc.terms, false)
+    coefficients = modulated ? trainingCoefficients(stack, alpha, ids, k, holdout, mc, false)
                              : std::vector<float>{};
     stats.seconds.cluster += secondsSince(tc);
     TrainInputs inputs;
@@ -396,6 +397,7 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     inputs.ids = ids;
     inputs.texelCoefficients = coefficients;
     inputs.coefficientTerms = modulated ? mc.terms : 0;
+    inputs.coefficientChannels = channels;
     TrainConfig stageConfig = config;
     stageConfig.warmStart = warm;
     stageConfig.stopAtStep = end < totalSteps ? end : 0;
@@ -447,7 +449,8 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
   // Decoded terms of the current model and the mean cluster error, for merges.
   auto mergeInputs = [&](std::vector<float>& decoded, std::vector<float>& best, std::vector<double>& shares) {
     decoded = decodeClusterTerms(b, stack, outs);
-    best = clusterValues(stack, alpha, ids, k, modulated ? coefficients.data() : nullptr, terms, true, false).means;
+    best = clusterValues(stack, alpha, ids, k, modulated ? coefficients.data() : nullptr, terms, true, false, channels)
+               .means;
     shares = clusterErrorShares(decoded, best, clusterSizes(ids, k), ids, energy, trainImages, images, outs);
   };
 
@@ -636,7 +639,8 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     stats.rmseFloor = floor.floorRmse(trainImages, texels);
     if (modulated)
       stats.rmseFloorModulated =
-          clusterValues(stack, alpha, ids, k, coefficients.data(), terms, false, false).floorRmse(trainImages, texels);
+          clusterValues(stack, alpha, ids, k, coefficients.data(), terms, false, false, channels)
+              .floorRmse(trainImages, texels);
   }
   for (int round = 0; round < 4; ++round) {
     b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));

@@ -123,12 +123,13 @@ std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack
 }
 
 std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
-                                        int clusters, const std::vector<std::uint8_t>& holdout, int terms,
-                                        bool progress) {
+                                        int clusters, const std::vector<std::uint8_t>& holdout,
+                                        const ModulationConfig& mc, bool progress) {
   std::vector<std::uint8_t> useImage(holdout.size());
   for (std::size_t i = 0; i < holdout.size(); ++i) useImage[i] = !holdout[i];
-  std::vector<float> coefficients = texelCoefficients(stack, alpha, ids, clusters, useImage, terms, progress);
-  return orthonormalizeTexelCoefficients(std::move(coefficients), terms, ids, clusters);
+  std::vector<float> coefficients =
+      texelCoefficients(stack, alpha, ids, clusters, useImage, mc.terms, progress, mc.channels);
+  return orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, ids, clusters, mc.channels);
 }
 
 CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
@@ -158,7 +159,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
     // terms over the training images, then quantized as stored.
-    b.modulation = quantizeTexelCoefficients(texelCoefficients, mc.terms, mc.bits);  // any valid codes
+    b.modulation = quantizeTexelCoefficients(texelCoefficients, mc.terms, mc.bits, mc.channels);  // any valid codes
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     const std::size_t k = static_cast<std::size_t>(clusters), n = trainImages.size(), outs = 3 * mc.terms;
     std::vector<float> terms(k * n * outs);
@@ -173,8 +174,9 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
       }
     });
     std::vector<float> fitted =
-        fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress, mc.meanWeight);
-    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits);
+        fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress, mc.meanWeight,
+                             mc.channels);
+    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits, mc.channels);
   }
   if (b.storage.decoderHalf || b.storage.decoderInt8 || b.storage.latentsHalf || modulated) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
@@ -246,6 +248,7 @@ std::string trainConfigJson(const TrainConfig& c) {
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
   // Recorded only when set, so files of earlier configs keep their bytes.
   if (c.modulation.meanWeight > 0) j["modulation"]["mean_weight"] = c.modulation.meanWeight;
+  if (c.modulation.channels != 1) j["modulation"]["channels"] = c.modulation.channels;
   j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
                   {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};
   return j.dump();
@@ -334,9 +337,11 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
     // the stored ones are refit to the trained terms afterwards.
     inputs.texelCoefficients =
-        detail::trainingCoefficients(stack, alpha, inputs.ids, o.clusters, holdout, mc.terms, o.progress);
+        detail::trainingCoefficients(stack, alpha, inputs.ids, o.clusters, holdout, mc, o.progress);
     inputs.coefficientTerms = mc.terms;
+    inputs.coefficientChannels = mc.channels;
     stats.modulationTerms = mc.terms;
+    stats.modulationChannels = mc.channels;
     stats.modulationBits = mc.bits;
     stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
                           .floorRmse(trainImages, texels);
@@ -429,7 +434,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
     const MemoryEstimate estimate = estimateCompressMemory(
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
-        PcaOptions().oversampling, modulated ? o.train.modulation.terms : 1, threadCount());
+        PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
     stats.memoryEstimate = estimate.total();
     enforceMemoryLimit(estimate, stats.memoryLimit,
                        o.memoryLimitText.empty() ? memoryLimitText(false, "") : o.memoryLimitText, input, shape);
@@ -517,10 +522,10 @@ std::string formatCompressSummary(const CompressStats& s) {
   }
   if (s.rmseFloorModulated >= 0) {
     std::snprintf(line, sizeof line,
-                  "  %-16s %.6f  (clusters x per-texel modulation, %s, %d term%s: the floor the terms were trained "
-                  "for; stored: %d-bit refit coefficients)\n",
+                  "  %-16s %.6f  (clusters x per-texel modulation, %s, %d term%s%s: the floor the terms were "
+                  "trained for; stored: %d-bit refit coefficients)\n",
                   "modulated floor", s.rmseFloorModulated, s.modulationMode.c_str(), s.modulationTerms,
-                  s.modulationTerms > 1 ? "s" : "", s.modulationBits);
+                  s.modulationTerms > 1 ? "s" : "", s.modulationChannels > 1 ? " per channel" : "", s.modulationBits);
     out += line;
   }
   if (s.rmseTrain >= 0 && s.rmseFloor > 0) {
@@ -593,7 +598,10 @@ std::string compressStatsJson(const CompressStats& s) {
   j["rmse_space"] = "linear RGB / alpha (eq. 10)";
   j["rmse_floor"] = nullable(s.rmseFloor);
   j["rmse_floor_modulated"] = nullable(s.rmseFloorModulated);
-  j["modulation"] = {{"mode", s.modulationMode}, {"terms", s.modulationTerms}, {"bits", s.modulationBits}};
+  j["modulation"] = {{"mode", s.modulationMode},
+                     {"terms", s.modulationTerms},
+                     {"channels", s.modulationChannels},
+                     {"bits", s.modulationBits}};
   j["ratio"] = s.sizes.ratio;
   if (s.method == CodecMethod::Pca)
     j["bytes"] = {{"pca_mean", s.sizes.pcaMean},

@@ -86,7 +86,7 @@ struct CompressStats {
   // (the coefficients the terms were trained with).
   double rmseFloor = -1, rmseFloorModulated = -1;
   std::string modulationMode = "none";  // modulation.mode of the config
-  int modulationTerms = 0, modulationBits = 0;
+  int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;
   NbtfSizes sizes;            // fileBytes filled once written
   StageSeconds seconds;
   int epochs = 0;

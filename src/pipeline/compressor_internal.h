@@ -23,10 +23,10 @@ std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack
                                       const std::vector<std::uint8_t>& holdout);
 
 // The per-texel coefficients training uses for a clustering: a rank-`terms` SVD per cluster
-// over the training images, orthonormalized per cluster.
+// (and channel, with channels 3) over the training images, orthonormalized per cluster.
 std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
-                                        int clusters, const std::vector<std::uint8_t>& holdout, int terms,
-                                        bool progress);
+                                        int clusters, const std::vector<std::uint8_t>& holdout,
+                                        const ModulationConfig& modulation, bool progress);
 
 // The trained parts -> a compressed material: decoder, latents, ids, hold-out list, storage
 // rounding and (modulated) the per-texel coefficients refit to the trained terms. When
