@@ -286,6 +286,16 @@ TEST(Decoder, CommittedFormat14FileDecodesAsBefore) {
   EXPECT_EQ(nlohmann::json::parse(b.metadataJson)["clustering"]["k"].get<int>(), 8);
 }
 
+// Format 1.5 (per-channel modulation coefficients, TXCH), written by commit ec2a63a's `nbtf
+// compress` of the same satin with the same options and the default config plus
+// `"modulation": {"channels": 3}`.
+TEST(Decoder, CommittedFormat15FileDecodesAsBefore) {
+  expectCommittedAnswers("compact_v1_5", 5, 6);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_5.nbtf");
+  EXPECT_EQ(b.modulation.channels, 3);
+  EXPECT_EQ(b.modulation.terms, 1);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);

@@ -50,7 +50,8 @@ Mlp decoderShape(const ModelConfig& model);
 
 // Per-texel modulation (beyond the paper; codec/texel_modulation.h, cluster/cluster_values.h):
 // the "modulation" object of a config. Clustered mode only.
-// Defaults (= configs/default.json): 1 term (a brightness factor per texel), 6-bit codes;
+// Defaults (= configs/default.json): 1 term with one coefficient per RGB channel (a colour
+// factor per texel), 6-bit codes, the refit keeping each texel's mean as one image's worth;
 // configs/paper-clustered.json: "none".
 struct ModulationConfig {
   std::string mode = "svd";   // "none" | "svd" (coefficients of a per-cluster rank-`terms` SVD of the data)
@@ -58,10 +59,10 @@ struct ModulationConfig {
   int bits = 6;               // linear code bits per coefficient (1..16)
   // Coefficients per term: 1 (one for RGB, a brightness factor with one term) or 3 (one per
   // channel, a colour factor; format 1.5).
-  int channels = 1;
+  int channels = 3;
   // The refit after training also fits each texel's mean over the images, weighted as this many
   // images' squared errors (cluster/cluster_values.h, fitTexelCoefficients; 0 = least squares).
-  double meanWeight = 0;
+  double meanWeight = 1;
 };
 
 // How the decoding parts are stored in the .nbtf (the "storage" object of a config). Defaults:
