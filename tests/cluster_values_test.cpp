@@ -25,6 +25,19 @@ std::vector<int> allImages(int n) {
   return v;
 }
 
+// A small half-float stack of the first `directions` measured directions as lights and views
+// (values set by the test), and ids that deal the texels to the clusters in turn.
+BtfStack tinyStack(int width, int height, int directions) {
+  const auto& h81 = hemisphere81();
+  std::vector<Direction> dirs(h81.begin(), h81.begin() + directions);
+  return BtfStack(dirs, dirs, width, height, SampleType::Half);
+}
+std::vector<std::int32_t> roundRobinIds(int texels, int clusters) {
+  std::vector<std::int32_t> ids(texels);
+  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  return ids;
+}
+
 TEST(ClusterValues, PlainFloorMatchesADirectComputation) {
   auto m = makeTestMaterial();
   ClusterValues cv = clusterValues(m.stack, m.alpha, m.ids, m.clusters, nullptr, 1, true, false);
@@ -111,12 +124,9 @@ TEST(ClusterValues, CoefficientsFromTheDataRemoveThePerTexelBrightness) {
 // least-squares fit gives back the mix.
 TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
   const int width = 6, height = 5, texels = 30, clusters = 3, terms = 2;
-  const auto& h81 = hemisphere81();
-  std::vector<Direction> dirs(h81.begin(), h81.begin() + 4);
-  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  BtfStack stack = tinyStack(width, height, 4);
   const int images = stack.numImages();
-  std::vector<std::int32_t> ids(texels);
-  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  const std::vector<std::int32_t> ids = roundRobinIds(texels, clusters);
   std::mt19937 rng(8);
   std::uniform_real_distribution<float> u(0.1f, 1.0f), w(-0.5f, 1.5f);
   std::vector<float> f(static_cast<std::size_t>(clusters) * images * 3 * terms), mix(texels * terms);
@@ -149,12 +159,9 @@ TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
 // channel (channels 3) can, from the data's SVD, and the refit gives back the colours.
 TEST(ClusterValues, PerChannelCoefficientsRemoveThePerTexelColour) {
   const int width = 6, height = 5, texels = 30, clusters = 3;
-  const auto& h81 = hemisphere81();
-  std::vector<Direction> dirs(h81.begin(), h81.begin() + 4);
-  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  BtfStack stack = tinyStack(width, height, 4);
   const int images = stack.numImages();
-  std::vector<std::int32_t> ids(texels);
-  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  const std::vector<std::int32_t> ids = roundRobinIds(texels, clusters);
   std::mt19937 rng(12);
   std::uniform_real_distribution<float> u(0.2f, 1.0f), colour(0.5f, 1.5f);
   std::vector<float> profile(static_cast<std::size_t>(clusters) * images * 3), tint(3 * texels);
@@ -204,12 +211,9 @@ TEST(ClusterValues, PerChannelCoefficientsRemoveThePerTexelColour) {
 // and a larger w brings every texel's mean closer to its data's.
 TEST(ClusterValues, MeanWeightedFitMatchesTheClosedFormAndKeepsTexelMeans) {
   const int width = 4, height = 3, texels = 12, clusters = 2;
-  const auto& h81 = hemisphere81();
-  std::vector<Direction> dirs(h81.begin(), h81.begin() + 3);
-  BtfStack stack(dirs, dirs, width, height, SampleType::Half);
+  BtfStack stack = tinyStack(width, height, 3);
   const int images = stack.numImages();
-  std::vector<std::int32_t> ids(texels);
-  for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
+  const std::vector<std::int32_t> ids = roundRobinIds(texels, clusters);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.1f, 1.0f);
   std::vector<float> f(static_cast<std::size_t>(clusters) * images * 3), y(static_cast<std::size_t>(texels) * images * 3);

@@ -111,6 +111,10 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
   EXPECT_EQ(meta["training"]["rmse_train"].get<double>(), stats.rmseTrain);
   EXPECT_EQ(meta["clustering"]["k"].get<int>(), 6);
   EXPECT_EQ(meta["config"]["optimizer"]["name"], "adam");
+  // Without modulation the recorded modulation object is the one files had before the
+  // per-channel default (whatever channels and mean_weight say), so the paper's files keep
+  // their bytes.
+  EXPECT_EQ(meta["config"]["modulation"], nlohmann::json::parse(R"({"mode": "none", "terms": 1, "bits": 6})"));
   // What eval checks a reference against: the source's per-image means.
   ASSERT_TRUE(meta["source"].contains("fingerprint"));
   EXPECT_EQ(meta["source"]["fingerprint"]["images"].size(), 32u);

@@ -246,9 +246,12 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"seed", c.seed},
                    {"threads", c.threads}};
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
-  // Recorded only when set, so files of earlier configs keep their bytes.
-  if (c.modulation.meanWeight > 0) j["modulation"]["mean_weight"] = c.modulation.meanWeight;
-  if (c.modulation.channels != 1) j["modulation"]["channels"] = c.modulation.channels;
+  // Recorded only when they apply and differ from the earlier defaults, so files of earlier
+  // configs (the paper's among them: mode "none") keep their bytes.
+  if (c.modulation.mode != "none") {
+    if (c.modulation.meanWeight > 0) j["modulation"]["mean_weight"] = c.modulation.meanWeight;
+    if (c.modulation.channels != 1) j["modulation"]["channels"] = c.modulation.channels;
+  }
   j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
                   {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};
   return j.dump();
