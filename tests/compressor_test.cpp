@@ -150,6 +150,10 @@ TEST(Compressor, ModulatedCompactFileBeatsTheClusterFloor) {
     ASSERT_EQ(b.modulation.terms, terms);
     ASSERT_EQ(b.modulation.channels, channels);
     EXPECT_EQ(stats.modulationChannels, channels);
+    // The file's metadata records what ran, also where it is not today's default (channels 1).
+    const nlohmann::json recorded = nlohmann::json::parse(b.metadataJson)["config"]["modulation"];
+    EXPECT_EQ(recorded["channels"].get<int>(), channels);
+    EXPECT_EQ(recorded["mean_weight"].get<double>(), o.train.modulation.meanWeight);
     EXPECT_EQ(b.decoder.outputSize(), 3 * terms);
     EXPECT_TRUE(b.storage.decoderHalf != int8 && b.storage.decoderInt8 == int8 && b.storage.latentsHalf &&
                 b.storage.idsZstd && b.storage.metadataZstd);

@@ -246,11 +246,11 @@ std::string trainConfigJson(const TrainConfig& c) {
                    {"seed", c.seed},
                    {"threads", c.threads}};
   j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
-  // Recorded only when they apply and differ from the earlier defaults, so files of earlier
-  // configs (the paper's among them: mode "none") keep their bytes.
+  // Recorded whenever modulation applies (an absent key reads as today's default, which is
+  // not what every file ran with); without it, as before, so the paper's files keep their bytes.
   if (c.modulation.mode != "none") {
-    if (c.modulation.meanWeight > 0) j["modulation"]["mean_weight"] = c.modulation.meanWeight;
-    if (c.modulation.channels != 1) j["modulation"]["channels"] = c.modulation.channels;
+    j["modulation"]["channels"] = c.modulation.channels;
+    j["modulation"]["mean_weight"] = c.modulation.meanWeight;
   }
   j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
                   {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};

@@ -34,19 +34,19 @@ Stage clusteringStage(const StackShape& shape, int components, int oversampling,
 
 // Per-texel modulation coefficients: one cluster's ABRDFs per thread (taken as 8 x the mean
 // cluster size, at most all texels), its Gram matrix when it is small, the texels' coefficients.
-Stage modulationStage(const StackShape& shape, int clusters, int terms, int workers) {
+Stage modulationStage(const StackShape& shape, int clusters, int coefficientsPerTexel, int workers) {
   const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
   const std::size_t large = std::min(m, 8 * m / static_cast<std::size_t>(std::max(1, clusters)) + 1);
   const std::size_t side = std::min<std::size_t>(std::min(large, d), 1024);  // exact SVD only up to 1024 (cluster_values.h)
   const std::size_t perWorker = large * d * kFloat + side * side * 8 * 2;
-  const std::size_t perTexel = m * static_cast<std::size_t>(std::max(1, terms)) * kFloat * 4 + m * 3 * kFloat * 2;
+  const std::size_t perTexel = m * static_cast<std::size_t>(std::max(1, coefficientsPerTexel)) * kFloat * 4 + m * 3 * kFloat * 2;
   return {static_cast<std::size_t>(std::max(1, workers)) * perWorker + perTexel, "per-texel modulation coefficients"};
 }
 
 }  // namespace
 
 MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, bool pcaBaseline, int components,
-                                      int oversampling, int modulationTerms, int workers) {
+                                      int oversampling, int coefficientsPerTexel, int workers) {
   MemoryEstimate e;
   e.stack = shape.stackBytes();
   e.process = kProcess;
@@ -60,7 +60,7 @@ MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, boo
     return e;
   }
   Stage a = clusteringStage(shape, components, oversampling, workers);
-  Stage b = modulationStage(shape, clusters, modulationTerms, workers);
+  Stage b = modulationStage(shape, clusters, coefficientsPerTexel, workers);
   const Stage& top = a.bytes >= b.bytes ? a : b;
   e.working = top.bytes;
   e.stage = top.name;

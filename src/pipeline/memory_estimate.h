@@ -21,9 +21,10 @@ struct MemoryEstimate {
 };
 
 // The clustered pipeline with k clusters (k > 0), the per-texel mode (k = 0), or the PCA
-// baseline (pcaBaseline), on `workers` threads. components: PCA components before k-means.
+// baseline (pcaBaseline), on `workers` threads. components: PCA components before k-means;
+// coefficientsPerTexel: the per-texel modulation's (terms x channels; 1 without).
 MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, bool pcaBaseline, int components,
-                                      int oversampling, int modulationTerms, int workers);
+                                      int oversampling, int coefficientsPerTexel, int workers);
 // `nbtf cluster` (no training; the texel colour images).
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
                                      int workers);
