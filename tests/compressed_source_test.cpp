@@ -19,8 +19,9 @@ namespace {
 // The decoder evaluated the plain way for one texel (independent of Mlp::forward).
 std::array<float, 3> decodeTexel(const CompressedBtf& b, int light, int view, int texel) {
   std::vector<double> x(b.latentOfTexel(texel), b.latentOfTexel(texel) + b.latentDim);
-  auto l = stereographic(b.lights[light]), v = stereographic(b.views[view]);
-  x.insert(x.end(), {l[0], l[1], v[0], v[1]});
+  float d[kMaxDirectionInputs];
+  encodeDirections(b.directionEncoding, b.lights[light], b.views[view], d);
+  x.insert(x.end(), d, d + directionInputCount(b.directionEncoding));
   for (const auto& layer : b.decoder.layers) {
     std::vector<double> y(layer.out);
     for (int o = 0; o < layer.out; ++o) {

@@ -107,13 +107,38 @@ TEST(Directions, HalfVectorEncodingExtendsTheStereographicOne) {
   for (int q = 0; q < 8; ++q) EXPECT_NEAR(fromVectors[q], half[q], 1e-6) << q;
 }
 
+// The Fourier encoding: the paper's 4 values, then sin and cos of pi 2^o times each of them.
+TEST(Directions, FourierEncodingAddsSinesAndCosinesOfTheStereographicCoordinates) {
+  EXPECT_EQ(directionInputCount(DirectionEncoding::StereographicFourier), 4 + 4 * 2 * kFourierOctaves);
+  EXPECT_LE(directionInputCount(DirectionEncoding::StereographicFourier), kMaxDirectionInputs);
+  const Direction light{30, 60}, view{70, 300};
+  float paper[kMaxDirectionInputs], fourier[kMaxDirectionInputs];
+  encodeDirections(DirectionEncoding::Stereographic, light, view, paper);
+  encodeDirections(DirectionEncoding::StereographicFourier, light, view, fourier);
+  for (int q = 0; q < 4; ++q) EXPECT_EQ(fourier[q], paper[q]);
+  for (int c = 0; c < 4; ++c)
+    for (int o = 0; o < kFourierOctaves; ++o) {
+      const double a = M_PI * (1 << o) * paper[c];
+      EXPECT_NEAR(fourier[4 + 2 * (c * kFourierOctaves + o)], std::sin(a), 1e-6) << c << " " << o;
+      EXPECT_NEAR(fourier[4 + 2 * (c * kFourierOctaves + o) + 1], std::cos(a), 1e-6) << c << " " << o;
+    }
+  // The unit-vector form gives the same inputs.
+  float fromVectors[kMaxDirectionInputs];
+  encodeDirections(DirectionEncoding::StereographicFourier, light.unitVector(), view.unitVector(), fromVectors);
+  for (int q = 0; q < directionInputCount(DirectionEncoding::StereographicFourier); ++q)
+    EXPECT_NEAR(fromVectors[q], fourier[q], 1e-5) << q;
+  EXPECT_NE(directionEncodingDescription(DirectionEncoding::StereographicFourier).find("28 inputs"), std::string::npos);
+}
+
 TEST(Directions, EncodingNamesRoundTripAndUnknownNamesAreRefused) {
-  for (DirectionEncoding e : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf})
+  for (DirectionEncoding e : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
+                              DirectionEncoding::StereographicFourier})
     EXPECT_EQ(parseDirectionEncoding(directionEncodingName(e)), e);
   EXPECT_TRUE(isDirectionEncoding(1));
   EXPECT_TRUE(isDirectionEncoding(2));
+  EXPECT_TRUE(isDirectionEncoding(3));
   EXPECT_FALSE(isDirectionEncoding(0));
-  EXPECT_FALSE(isDirectionEncoding(3));
+  EXPECT_FALSE(isDirectionEncoding(4));
   try {
     parseDirectionEncoding("half");
     FAIL() << "expected an error";

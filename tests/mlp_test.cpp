@@ -88,7 +88,11 @@ TEST(Mlp, ValidateRejectsBrokenNetworks) {
 }
 
 TEST(Mlp, PaperDecoderHas24383Parameters) {
-  Mlp decoder = decoderShape(ModelConfig{});
+  ModelConfig paper;
+  paper.directionInputs = DirectionEncoding::Stereographic;
+  // The default's Fourier inputs add 24 first-layer inputs: 24 x 106 weights.
+  EXPECT_EQ(decoderShape(ModelConfig{}).parameterCount(), 24383u + 24 * 106);
+  Mlp decoder = decoderShape(paper);
   ASSERT_EQ(decoder.layers.size(), 4u);
   EXPECT_EQ(decoder.inputSize(), 12);
   EXPECT_EQ(decoder.outputSize(), 3);
@@ -102,6 +106,7 @@ TEST(Mlp, PaperDecoderHas24383Parameters) {
 
 TEST(Mlp, ExportedDecoderEqualsTorchDecoder) {
   ModelConfig model;
+  model.directionInputs = DirectionEncoding::Stereographic;  // the paper's 12 inputs
   RowMatrix in(300, 12);
   for (Eigen::Index i = 0; i < in.size(); ++i) in.data()[i] = std::sin(0.37f * i) * 1.5f;
   ReferenceDecoder ref = referenceDecoder(model, 42, in);

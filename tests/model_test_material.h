@@ -132,7 +132,12 @@ inline double clusterFloorRmse(const TestMaterial& m) {
 inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std::vector<int>& ids,
                           const std::vector<int>& imageSet) {
   const int M = m.stack.numTexels();
-  const int latent = r.decoder.inputSize() - 4;
+  const int latent = static_cast<int>(r.latents.size() / r.latentRows);
+  // The direction encoding the decoder was trained with: the one whose input count fits.
+  DirectionEncoding encoding = DirectionEncoding::Stereographic;
+  for (DirectionEncoding e : {DirectionEncoding::StereographicHalf, DirectionEncoding::StereographicFourier})
+    if (latent + directionInputCount(e) == r.decoder.inputSize()) encoding = e;
+  const int dirInputs = directionInputCount(encoding);
   double sse = 0;
   RowMatrix in(static_cast<Eigen::Index>(imageSet.size()), r.decoder.inputSize());
   for (int t = 0; t < M; ++t) {
@@ -140,9 +145,10 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
     for (std::size_t j = 0; j < imageSet.size(); ++j) {
       int img = imageSet[j];
       for (int d = 0; d < latent; ++d) in(j, d) = r.latents[static_cast<std::size_t>(g) * latent + d];
-      auto l = stereographic(m.stack.lights()[img / m.stack.numViews()]);
-      auto v = stereographic(m.stack.views()[img % m.stack.numViews()]);
-      in(j, latent) = l[0], in(j, latent + 1) = l[1], in(j, latent + 2) = v[0], in(j, latent + 3) = v[1];
+      float d[kMaxDirectionInputs];
+      encodeDirections(encoding, m.stack.lights()[img / m.stack.numViews()], m.stack.views()[img % m.stack.numViews()],
+                       d);
+      for (int q = 0; q < dirInputs; ++q) in(j, latent + q) = d[q];
     }
     RowMatrix out = mlpForward(r.decoder, in);
     for (std::size_t j = 0; j < imageSet.size(); ++j)

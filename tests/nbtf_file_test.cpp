@@ -697,6 +697,27 @@ TEST(NbtfFile, HalfVectorDirectionInputsAreFormat13AndChecked) {
   }
 }
 
+// The Fourier direction inputs are format 1.6 (a 1.5 reader refuses encoding 3 by name), and
+// the reader checks the first layer's width against them.
+TEST(NbtfFile, FourierDirectionInputsAreFormat16AndChecked) {
+  CompressedBtf b = makeBtf(5);
+  std::mt19937 rng(4);
+  const int inputs = directionInputCount(DirectionEncoding::StereographicFourier);
+  b.directionEncoding = DirectionEncoding::StereographicFourier;
+  b.decoder = makeDecoder(b.latentDim, {6, 5}, rng, inputs);
+  std::vector<std::uint8_t> bytes = serializeNbtf(b);
+  EXPECT_EQ(bytes[10], 6);  // format 1.6
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(back.directionEncoding, DirectionEncoding::StereographicFourier);
+  EXPECT_EQ(back.decoder.layers[0].in, b.latentDim + inputs);
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  std::vector<std::uint8_t> bad = bytes;
+  std::size_t at = findSection(bad, "INFO");
+  bad[at + 24 + 1] = 2;
+  resealSection(bad, at);
+  EXPECT_TRUE(contains(errorOf(bad), "expected 16 (latent + 8 direction inputs, stereographic+half)")) << errorOf(bad);
+}
+
 // A file written by nbtf before format 1.2 (tests/data/legacy_v1_0.nbtf, made by the
 // commit before it with `nbtf compress`) still reads, and decodes to the values it held.
 TEST(NbtfFile, CommittedFormat10FileStillReads) {

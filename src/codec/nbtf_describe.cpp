@@ -77,10 +77,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     field("interpolation", "unmeasured directions: mean and basis blended over the " + std::to_string(kPcaNeighbours) +
                                " nearest measured (light, view) pairs");
   } else {
-    field("directions", btf.directionEncoding == DirectionEncoding::StereographicHalf
-                            ? "stereographic projection (eq. 7-9), light then view, + half vector and cos(theta_d) "
-                              "(stereographic+half, 8 inputs)"
-                            : "stereographic projection (eq. 7-9), light then view (4 inputs)");
+    field("directions", directionEncodingDescription(btf.directionEncoding));
     field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
     std::size_t params = 0;
     for (const auto& l : btf.decoder.layers) params += l.parameterCount();

@@ -50,10 +50,12 @@ namespace {
 const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
   if (btf.isPca()) return btf;  // no network: the decoder checks the PCA parts
   const int outputs = 3 * (btf.modulation.empty() ? 1 : btf.modulation.terms);
-  if (btf.decoder.inputSize() != btf.latentDim + 4 || btf.decoder.outputSize() != outputs)
+  const int directionInputs = directionInputCount(btf.directionEncoding);
+  if (btf.decoder.inputSize() != btf.latentDim + directionInputs || btf.decoder.outputSize() != outputs)
     throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
                 std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
-                std::to_string(btf.latentDim) + ") + 4 direction inputs and " + std::to_string(outputs) +
+                std::to_string(btf.latentDim) + ") + " + std::to_string(directionInputs) + " direction inputs (" +
+                directionEncodingName(btf.directionEncoding) + ") and " + std::to_string(outputs) +
                 " outputs (RGB x modulation terms)");
   return btf;
 }

@@ -29,8 +29,9 @@ struct ModelConfig {
   // compress pipeline from the "modulation" object, not a config key of its own).
   int outputTerms = 1;
   // The decoder's direction input (util/directions.h): the paper's 4 stereographic
-  // coordinates, or those plus the half vector and cos(theta_d) (8).
-  DirectionEncoding directionInputs = DirectionEncoding::Stereographic;
+  // coordinates, those plus the half vector and cos(theta_d) (8), or those plus their sines
+  // and cosines at 3 octaves (28, the default: docs/model.md, *Direction inputs*).
+  DirectionEncoding directionInputs = DirectionEncoding::StereographicFourier;
   int directionInputCount() const { return nbtf::directionInputCount(directionInputs); }
 };
 

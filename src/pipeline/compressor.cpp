@@ -225,9 +225,8 @@ std::string trainConfigJson(const TrainConfig& c) {
                 {"encoder_channels", c.model.encoderChannels},
                 {"decoder_width", c.model.decoderWidth},
                 {"decoder_layers", c.model.decoderLayers}};
-  // Recorded only when not the paper's, so files of earlier configs keep their bytes.
-  if (c.model.directionInputs != DirectionEncoding::Stereographic)
-    j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
+  // Always recorded: an absent key reads as today's default, not as what ran.
+  j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
   j["optimizer"] = {{"name", c.optimizer},
                     {"learning_rate", c.learningRate},
                     {"learning_rate_scaling", c.learningRateScaling},

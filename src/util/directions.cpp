@@ -59,18 +59,38 @@ std::array<float, 2> stereographic(const Direction& d) {
   return {static_cast<float>(r * std::cos(p)), static_cast<float>(r * std::sin(p))};
 }
 
-bool isDirectionEncoding(int code) { return code == 1 || code == 2; }
+bool isDirectionEncoding(int code) { return code >= 1 && code <= 3; }
 
-int directionInputCount(DirectionEncoding encoding) { return encoding == DirectionEncoding::StereographicHalf ? 8 : 4; }
+int directionInputCount(DirectionEncoding encoding) {
+  switch (encoding) {
+    case DirectionEncoding::StereographicHalf: return 8;
+    case DirectionEncoding::StereographicFourier: return 4 + 4 * 2 * kFourierOctaves;
+    default: return 4;
+  }
+}
 
 std::string directionEncodingName(DirectionEncoding encoding) {
+  if (encoding == DirectionEncoding::StereographicFourier) return "stereographic+fourier";
   return encoding == DirectionEncoding::StereographicHalf ? "stereographic+half" : "stereographic";
+}
+
+std::string directionEncodingDescription(DirectionEncoding encoding) {
+  const std::string base = "stereographic projection (eq. 7-9), light then view";
+  switch (encoding) {
+    case DirectionEncoding::StereographicHalf:
+      return base + ", + half vector and cos(theta_d) (stereographic+half, 8 inputs)";
+    case DirectionEncoding::StereographicFourier:
+      return base + ", + sin and cos of each at " + std::to_string(kFourierOctaves) +
+             " octaves (stereographic+fourier, " + std::to_string(directionInputCount(encoding)) + " inputs)";
+    default: return base + " (4 inputs)";
+  }
 }
 
 DirectionEncoding parseDirectionEncoding(const std::string& name) {
   if (name == "stereographic") return DirectionEncoding::Stereographic;
   if (name == "stereographic+half") return DirectionEncoding::StereographicHalf;
-  throw Error("unknown direction encoding \"" + name + "\" (expected \"stereographic\" or \"stereographic+half\")");
+  if (name == "stereographic+fourier") return DirectionEncoding::StereographicFourier;
+  throw Error("unknown direction encoding \"" + name + "\" (expected \"stereographic\", \"stereographic+half\" or \"stereographic+fourier\")");
 }
 
 namespace {
@@ -91,6 +111,15 @@ void halfVectorInputs(const std::array<double, 3>& light, const std::array<doubl
   out[2] = static_cast<float>(h[2]);
   out[3] = static_cast<float>(light[0] * h[0] + light[1] * h[1] + light[2] * h[2]);
 }
+
+void fourierInputs(const float* stereo, float* out) {
+  for (int c = 0; c < 4; ++c)
+    for (int o = 0; o < kFourierOctaves; ++o) {
+      const double a = kPi * std::ldexp(1.0, o) * stereo[c];
+      *out++ = static_cast<float>(std::sin(a));
+      *out++ = static_cast<float>(std::cos(a));
+    }
+}
 }  // namespace
 
 void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& light, const std::array<double, 3>& view,
@@ -98,12 +127,14 @@ void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& l
   stereographicOfUnit(light, out);
   stereographicOfUnit(view, out + 2);
   if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light, view, out + 4);
+  if (encoding == DirectionEncoding::StereographicFourier) fourierInputs(out, out + 4);
 }
 
 void encodeDirections(DirectionEncoding encoding, const Direction& light, const Direction& view, float* out) {
   auto l = stereographic(light), v = stereographic(view);
   out[0] = l[0], out[1] = l[1], out[2] = v[0], out[3] = v[1];  // the paper's formula, as trained before
   if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light.unitVector(), view.unitVector(), out + 4);
+  if (encoding == DirectionEncoding::StereographicFourier) fourierInputs(out, out + 4);
 }
 
 Direction parseDirection(const std::string& text, const std::string& what) {
