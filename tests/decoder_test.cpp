@@ -298,6 +298,16 @@ TEST(Decoder, CommittedFormat15FileDecodesAsBefore) {
   EXPECT_EQ(b.modulation.terms, 1);
 }
 
+// Format 1.6 (Fourier direction inputs, the default since session 13), written by commit
+// 6325403's `nbtf compress` of the same satin with the same options and the default config.
+TEST(Decoder, CommittedFormat16FileDecodesAsBefore) {
+  expectCommittedAnswers("compact_v1_6", 6, 6);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_6.nbtf");
+  EXPECT_EQ(b.directionEncoding, DirectionEncoding::StereographicFourier);
+  EXPECT_EQ(b.decoder.inputSize(), b.latentDim + 28);
+  EXPECT_EQ(b.modulation.channels, 3);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);
