@@ -150,8 +150,11 @@ TEST(CompressedSourceCheck, PcaFileEvaluatesLikeTheCompressorMeasuredIt) {
 
 TEST(CompressedSourceCheck, RejectsADecoderOfTheWrongShape) {
   CompressedBtf b = testing::makeBtf(3, 4, 3);
-  b.decoder.layers.back().out = 4;
-  test::expectErrorContaining([&] { CompressedReconstruction rec(b); }, {"3 outputs"});
+  auto& last = b.decoder.layers.back();  // a well-formed layer of 4 outputs where RGB's 3 belong
+  last.out = 4;
+  last.weight.resize(static_cast<std::size_t>(last.in) * 4, 0.1f);
+  last.bias.resize(4, 0.0f);
+  test::expectErrorContaining([&] { CompressedReconstruction rec(b); }, {"outputs 4 values, expected 3 (RGB)"});
 }
 
 }  // namespace

@@ -46,23 +46,8 @@ void checkDirections(const std::vector<Direction>& ref, const std::vector<Direct
 
 }  // namespace
 
-namespace {
-const CompressedBtf& checkedDecoderShape(const CompressedBtf& btf) {
-  if (btf.isPca()) return btf;  // no network: the decoder checks the PCA parts
-  const int outputs = 3 * (btf.modulation.empty() ? 1 : btf.modulation.terms);
-  const int directionInputs = directionInputCount(btf.directionEncoding);
-  if (btf.decoder.inputSize() != btf.latentDim + directionInputs || btf.decoder.outputSize() != outputs)
-    throw Error("decoder takes " + std::to_string(btf.decoder.inputSize()) + " inputs and gives " +
-                std::to_string(btf.decoder.outputSize()) + " outputs; expected latent (" +
-                std::to_string(btf.latentDim) + ") + " + std::to_string(directionInputs) + " direction inputs (" +
-                directionEncodingName(btf.directionEncoding) + ") and " + std::to_string(outputs) +
-                " outputs (RGB x modulation terms)");
-  return btf;
-}
-}  // namespace
-
 CompressedReconstruction::CompressedReconstruction(const CompressedBtf& btf, const std::string& name)
-    : decoder_(checkedDecoderShape(btf), DecoderOptions{}, name) {}
+    : decoder_(btf, DecoderOptions{}, name) {}  // the decoder validates the shapes (CompressedBtf::validate)
 
 void CompressedReconstruction::image(int image, float* out) const {
   const int nv = static_cast<int>(decoder_.views().size());
