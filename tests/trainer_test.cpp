@@ -336,24 +336,25 @@ TEST(TrainPlan, LearningRateGrowsWithTheInputsAStepHolds) {
 }
 
 TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
-  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 16000 steps, 16 steps per input, 16384 samples per step
+  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 24000 steps, 24 steps per input, 16384 samples per step
   EXPECT_EQ(c.minSteps, 2000);
-  EXPECT_EQ(c.minStepsPerInput, 16);
-  EXPECT_EQ(c.maxSteps, 16000);
+  EXPECT_EQ(c.minStepsPerInput, 24);
+  EXPECT_EQ(c.maxSteps, 24000);
   TrainPlan small = planTraining(c, 16, 81);  // k = 16, one view: an epoch is one step
   EXPECT_EQ(small.stepsPerEpoch, 1);
-  EXPECT_EQ(small.totalSteps, 2000);                         // min_steps decides up to k = 125
-  EXPECT_EQ(planTraining(c, 125, 81).totalSteps, 2000);
-  EXPECT_EQ(planTraining(c, 126, 81).totalSteps, 16 * 126);  // then 16 steps per encoder input
+  EXPECT_EQ(small.totalSteps, 2000);                         // min_steps decides up to k = 83
+  EXPECT_EQ(planTraining(c, 83, 81).totalSteps, 2000);
+  EXPECT_EQ(planTraining(c, 84, 81).totalSteps, 24 * 84);    // then 24 steps per encoder input
   TrainPlan sub = planTraining(c, 500, 81);                  // k = 500, 9 x 9 subset
   EXPECT_EQ(sub.stepsPerEpoch, 3);
-  EXPECT_EQ(sub.totalSteps, 8000);
-  EXPECT_EQ(planTraining(c, 2000, 81).totalSteps, 16000);    // k = 2000, one view: max_steps
-  // k = 500 on a full stack: 20 epochs are 4,020 steps, the minimum per input 8,000.
+  EXPECT_EQ(sub.totalSteps, 12000);
+  EXPECT_EQ(planTraining(c, 1000, 81).totalSteps, 24000);    // max_steps from k = 1000 up
+  EXPECT_EQ(planTraining(c, 2000, 81).totalSteps, 24000);    // k = 2000, one view: max_steps
+  // k = 500 on a full stack: 20 epochs are 4,020 steps, the minimum per input 12,000.
   TrainPlan full = planTraining(c, 500, 6561);
   EXPECT_EQ(full.stepsPerEpoch, 201);
-  EXPECT_EQ(full.totalSteps, 8000);
-  EXPECT_EQ(planTraining(c, 2000, 6561).totalSteps, 16000);  // 20 epochs = 16,020 steps, capped
+  EXPECT_EQ(full.totalSteps, 12000);
+  EXPECT_EQ(planTraining(c, 2000, 6561).totalSteps, 24000);  // 24 per input = 48,000 steps, capped
   EXPECT_EQ(planTraining(c, 65536, 6561).totalSteps, c.maxSteps);  // per-texel 256 x 256
   // Epochs decide where they are more than the minimum: k = 500 on 151 x 151 = 22,801 images.
   TrainPlan dense = planTraining(c, 500, 22801);
@@ -361,7 +362,7 @@ TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
   EXPECT_EQ(dense.totalSteps, 20 * 696);
   // configs/converged.json is 4x every bound.
   TrainConfig longer = c;
-  longer.epochs = 80, longer.minSteps = 8000, longer.minStepsPerInput = 64, longer.maxSteps = 64000;
+  longer.epochs = 80, longer.minSteps = 8000, longer.minStepsPerInput = 96, longer.maxSteps = 96000;
   for (std::int64_t k : {16, 32, 500, 2000})
     for (int images : {81, 6561})
       EXPECT_EQ(planTraining(longer, k, images).totalSteps, 4 * planTraining(c, k, images).totalSteps)
