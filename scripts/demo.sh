@@ -3,12 +3,12 @@
 # (synthetic fabric, 100 x 100 texels, all 81 x 81 light/view images, UBO2003 layout),
 # compress it with k = 500 clusters, and evaluate the result against the stack.
 # Output goes to demo_out/ (or $1). NBTF_DEMO_BUDGET=SECONDS trains for a time budget instead
-# of the default recipe (deterministic: 8000 steps at k = 500, about 3-6 minutes
+# of the default recipe (deterministic: 12000 steps at k = 500, about 5-8 minutes
 # on 2 cores).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/demo_out}
-budget=${NBTF_DEMO_BUDGET:-}  # seconds; empty: the default recipe (8000 steps, 3-6 minutes on 2 cores)
+budget=${NBTF_DEMO_BUDGET:-}  # seconds; empty: the default recipe (12000 steps, 5-8 minutes on 2 cores)
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh" "$root/build"
 bin=$root/build/bin
