@@ -362,7 +362,8 @@ TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
   EXPECT_EQ(dense.totalSteps, 20 * 696);
   // configs/converged.json is 4x every bound.
   TrainConfig longer = c;
-  longer.epochs = 80, longer.minSteps = 8000, longer.minStepsPerInput = 96, longer.maxSteps = 96000;
+  longer.epochs = 4 * c.epochs, longer.minSteps = 4 * c.minSteps;
+  longer.minStepsPerInput = 4 * c.minStepsPerInput, longer.maxSteps = 4 * c.maxSteps;
   for (std::int64_t k : {16, 32, 500, 2000})
     for (int images : {81, 6561})
       EXPECT_EQ(planTraining(longer, k, images).totalSteps, 4 * planTraining(c, k, images).totalSteps)
