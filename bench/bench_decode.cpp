@@ -8,6 +8,8 @@
 //   - seconds to reconstruct all 6561 images in memory (8-bit sRGB BtfStack) and as PNG
 //     files (the layout `nbtf decode` writes), clustered vs per-texel;
 //   - batched query throughput (random texels and continuous random directions);
+//   - what the direction inputs cost: clustered random-weight files with the paper's
+//     stereographic inputs and with the default's stereographic + Fourier ones;
 //   - the machine's float matmul rate, 2048^2 x 2048^2 on all threads, by Eigen (this
 //     build's flags, blocks of columns on threadCount() threads) and by libtorch mm (its
 //     BLAS); the faster of the two is the reference.
@@ -43,7 +45,8 @@ template <class F> double bestOf(int runs, F&& f) {
   return best;
 }
 
-CompressedBtf makeMaterial(bool clustered, unsigned seed) {
+CompressedBtf makeMaterial(bool clustered, unsigned seed,
+                           DirectionEncoding directions = DirectionEncoding::Stereographic) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> normal(0.f, 1.f);
   CompressedBtf b;
@@ -56,7 +59,8 @@ CompressedBtf makeMaterial(bool clustered, unsigned seed) {
   b.lights = b.views = hemisphere81();
   b.alpha = 1.0f;
   b.latentDim = 8;
-  int in = 12;
+  b.directionEncoding = directions;
+  int in = b.latentDim + directionInputCount(directions);
   for (int i = 0; i < 4; ++i) {
     DenseLayer l;
     l.in = in, l.out = i < 3 ? 106 : 3;
@@ -146,8 +150,9 @@ int main(int argc, char** argv) {
               given ? "compressed by nbtf compress" : "random weights, paper shapes");
   NbtfDecoder clustered = NbtfDecoder::open(clusteredPath);
   NbtfDecoder perTexel = NbtfDecoder::open(perTexelPath);
-  std::printf("decoder kernels %s; %.0f FLOPs per evaluation (12-106-106-106-3, multiply-add = 2)\n",
-              decoderIsaName(clustered.isa()).c_str(), clustered.flopsPerEvaluation());
+  std::printf("decoder kernels %s; %.0f FLOPs per evaluation (%s inputs, multiply-add = 2)\n",
+              decoderIsaName(clustered.isa()).c_str(), clustered.flopsPerEvaluation(),
+              directionEncodingName(clustered.directionEncoding()).c_str());
 
   // Optional subset for a smoke run.
   std::vector<DirectionChoice> lights;
@@ -201,6 +206,32 @@ int main(int argc, char** argv) {
   std::printf("queries (texel + angles), per-texel: %.3g queries/s = %.1f GFLOP/s\n", n / qPerTexel, gflops(qPerTexel));
   std::printf("queries (uv + unit vectors), clustered: %.3g queries/s = %.1f GFLOP/s\n", n / qUv, gflops(qUv));
 
+  // ---- What the direction inputs cost: the same clustered shapes (random weights) with the
+  // paper's 4 stereographic inputs and with the default's 28 (stereographic + Fourier), side by
+  // side. Whole images compute the direction part of the first layer once per image; a query
+  // brings its own directions, so it pays for the wider first layer and the sines and cosines.
+  NbtfDecoder paperInputs(makeMaterial(true, 2, DirectionEncoding::Stereographic));
+  NbtfDecoder fourierInputs(makeMaterial(true, 2, DirectionEncoding::StereographicFourier));
+  // Interleaved rounds, the best of each kept: the machine's speed drifts over seconds.
+  double memPaper = 1e300, qPaper = 1e300, uvPaper = 1e300, memFourier = 1e300, qFourier = 1e300, uvFourier = 1e300;
+  for (int round = 0; round < 3; ++round)
+    for (const NbtfDecoder* d : {&paperInputs, &fourierInputs}) {
+      const bool fourier = d == &fourierInputs;
+      double& mem = fourier ? memFourier : memPaper;
+      double& q = fourier ? qFourier : qPaper;
+      double& uvs = fourier ? uvFourier : uvPaper;
+      mem = std::min(mem, bestOf(1, [&] { decodeStack(*d, SampleType::Srgb8, lights, {}, false); }));
+      q = std::min(q, bestOf(1, [&] { d->evaluate(queries.data(), n, rgb.data()); }));
+      uvs = std::min(uvs, bestOf(1, [&] { d->evaluate(uv.data(), n, rgb.data()); }));
+    }
+  for (const NbtfDecoder* d : {&paperInputs, &fourierInputs}) {
+    const bool fourier = d == &fourierInputs;
+    std::printf("direction inputs %s (%.0f FLOPs): %d images in memory %.3f s; queries %.3g/s (texel + angles), "
+                "%.3g/s (uv + unit vectors)\n",
+                directionEncodingName(d->directionEncoding()).c_str(), d->flopsPerEvaluation(), images,
+                fourier ? memFourier : memPaper, n / (fourier ? qFourier : qPaper), n / (fourier ? uvFourier : uvPaper));
+  }
+
   double eigen2 = eigenGemmGflops(2048, 3), torch2 = torchGemmGflops(2048, 3);
   std::printf("matmul 2048^2 float (again): Eigen %.1f GFLOP/s, libtorch mm %.1f GFLOP/s\n", eigen2, torch2);
   eigen = std::max(eigen, eigen2), torchRate = std::max(torchRate, torch2);
@@ -212,6 +243,11 @@ int main(int argc, char** argv) {
               n / qClustered, n / qPerTexel, n / qUv);
   std::printf("result flops_per_eval %.0f\n", flops);
   std::printf("result eigen_gflops %.3f\nresult torch_gflops %.3f\n", eigen, torchRate);
+  std::printf("result inputs_mem_stereographic_s %.4f\nresult inputs_mem_fourier_s %.4f\n", memPaper, memFourier);
+  std::printf("result inputs_query_stereographic_qps %.6g\nresult inputs_query_fourier_qps %.6g\n", n / qPaper,
+              n / qFourier);
+  std::printf("result inputs_uv_stereographic_qps %.6g\nresult inputs_uv_fourier_qps %.6g\n", n / uvPaper,
+              n / uvFourier);
   std::printf("result isa %s\n", decoderIsaName(clustered.isa()).c_str());
   return 0;
 }

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Benchmark of decoding (issue 5): a 100 x 100-texel material of the paper's shape
-# (decoder 12-106-106-106-3, 81 x 81 images) compressed with k = 500 and the same material
-# per-texel, measured in one run: seconds to reconstruct all 6561 images (in memory as an
-# 8-bit sRGB stack, and written as PNG files), batched query throughput, and the
-# machine's float matmul rate (Eigen and libtorch mm, 2048^2, all threads).
+# Benchmark of decoding (issue 5): a 100 x 100-texel material (81 x 81 images) compressed
+# with the defaults (decoder 36-106-106-106-3: latent 8 + stereographic and Fourier direction
+# inputs) with k = 500 and the same material per-texel, measured in one run: seconds to
+# reconstruct all 6561 images (in memory as an 8-bit sRGB stack, and written as PNG files),
+# batched query throughput, the machine's float matmul rate (Eigen and libtorch mm, 2048^2,
+# all threads), and what the default's direction inputs cost against the paper's 4
+# (random-weight clustered files of both input kinds, side by side).
 # Targets: clustered reconstruction >= 10x faster than per-texel (in memory); batched
 # query throughput >= 50% of the matmul rate in decoder FLOP terms (queries/s x FLOPs of
 # one full decoder evaluation, against the faster of Eigen and libtorch mm).
@@ -58,6 +60,13 @@ print(f"all {images} images as PNG:    clustered {f['png_clustered_s']:.2f} s, p
       f"({png_speedup:.1f}x; file writes with fsync included)")
 print(f"batched queries: clustered {f['query_clustered_qps']:.3g}/s, per-texel {f['query_per_texel_qps']:.3g}/s "
       f"({r['isa']} kernels); matmul rate {matmul:.1f} GFLOP/s ({which}, 2048^2 float, all threads)")
+mem_cost = f["inputs_mem_fourier_s"] / f["inputs_mem_stereographic_s"]
+query_cost = f["inputs_query_stereographic_qps"] / f["inputs_query_fourier_qps"]
+uv_cost = f["inputs_uv_stereographic_qps"] / f["inputs_uv_fourier_qps"]
+print(f"direction inputs (clustered k = 500, random weights, same shapes otherwise): stereographic+fourier "
+      f"against stereographic: all images in memory {mem_cost:.2f}x the time; queries (texel + angles) "
+      f"{query_cost:.2f}x the time ({f['inputs_query_fourier_qps']:.3g}/s against "
+      f"{f['inputs_query_stereographic_qps']:.3g}/s); queries (uv + unit vectors) {uv_cost:.2f}x")
 print(f"bench decode_clustered_speedup: {speedup:.1f}x faster than per-texel, all {images} images in memory "
       f"(target >= 10x) {'PASS' if speedup >= 10 else 'FAIL'}")
 print(f"bench decode_query_throughput: {qps:.3g} queries/s = {gflops:.1f} GFLOP/s = {100 * share:.0f}% of the "

@@ -252,7 +252,7 @@ TEST_F(DecoderOutput, FastSrgbEncoderIsExact) {
   std::uint32_t one;
   const float f1 = 1.0f;
   std::memcpy(&one, &f1, 4);
-  for (std::uint32_t bits = 0; bits <= one; bits += 9973) {
+  for (std::uint32_t bits = 0; bits <= one; bits += 251) {  // every table bucket, many times
     float x;
     std::memcpy(&x, &bits, 4);
     check(x);

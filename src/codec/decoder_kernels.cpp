@@ -82,12 +82,27 @@ template <class V> NBTF_INLINE void latentPart(const PackedDecoder& p, int row, 
   }
 }
 
-// W0_dir [l; v] for one (light, view).
+// W0_dir [l; v] for one (light, view). Queries with their own directions pay this per
+// sample, so four output vectors are summed side by side: one vector at a time is a chain of
+// dirInputs dependent FMAs that waits on their latency (with the 28 Fourier inputs that was
+// about as slow as all the hidden layers). Each output still sums its inputs in the same
+// order, so the values are the same bits.
 template <class V> NBTF_INLINE void directionPart(const PackedDecoder& p, const float* d, float* dst) {
   constexpr int L = VecInfo<V>::kLanes;
-  for (int j = 0; j < p.pad0; j += L) {
+  int j = 0;
+  for (; j + 4 * L <= p.pad0; j += 4 * L) {
+    V a0{}, a1{}, a2{}, a3{};
+    for (int q = 0; q < p.dirInputs; ++q) {
+      const float* w = p.dirWeights.data() + static_cast<std::size_t>(q) * p.pad0 + j;
+      a0 += d[q] * load<V>(w);
+      a1 += d[q] * load<V>(w + L);
+      a2 += d[q] * load<V>(w + 2 * L);
+      a3 += d[q] * load<V>(w + 3 * L);
+    }
+    store(dst + j, a0), store(dst + j + L, a1), store(dst + j + 2 * L, a2), store(dst + j + 3 * L, a3);
+  }
+  for (; j < p.pad0; j += L) {
     V acc{};
-#pragma GCC unroll 4
     for (int q = 0; q < p.dirInputs; ++q) acc += d[q] * load<V>(p.dirWeights.data() + static_cast<std::size_t>(q) * p.pad0 + j);
     store(dst + j, acc);
   }

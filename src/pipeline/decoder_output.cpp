@@ -157,6 +157,11 @@ std::uint32_t bitsOf(float f) {
 
 Srgb8Encoder::Srgb8Encoder() {
   // Non-negative floats order like their bit patterns: bisect on the bits.
+  auto codeOf = [this](float x, int thresholdsKnown) {
+    int code = 0;
+    while (code < thresholdsKnown && thresholds_[code] <= x) ++code;
+    return code;
+  };
   for (int i = 0; i < 255; ++i) {
     std::uint32_t lo = 0, hi = bitsOf(1.0f);
     while (lo < hi) {
@@ -166,14 +171,17 @@ Srgb8Encoder::Srgb8Encoder() {
     }
     thresholds_[i] = floatFromBits(lo);
   }
-}
-
-std::uint8_t Srgb8Encoder::operator()(float linear) const {
-  if (!(linear > 0)) return 0;  // also NaN, like linearToSrgb8
-  int pos = 0;  // number of thresholds <= linear
-  for (int step = 128; step > 0; step >>= 1)
-    if (thresholds_[pos + step - 1] <= linear) pos += step;
-  return static_cast<std::uint8_t>(pos);
+  thresholds_[255] = INFINITY;
+  firstBits_ = bitsOf(thresholds_[0]);
+  const std::uint32_t buckets = ((bitsOf(1.0f) - firstBits_) >> kBucketShift) + 1;
+  bucketCode_.resize(buckets);
+  for (std::uint32_t b = 0; b < buckets; ++b) {
+    const std::uint32_t first = firstBits_ + (b << kBucketShift), last = first + (1u << kBucketShift) - 1;
+    bucketCode_[b] = static_cast<std::uint8_t>(codeOf(floatFromBits(first), 255));
+    // One comparison finishes a value only if its bucket holds at most one threshold.
+    if (codeOf(floatFromBits(std::min(last, bitsOf(1.0f))), 255) > bucketCode_[b] + 1)
+      throw Error("Srgb8Encoder: two sRGB rounding thresholds in one table bucket");
+  }
 }
 
 // ---- Layout, format, names -------------------------------------------------------------------

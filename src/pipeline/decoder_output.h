@@ -13,6 +13,7 @@
 // loaders reject negative EXR values); the count is reported.
 #pragma once
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <string>
 #include <vector>
@@ -104,15 +105,30 @@ std::string formatDecodeUbo2014Summary(const DecodeUbo2014Result& result);
 BtfStack decodeStack(const NbtfDecoder& decoder, SampleType type, const std::vector<DirectionChoice>& lights = {},
                      const std::vector<DirectionChoice>& views = {}, bool progress = true);
 
-// linearToSrgb8 (io/color.h), bit-exact, by a search over the 255 rounding thresholds
-// instead of a pow() per value.
+// linearToSrgb8 (io/color.h), bit-exact, without a pow() per value: a table indexed by the
+// float's bit pattern gives the code at the start of the value's bucket (2^13 neighbouring
+// floats, a relative width of 1e-3, narrower than any gap between two rounding thresholds),
+// and one comparison with the next threshold finishes it. Modulated materials encode every
+// texel of every decoded image (65.6 million values for a 100 x 100 x 6561 stack), so this
+// is on the decoder's critical path.
 class Srgb8Encoder {
  public:
   Srgb8Encoder();
-  std::uint8_t operator()(float linear) const;
+  std::uint8_t operator()(float linear) const {
+    if (!(linear > 0)) return 0;  // also NaN, like linearToSrgb8
+    if (linear >= 1.0f) return 255;
+    std::uint32_t bits;
+    std::memcpy(&bits, &linear, sizeof bits);
+    if (bits < firstBits_) return 0;
+    const int code = bucketCode_[(bits - firstBits_) >> kBucketShift];
+    return static_cast<std::uint8_t>(code + (linear >= thresholds_[code]));
+  }
 
  private:
-  float thresholds_[255];  // smallest linear value that encodes to i + 1
+  static constexpr int kBucketShift = 13;
+  float thresholds_[256];                  // smallest linear value that encodes to i + 1; [255] = +inf
+  std::uint32_t firstBits_ = 0;            // bit pattern of thresholds_[0]
+  std::vector<std::uint8_t> bucketCode_;  // code of each bucket's first float
 };
 
 }  // namespace nbtf
