@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -60,6 +61,43 @@ CompressOptions adaptiveOptions() {
   o.adaptive.initialClusters = 3;
   o.adaptive.maxClusters = 12;
   return o;
+}
+
+// The budget's k: bytes that grow by a latent (+2) per cluster and by the same bytes per
+// doubling of k (the id stream) are predicted exactly from two stages, so the estimate is the
+// largest k that fits; one stage (or two of the same k) gives the linear floor alone; a budget
+// below the current file shrinks k; bytes that fell between stages (entropy coding noise) do
+// not make later clusters cheaper than the floor.
+TEST(Adaptive, BudgetEstimateFollowsTheIdStreamsLogarithmicGrowth) {
+  const double latent = 16;
+  auto model = [&](int k) { return 40000 + (latent + 2) * k + 1500 * std::log2(k); };
+  auto stage = [](int k, double bytes) {
+    AdaptiveStage s;
+    s.clusters = k, s.bytes = static_cast<std::uint64_t>(std::llround(bytes));
+    return s;
+  };
+  auto largestFitting = [&](double allowed, auto bytesOf) {
+    int k = 1;
+    while (k < 5000 && bytesOf(k + 1) <= allowed) ++k;
+    return k;
+  };
+  std::vector<AdaptiveStage> stages{stage(100, model(100)), stage(200, model(200))};
+  for (double allowed : {model(200) + 900, model(200) + 2000, model(200) + 20000}) {
+    const int k = detail::clustersWithinBudget(stages, latent, allowed, 5000);
+    EXPECT_NEAR(k, largestFitting(allowed, model), 1) << allowed;
+    // A straight line through the two stages (the earlier estimate) gives fewer.
+    const double slope = (model(200) - model(100)) / 100;
+    EXPECT_GT(k, 200 + static_cast<int>((allowed - model(200)) / slope)) << allowed;
+  }
+  EXPECT_EQ(detail::clustersWithinBudget(stages, latent, model(200) + 20000, 300), 300);  // capped
+  EXPECT_LT(detail::clustersWithinBudget(stages, latent, model(150), 5000), 200);         // shrinks
+  EXPECT_EQ(detail::clustersWithinBudget(stages, latent, 10, 5000), 1);
+
+  const std::vector<AdaptiveStage> one{stage(200, 50000)};
+  EXPECT_EQ(detail::clustersWithinBudget(one, latent, 50000 + 18 * 50, 5000), 250);
+  const std::vector<AdaptiveStage> fell{stage(37, 53264), stage(45, 53096)};
+  EXPECT_EQ(detail::clustersWithinBudget(fell, latent, 53096 + 18 * 20, 5000), 65);
+  EXPECT_THROW(detail::clustersWithinBudget({}, latent, 1e6, 10), Error);
 }
 
 TEST(Adaptive, StagesGrowTheClustersAndAreRecordedInTheFile) {

@@ -271,6 +271,30 @@ std::vector<std::pair<int, int>> chooseMerges(const std::vector<float>& latents,
 
 namespace detail {
 
+int clustersWithinBudget(const std::vector<AdaptiveStage>& stages, double latentBytes, double bytesAllowed, int kMax) {
+  if (stages.empty() || stages.back().clusters < 1 || kMax < 1)
+    throw Error("cluster budget: no stage with clusters to estimate from");
+  const AdaptiveStage& now = stages.back();
+  const double kNow = now.clusters, bytesNow = static_cast<double>(now.bytes), perCluster = latentBytes + 2;
+  double perDoubling = 0;
+  if (stages.size() >= 2) {
+    const AdaptiveStage& before = stages[stages.size() - 2];
+    if (before.clusters >= 1 && before.clusters != now.clusters)
+      perDoubling = std::max(0.0, (bytesNow - static_cast<double>(before.bytes) - perCluster * (kNow - before.clusters)) /
+                                      (std::log2(kNow) - std::log2(static_cast<double>(before.clusters))));
+  }
+  auto estimate = [&](int k) { return bytesNow + perCluster * (k - kNow) + perDoubling * (std::log2(k) - std::log2(kNow)); };
+  // The estimate grows with k: bisect for the last k that fits (at least 1: the caller's
+  // final merges enforce the budget itself).
+  int lo = 1, hi = kMax;
+  while (lo < hi) {
+    const int mid = lo + (hi - lo + 1) / 2;
+    if (estimate(mid) <= bytesAllowed) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
 int initialAdaptiveClusters(const CompressOptions& o, std::int64_t texels) {
   const AdaptiveOptions& a = o.adaptive;
   validateAdaptiveOptions(a, "adaptive options");
@@ -502,20 +526,8 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
     // Where k should go: toward the cap (or the budget's estimate) geometrically over the
     // rounds left; with neither, doubling; no growth once the target is met.
     int kCap = kCapFixed;
-    if (a.sizeBudget > 0) {
-      const AdaptiveStage& now = stages.back();
-      double perCluster = latentBytes + 2;
-      if (stages.size() >= 2) {
-        const AdaptiveStage& before = stages[stages.size() - 2];
-        if (now.clusters != before.clusters) {
-          const double slope = (static_cast<double>(now.bytes) - static_cast<double>(before.bytes)) /
-                               (now.clusters - before.clusters);
-          perCluster = std::max(perCluster, slope);
-        }
-      }
-      const double room = 0.99 * static_cast<double>(a.sizeBudget) - static_cast<double>(now.bytes);
-      kCap = std::min<double>(kCap, std::max(1.0, k + std::floor(room / perCluster)));
-    }
+    if (a.sizeBudget > 0)
+      kCap = clustersWithinBudget(stages, latentBytes, 0.99 * static_cast<double>(a.sizeBudget), kCapFixed);
     int kNext;
     if (a.targetRmse > 0 && last.rmseTrain <= a.targetRmse) {
       kNext = std::min(k, kCap);

@@ -54,6 +54,15 @@ std::string adaptiveStatePath(const std::string& checkpointPath);
 
 namespace detail {
 
+// The largest k in 1 .. kMax whose file is estimated to take at most `bytesAllowed`, from the
+// stages so far (the last one's k and bytes): bytes(k) = bytes_now + (latentBytes + 2)
+// (k - k_now) + c (log2 k - log2 k_now). The linear part is a latent and the id stream's
+// least cost per cluster; c >= 0 is what the id stream adds per doubling of k (its entropy
+// grows about like log2 k bits per texel), fitted to the last two stages of different k (0
+// with one). A straight line through two stages overestimates the cost of the next clusters,
+// since each doubling of k costs the ids about the same bytes, and left budgets unused.
+int clustersWithinBudget(const std::vector<AdaptiveStage>& stages, double latentBytes, double bytesAllowed, int kMax);
+
 // k of the first stage.
 int initialAdaptiveClusters(const CompressOptions& o, std::int64_t texels);
 
