@@ -157,11 +157,6 @@ std::uint32_t bitsOf(float f) {
 
 Srgb8Encoder::Srgb8Encoder() {
   // Non-negative floats order like their bit patterns: bisect on the bits.
-  auto codeOf = [this](float x, int thresholdsKnown) {
-    int code = 0;
-    while (code < thresholdsKnown && thresholds_[code] <= x) ++code;
-    return code;
-  };
   for (int i = 0; i < 255; ++i) {
     std::uint32_t lo = 0, hi = bitsOf(1.0f);
     while (lo < hi) {
@@ -172,14 +167,17 @@ Srgb8Encoder::Srgb8Encoder() {
     thresholds_[i] = floatFromBits(lo);
   }
   thresholds_[255] = INFINITY;
+  auto codeOf = [this](float x) {  // the number of thresholds <= x
+    return static_cast<int>(std::upper_bound(thresholds_, thresholds_ + 255, x) - thresholds_);
+  };
   firstBits_ = bitsOf(thresholds_[0]);
   const std::uint32_t buckets = ((bitsOf(1.0f) - firstBits_) >> kBucketShift) + 1;
   bucketCode_.resize(buckets);
   for (std::uint32_t b = 0; b < buckets; ++b) {
     const std::uint32_t first = firstBits_ + (b << kBucketShift), last = first + (1u << kBucketShift) - 1;
-    bucketCode_[b] = static_cast<std::uint8_t>(codeOf(floatFromBits(first), 255));
+    bucketCode_[b] = static_cast<std::uint8_t>(codeOf(floatFromBits(first)));
     // One comparison finishes a value only if its bucket holds at most one threshold.
-    if (codeOf(floatFromBits(std::min(last, bitsOf(1.0f))), 255) > bucketCode_[b] + 1)
+    if (codeOf(floatFromBits(std::min(last, bitsOf(1.0f)))) > bucketCode_[b] + 1)
       throw Error("Srgb8Encoder: two sRGB rounding thresholds in one table bucket");
   }
 }
