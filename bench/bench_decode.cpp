@@ -210,27 +210,26 @@ int main(int argc, char** argv) {
   // paper's 4 stereographic inputs and with the default's 28 (stereographic + Fourier), side by
   // side. Whole images compute the direction part of the first layer once per image; a query
   // brings its own directions, so it pays for the wider first layer and the sines and cosines.
-  NbtfDecoder paperInputs(makeMaterial(true, 2, DirectionEncoding::Stereographic));
-  NbtfDecoder fourierInputs(makeMaterial(true, 2, DirectionEncoding::StereographicFourier));
+  const NbtfDecoder inputKinds[2] = {NbtfDecoder(makeMaterial(true, 2, DirectionEncoding::Stereographic)),
+                                     NbtfDecoder(makeMaterial(true, 2, DirectionEncoding::StereographicFourier))};
+  struct Seconds {
+    double mem = 1e300, query = 1e300, uv = 1e300;
+  } inputs[2];
   // Interleaved rounds, the best of each kept: the machine's speed drifts over seconds.
-  double memPaper = 1e300, qPaper = 1e300, uvPaper = 1e300, memFourier = 1e300, qFourier = 1e300, uvFourier = 1e300;
   for (int round = 0; round < 3; ++round)
-    for (const NbtfDecoder* d : {&paperInputs, &fourierInputs}) {
-      const bool fourier = d == &fourierInputs;
-      double& mem = fourier ? memFourier : memPaper;
-      double& q = fourier ? qFourier : qPaper;
-      double& uvs = fourier ? uvFourier : uvPaper;
-      mem = std::min(mem, bestOf(1, [&] { decodeStack(*d, SampleType::Srgb8, lights, {}, false); }));
-      q = std::min(q, bestOf(1, [&] { d->evaluate(queries.data(), n, rgb.data()); }));
-      uvs = std::min(uvs, bestOf(1, [&] { d->evaluate(uv.data(), n, rgb.data()); }));
+    for (int kind = 0; kind < 2; ++kind) {
+      const NbtfDecoder& d = inputKinds[kind];
+      Seconds& t = inputs[kind];
+      t.mem = std::min(t.mem, bestOf(1, [&] { decodeStack(d, SampleType::Srgb8, lights, {}, false); }));
+      t.query = std::min(t.query, bestOf(1, [&] { d.evaluate(queries.data(), n, rgb.data()); }));
+      t.uv = std::min(t.uv, bestOf(1, [&] { d.evaluate(uv.data(), n, rgb.data()); }));
     }
-  for (const NbtfDecoder* d : {&paperInputs, &fourierInputs}) {
-    const bool fourier = d == &fourierInputs;
+  for (int kind = 0; kind < 2; ++kind)
     std::printf("direction inputs %s (%.0f FLOPs): %d images in memory %.3f s; queries %.3g/s (texel + angles), "
                 "%.3g/s (uv + unit vectors)\n",
-                directionEncodingName(d->directionEncoding()).c_str(), d->flopsPerEvaluation(), images,
-                fourier ? memFourier : memPaper, n / (fourier ? qFourier : qPaper), n / (fourier ? uvFourier : uvPaper));
-  }
+                directionEncodingName(inputKinds[kind].directionEncoding()).c_str(),
+                inputKinds[kind].flopsPerEvaluation(), images, inputs[kind].mem, n / inputs[kind].query,
+                n / inputs[kind].uv);
 
   double eigen2 = eigenGemmGflops(2048, 3), torch2 = torchGemmGflops(2048, 3);
   std::printf("matmul 2048^2 float (again): Eigen %.1f GFLOP/s, libtorch mm %.1f GFLOP/s\n", eigen2, torch2);
@@ -243,11 +242,11 @@ int main(int argc, char** argv) {
               n / qClustered, n / qPerTexel, n / qUv);
   std::printf("result flops_per_eval %.0f\n", flops);
   std::printf("result eigen_gflops %.3f\nresult torch_gflops %.3f\n", eigen, torchRate);
-  std::printf("result inputs_mem_stereographic_s %.4f\nresult inputs_mem_fourier_s %.4f\n", memPaper, memFourier);
-  std::printf("result inputs_query_stereographic_qps %.6g\nresult inputs_query_fourier_qps %.6g\n", n / qPaper,
-              n / qFourier);
-  std::printf("result inputs_uv_stereographic_qps %.6g\nresult inputs_uv_fourier_qps %.6g\n", n / uvPaper,
-              n / uvFourier);
+  for (int kind = 0; kind < 2; ++kind) {
+    const char* name = kind == 0 ? "stereographic" : "fourier";
+    std::printf("result inputs_mem_%s_s %.4f\nresult inputs_query_%s_qps %.6g\nresult inputs_uv_%s_qps %.6g\n", name,
+                inputs[kind].mem, name, n / inputs[kind].query, name, n / inputs[kind].uv);
+  }
   std::printf("result isa %s\n", decoderIsaName(clustered.isa()).c_str());
   return 0;
 }
