@@ -207,11 +207,11 @@ int main(int argc, char** argv) {
   std::printf("queries (uv + unit vectors), clustered: %.3g queries/s = %.1f GFLOP/s\n", n / qUv, gflops(qUv));
 
   // ---- What the direction inputs cost: the same clustered shapes (random weights) with the
-  // paper's 4 stereographic inputs and with the default's 28 (stereographic + Fourier), side by
+  // paper's 4 stereographic inputs and with the default's 20 (stereographic + 2 Fourier octaves), side by
   // side. Whole images compute the direction part of the first layer once per image; a query
   // brings its own directions, so it pays for the wider first layer and the sines and cosines.
   const NbtfDecoder inputKinds[2] = {NbtfDecoder(makeMaterial(true, 2, DirectionEncoding::Stereographic)),
-                                     NbtfDecoder(makeMaterial(true, 2, DirectionEncoding::StereographicFourier))};
+                                     NbtfDecoder(makeMaterial(true, 2, DirectionEncoding::StereographicFourier2))};
   struct Seconds {
     double mem = 1e300, query = 1e300, uv = 1e300;
   } inputs[2];

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Benchmark of decoding (issue 5): a 100 x 100-texel material (81 x 81 images) compressed
-# with the defaults (decoder 36-106-106-106-3: latent 8 + stereographic and Fourier direction
+# with the defaults (decoder 28-106-106-106-3: latent 8 + stereographic and Fourier direction
 # inputs) with k = 500 and the same material per-texel, measured in one run: seconds to
 # reconstruct all 6561 images (in memory as an 8-bit sRGB stack, and written as PNG files),
 # batched query throughput, the machine's float matmul rate (Eigen and libtorch mm, 2048^2,
@@ -63,7 +63,7 @@ print(f"batched queries: clustered {f['query_clustered_qps']:.3g}/s, per-texel {
 mem_cost = f["inputs_mem_fourier_s"] / f["inputs_mem_stereographic_s"]
 query_cost = f["inputs_query_stereographic_qps"] / f["inputs_query_fourier_qps"]
 uv_cost = f["inputs_uv_stereographic_qps"] / f["inputs_uv_fourier_qps"]
-print(f"direction inputs (clustered k = 500, random weights, same shapes otherwise): stereographic+fourier "
+print(f"direction inputs (clustered k = 500, random weights, same shapes otherwise): stereographic+fourier2 "
       f"against stereographic: all images in memory {mem_cost:.2f}x the time; queries (texel + angles) "
       f"{query_cost:.2f}x the time ({f['inputs_query_fourier_qps']:.3g}/s against "
       f"{f['inputs_query_stereographic_qps']:.3g}/s); queries (uv + unit vectors) {uv_cost:.2f}x")

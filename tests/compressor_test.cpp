@@ -99,9 +99,9 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
   double floor = clusterMeanRmse(m.stack, b.alpha, b.ids, 6), baseline = testing::imageMeanRmse(m);
   EXPECT_LT(floor, 0.6 * baseline);  // k-means found the material's structure
   EXPECT_LT(decoded, floor + 0.15 * (baseline - floor)) << "floor " << floor << ", image-mean " << baseline;
-  // Sizes are the file's: 24,383 decoder parameters and 24 x 106 more for the default's
-  // Fourier direction inputs, 6 x 8 latents, 64 one-byte ids.
-  EXPECT_EQ(stats.sizes.decoder, (24383u + 24 * 106) * 4);
+  // Sizes are the file's: 24,383 decoder parameters and 16 x 106 more for the default's
+  // two-octave Fourier direction inputs, 6 x 8 latents, 64 one-byte ids.
+  EXPECT_EQ(stats.sizes.decoder, (24383u + 16 * 106) * 4);
   EXPECT_EQ(stats.sizes.latents, 6u * 8 * 4);
   EXPECT_EQ(stats.sizes.ids, 64u);
   EXPECT_EQ(stats.sizes.rawFloat32, 64u * 81 * 12);

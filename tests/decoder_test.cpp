@@ -64,7 +64,8 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
     for (const auto& widths : shapes) {
       // Every shape with the paper's direction inputs, the default one with the half vector too.
       for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier}) {
+                                         DirectionEncoding::StereographicFourier,
+                                         DirectionEncoding::StereographicFourier2}) {
       if (encoding != DirectionEncoding::Stereographic && widths != shapes[0]) continue;
       CompressedBtf b = makeDecoderMaterial(k, widths, 7, 5, 11, encoding);
       if (widths.size() == 3 && widths[1] == 5) b.decoder.layers[1].activation = Activation::Sigmoid;
@@ -85,7 +86,8 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
 TEST(Decoder, AgreesWithTheModelsForwardPass) {
   for (int k : {6, 0})
   for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier}) {
+                                         DirectionEncoding::StereographicFourier,
+                                         DirectionEncoding::StereographicFourier2}) {
     CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4, 11, encoding);
     NbtfDecoder dec(b);
     std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
@@ -308,6 +310,16 @@ TEST(Decoder, CommittedFormat16FileDecodesAsBefore) {
   EXPECT_EQ(b.modulation.channels, 3);
 }
 
+// Format 1.7 (two-octave Fourier direction inputs, the default since session 16), written by
+// `nbtf compress` of the same satin with the same options and the default config (session 16).
+TEST(Decoder, CommittedFormat17FileDecodesAsBefore) {
+  expectCommittedAnswers("compact_v1_7", 7, 6);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_7.nbtf");
+  EXPECT_EQ(b.directionEncoding, DirectionEncoding::StereographicFourier2);
+  EXPECT_EQ(b.decoder.inputSize(), b.latentDim + 20);
+  EXPECT_EQ(b.modulation.channels, 3);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);
@@ -324,7 +336,8 @@ TEST(Decoder, BatchEqualsSingleQueries) {
   setThreadCount(2);
   for (int k : {5, 0})
   for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier}) {
+                                         DirectionEncoding::StereographicFourier,
+                                         DirectionEncoding::StereographicFourier2}) {
     CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 7, 5, 11, encoding);
     NbtfDecoder dec(b);
     std::mt19937 rng(3);
@@ -397,7 +410,8 @@ TEST(Decoder, LargerImagesTileTheTexture) {
 
 TEST(Decoder, UnitVectorQueriesMatchAngles) {
   for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier}) {
+                                         DirectionEncoding::StereographicFourier,
+                                         DirectionEncoding::StereographicFourier2}) {
   CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5, 11, encoding);
   NbtfDecoder dec(b);
   std::vector<UvQuery> qs;

@@ -108,27 +108,41 @@ TEST(Directions, HalfVectorEncodingExtendsTheStereographicOne) {
   for (int q = 0; q < 8; ++q) EXPECT_NEAR(fromVectors[q], half[q], 1e-6) << q;
 }
 
-// The Fourier encoding: the paper's 4 values, then sin and cos of pi 2^o times each of them.
+// The Fourier encodings: the paper's 4 values, then sin and cos of pi 2^o times each of them,
+// octaves 0..2 (encoding 3) or 0..1 (encoding 4, the default: the same values without octave 2).
 TEST(Directions, FourierEncodingAddsSinesAndCosinesOfTheStereographicCoordinates) {
-  EXPECT_EQ(directionInputCount(DirectionEncoding::StereographicFourier), 4 + 4 * 2 * kFourierOctaves);
-  EXPECT_LE(directionInputCount(DirectionEncoding::StereographicFourier), kMaxDirectionInputs);
+  EXPECT_EQ(fourierOctaves(DirectionEncoding::StereographicFourier), 3);
+  EXPECT_EQ(fourierOctaves(DirectionEncoding::StereographicFourier2), 2);
+  EXPECT_EQ(fourierOctaves(DirectionEncoding::Stereographic), 0);
+  EXPECT_EQ(fourierOctaves(DirectionEncoding::StereographicHalf), 0);
+  EXPECT_EQ(directionInputCount(DirectionEncoding::StereographicFourier), 28);
+  EXPECT_EQ(directionInputCount(DirectionEncoding::StereographicFourier2), 20);
+  EXPECT_EQ(kMaxDirectionInputs, 28);
   const Direction light{30, 60}, view{70, 300};
-  float paper[kMaxDirectionInputs], fourier[kMaxDirectionInputs];
+  float paper[kMaxDirectionInputs], three[kMaxDirectionInputs];
   encodeDirections(DirectionEncoding::Stereographic, light, view, paper);
-  encodeDirections(DirectionEncoding::StereographicFourier, light, view, fourier);
-  for (int q = 0; q < 4; ++q) EXPECT_EQ(fourier[q], paper[q]);
-  for (int c = 0; c < 4; ++c)
-    for (int o = 0; o < kFourierOctaves; ++o) {
-      const double a = M_PI * (1 << o) * paper[c];
-      EXPECT_NEAR(fourier[4 + 2 * (c * kFourierOctaves + o)], std::sin(a), 1e-6) << c << " " << o;
-      EXPECT_NEAR(fourier[4 + 2 * (c * kFourierOctaves + o) + 1], std::cos(a), 1e-6) << c << " " << o;
-    }
-  // The unit-vector form gives the same inputs.
-  float fromVectors[kMaxDirectionInputs];
-  encodeDirections(DirectionEncoding::StereographicFourier, light.unitVector(), view.unitVector(), fromVectors);
-  for (int q = 0; q < directionInputCount(DirectionEncoding::StereographicFourier); ++q)
-    EXPECT_NEAR(fromVectors[q], fourier[q], 1e-5) << q;
-  EXPECT_NE(directionEncodingDescription(DirectionEncoding::StereographicFourier).find("28 inputs"), std::string::npos);
+  encodeDirections(DirectionEncoding::StereographicFourier, light, view, three);
+  for (DirectionEncoding e : {DirectionEncoding::StereographicFourier, DirectionEncoding::StereographicFourier2}) {
+    const int octaves = fourierOctaves(e);
+    float fourier[kMaxDirectionInputs];
+    encodeDirections(e, light, view, fourier);
+    for (int q = 0; q < 4; ++q) EXPECT_EQ(fourier[q], paper[q]);
+    for (int c = 0; c < 4; ++c)
+      for (int o = 0; o < octaves; ++o)
+        for (int j = 0; j < 2; ++j) {
+          const double a = M_PI * (1 << o) * paper[c];
+          const float got = fourier[4 + 2 * (c * octaves + o) + j];
+          EXPECT_NEAR(got, j == 0 ? std::sin(a) : std::cos(a), 1e-6) << c << " " << o;
+          EXPECT_EQ(got, three[4 + 2 * (c * 3 + o) + j]) << c << " " << o;  // same bits as encoding 3's
+        }
+    // The unit-vector form gives the same inputs.
+    float fromVectors[kMaxDirectionInputs];
+    encodeDirections(e, light.unitVector(), view.unitVector(), fromVectors);
+    for (int q = 0; q < directionInputCount(e); ++q) EXPECT_NEAR(fromVectors[q], fourier[q], 1e-5) << q;
+    const std::string count = std::to_string(directionInputCount(e)) + " inputs";
+    EXPECT_NE(directionEncodingDescription(e).find(count), std::string::npos) << directionEncodingDescription(e);
+    EXPECT_NE(directionEncodingDescription(e).find(std::to_string(octaves) + " octaves"), std::string::npos);
+  }
 }
 
 // The octaves above 0 come from doubling the angle, not from libm (queries pay for the sines
@@ -138,17 +152,18 @@ TEST(Directions, FourierEncodingAddsSinesAndCosinesOfTheStereographicCoordinates
 TEST(Directions, FourierOctavesByAngleDoublingMatchTheDirectSinesAndCosines) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> theta(0, 90), phi(0, 360);
+  const int octaves = fourierOctaves(DirectionEncoding::StereographicFourier);
   int differing = 0;
   for (int i = 0; i < 20000; ++i) {
     const Direction light{theta(rng), phi(rng)}, view{theta(rng), phi(rng)};
     float in[kMaxDirectionInputs];
     encodeDirections(DirectionEncoding::StereographicFourier, light, view, in);
     for (int c = 0; c < 4; ++c)
-      for (int o = 0; o < kFourierOctaves; ++o) {
+      for (int o = 0; o < octaves; ++o) {
         const double a = M_PI * (1 << o) * in[c];
         const float direct[2] = {static_cast<float>(std::sin(a)), static_cast<float>(std::cos(a))};
         for (int j = 0; j < 2; ++j) {
-          const float got = in[4 + 2 * (c * kFourierOctaves + o) + j];
+          const float got = in[4 + 2 * (c * octaves + o) + j];
           EXPECT_LE(std::fabs(got - direct[j]), std::nextafter(std::fabs(direct[j]), 2.f) - std::fabs(direct[j]))
               << "coordinate " << c << " octave " << o;
           differing += got != direct[j];
@@ -160,13 +175,12 @@ TEST(Directions, FourierOctavesByAngleDoublingMatchTheDirectSinesAndCosines) {
 
 TEST(Directions, EncodingNamesRoundTripAndUnknownNamesAreRefused) {
   for (DirectionEncoding e : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                              DirectionEncoding::StereographicFourier})
+                              DirectionEncoding::StereographicFourier, DirectionEncoding::StereographicFourier2})
     EXPECT_EQ(parseDirectionEncoding(directionEncodingName(e)), e);
-  EXPECT_TRUE(isDirectionEncoding(1));
-  EXPECT_TRUE(isDirectionEncoding(2));
-  EXPECT_TRUE(isDirectionEncoding(3));
+  EXPECT_EQ(directionEncodingName(DirectionEncoding::StereographicFourier2), "stereographic+fourier2");
+  for (int code = 1; code <= 4; ++code) EXPECT_TRUE(isDirectionEncoding(code)) << code;
   EXPECT_FALSE(isDirectionEncoding(0));
-  EXPECT_FALSE(isDirectionEncoding(4));
+  EXPECT_FALSE(isDirectionEncoding(5));
   try {
     parseDirectionEncoding("half");
     FAIL() << "expected an error";

@@ -90,8 +90,8 @@ TEST(Mlp, ValidateRejectsBrokenNetworks) {
 TEST(Mlp, PaperDecoderHas24383Parameters) {
   ModelConfig paper;
   paper.directionInputs = DirectionEncoding::Stereographic;
-  // The default's Fourier inputs add 24 first-layer inputs: 24 x 106 weights.
-  EXPECT_EQ(decoderShape(ModelConfig{}).parameterCount(), 24383u + 24 * 106);
+  // The default's Fourier inputs (2 octaves) add 16 first-layer inputs: 16 x 106 weights.
+  EXPECT_EQ(decoderShape(ModelConfig{}).parameterCount(), 24383u + 16 * 106);
   Mlp decoder = decoderShape(paper);
   ASSERT_EQ(decoder.layers.size(), 4u);
   EXPECT_EQ(decoder.inputSize(), 12);

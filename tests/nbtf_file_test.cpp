@@ -697,25 +697,35 @@ TEST(NbtfFile, HalfVectorDirectionInputsAreFormat13AndChecked) {
   }
 }
 
-// The Fourier direction inputs are format 1.6 (a 1.5 reader refuses encoding 3 by name), and
-// the reader checks the first layer's width against them.
-TEST(NbtfFile, FourierDirectionInputsAreFormat16AndChecked) {
-  CompressedBtf b = makeBtf(5);
-  std::mt19937 rng(4);
-  const int inputs = directionInputCount(DirectionEncoding::StereographicFourier);
-  b.directionEncoding = DirectionEncoding::StereographicFourier;
-  b.decoder = makeDecoder(b.latentDim, {6, 5}, rng, inputs);
-  std::vector<std::uint8_t> bytes = serializeNbtf(b);
-  EXPECT_EQ(bytes[10], 6);  // format 1.6
-  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
-  EXPECT_EQ(back.directionEncoding, DirectionEncoding::StereographicFourier);
-  EXPECT_EQ(back.decoder.layers[0].in, b.latentDim + inputs);
-  EXPECT_EQ(serializeNbtf(back), bytes);
-  std::vector<std::uint8_t> bad = bytes;
-  std::size_t at = findSection(bad, "INFO");
-  bad[at + 24 + 1] = 2;
-  resealSection(bad, at);
-  EXPECT_TRUE(contains(errorOf(bad), "expected 16 (latent + 8 direction inputs, stereographic+half)")) << errorOf(bad);
+// The Fourier direction inputs are format 1.6 with 3 octaves (a 1.5 reader refuses encoding 3
+// by name) and 1.7 with 2 (encoding 4), and the reader checks the first layer's width against them.
+TEST(NbtfFile, FourierDirectionInputsAreFormat16Or17AndChecked) {
+  for (auto [encoding, minor] : {std::pair{DirectionEncoding::StereographicFourier, 6},
+                                 std::pair{DirectionEncoding::StereographicFourier2, 7}}) {
+    CompressedBtf b = makeBtf(5);
+    std::mt19937 rng(4);
+    const int inputs = directionInputCount(encoding);
+    b.directionEncoding = encoding;
+    b.decoder = makeDecoder(b.latentDim, {6, 5}, rng, inputs);
+    std::vector<std::uint8_t> bytes = serializeNbtf(b);
+    EXPECT_EQ(bytes[10], minor);  // format 1.6 / 1.7
+    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(back.directionEncoding, encoding);
+    EXPECT_EQ(back.decoder.layers[0].in, b.latentDim + inputs);
+    EXPECT_EQ(serializeNbtf(back), bytes);
+    std::vector<std::uint8_t> bad = bytes;
+    std::size_t at = findSection(bad, "INFO");
+    bad[at + 24 + 1] = 2;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), "expected 16 (latent + 8 direction inputs, stereographic+half)")) << errorOf(bad);
+    // The two Fourier encodings differ in width, so one cannot pass for the other.
+    bad = bytes;
+    bad[at + 24 + 1] = encoding == DirectionEncoding::StereographicFourier ? 4 : 3;
+    resealSection(bad, at);
+    EXPECT_TRUE(contains(errorOf(bad), encoding == DirectionEncoding::StereographicFourier ? "20 direction inputs"
+                                                                                          : "28 direction inputs"))
+        << errorOf(bad);
+  }
 }
 
 // A file written by nbtf before format 1.2 (tests/data/legacy_v1_0.nbtf, made by the

@@ -633,7 +633,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(btf.directionEncoding == DirectionEncoding::StereographicFourier ? std::uint16_t(6)
+  file.u16(btf.directionEncoding == DirectionEncoding::StereographicFourier2  ? std::uint16_t(7)
+           : btf.directionEncoding == DirectionEncoding::StereographicFourier ? std::uint16_t(6)
            : btf.modulation.channels != 1 ? std::uint16_t(5)
            : btf.storage.metadataZstd || btf.storage.decoderInt8 || btf.storage.directionsZstd ? std::uint16_t(4)
            : btf.directionEncoding != DirectionEncoding::Stereographic ? std::uint16_t(3)

@@ -29,9 +29,10 @@ namespace nbtf {
 // decoders with a direction encoding other than the paper's stereographic pair, 1.4 for 8-bit
 // decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ), 1.5 for per-channel
 // modulation coefficients (TXCH), 1.6 for the Fourier direction inputs (encoding 3: a reader
-// before 1.6 refuses the file as having an unknown direction encoding).
+// before 1.6 refuses the file as having an unknown direction encoding), 1.7 for the two-octave
+// Fourier inputs (encoding 4, the default since session 16).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 6;
+constexpr std::uint16_t kNbtfFormatMinor = 7;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};

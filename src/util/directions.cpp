@@ -59,38 +59,46 @@ std::array<float, 2> stereographic(const Direction& d) {
   return {static_cast<float>(r * std::cos(p)), static_cast<float>(r * std::sin(p))};
 }
 
-bool isDirectionEncoding(int code) { return code >= 1 && code <= 3; }
+bool isDirectionEncoding(int code) { return code >= 1 && code <= 4; }
+
+int fourierOctaves(DirectionEncoding encoding) {
+  if (encoding == DirectionEncoding::StereographicFourier) return 3;
+  return encoding == DirectionEncoding::StereographicFourier2 ? 2 : 0;
+}
 
 int directionInputCount(DirectionEncoding encoding) {
-  switch (encoding) {
-    case DirectionEncoding::StereographicHalf: return 8;
-    case DirectionEncoding::StereographicFourier: return 4 + 4 * 2 * kFourierOctaves;
-    default: return 4;
-  }
+  if (encoding == DirectionEncoding::StereographicHalf) return 8;
+  return 4 + 4 * 2 * fourierOctaves(encoding);
 }
 
 std::string directionEncodingName(DirectionEncoding encoding) {
-  if (encoding == DirectionEncoding::StereographicFourier) return "stereographic+fourier";
-  return encoding == DirectionEncoding::StereographicHalf ? "stereographic+half" : "stereographic";
+  switch (encoding) {
+    case DirectionEncoding::StereographicHalf: return "stereographic+half";
+    case DirectionEncoding::StereographicFourier: return "stereographic+fourier";
+    case DirectionEncoding::StereographicFourier2: return "stereographic+fourier2";
+    default: return "stereographic";
+  }
 }
 
 std::string directionEncodingDescription(DirectionEncoding encoding) {
   const std::string base = "stereographic projection (eq. 7-9), light then view";
-  switch (encoding) {
-    case DirectionEncoding::StereographicHalf:
-      return base + ", + half vector and cos(theta_d) (stereographic+half, 8 inputs)";
-    case DirectionEncoding::StereographicFourier:
-      return base + ", + sin and cos of each at " + std::to_string(kFourierOctaves) +
-             " octaves (stereographic+fourier, " + std::to_string(directionInputCount(encoding)) + " inputs)";
-    default: return base + " (4 inputs)";
-  }
+  const std::string inputs = std::to_string(directionInputCount(encoding)) + " inputs)";
+  if (encoding == DirectionEncoding::StereographicHalf)
+    return base + ", + half vector and cos(theta_d) (stereographic+half, " + inputs;
+  if (fourierOctaves(encoding) > 0)
+    return base + ", + sin and cos of each at " + std::to_string(fourierOctaves(encoding)) + " octaves (" +
+           directionEncodingName(encoding) + ", " + inputs;
+  return base + " (" + inputs;
 }
 
 DirectionEncoding parseDirectionEncoding(const std::string& name) {
-  if (name == "stereographic") return DirectionEncoding::Stereographic;
-  if (name == "stereographic+half") return DirectionEncoding::StereographicHalf;
-  if (name == "stereographic+fourier") return DirectionEncoding::StereographicFourier;
-  throw Error("unknown direction encoding \"" + name + "\" (expected \"stereographic\", \"stereographic+half\" or \"stereographic+fourier\")");
+  for (int code = 1; isDirectionEncoding(code); ++code) {
+    const auto encoding = static_cast<DirectionEncoding>(code);
+    if (name == directionEncodingName(encoding)) return encoding;
+  }
+  throw Error("unknown direction encoding \"" + name +
+              "\" (expected \"stereographic\", \"stereographic+half\", \"stereographic+fourier\" or "
+              "\"stereographic+fourier2\")");
 }
 
 namespace {
@@ -112,15 +120,15 @@ void halfVectorInputs(const std::array<double, 3>& light, const std::array<doubl
   out[3] = static_cast<float>(light[0] * h[0] + light[1] * h[1] + light[2] * h[2]);
 }
 
-// sin and cos of 2^o pi c for o = 0 .. kFourierOctaves - 1. Only octave 0 calls libm; each
+// sin and cos of 2^o pi c for o = 0 .. octaves - 1. Only octave 0 calls libm; each
 // higher octave doubles the angle (sin 2a = 2 sin a cos a, cos 2a = cos^2 a - sin^2 a), a few
 // double ulps from the direct sin and cos, far below the float the inputs are stored in. A
-// query brings its own directions, so this is per query: 8 libm calls instead of 24.
-void fourierInputs(const float* stereo, float* out) {
+// query brings its own directions, so this is per query: 8 libm calls instead of 8 per octave.
+void fourierInputs(const float* stereo, int octaves, float* out) {
   for (int c = 0; c < 4; ++c) {
     const double a = kPi * stereo[c];
     double s = std::sin(a), co = std::cos(a);
-    for (int o = 0; o < kFourierOctaves; ++o) {
+    for (int o = 0; o < octaves; ++o) {
       *out++ = static_cast<float>(s);
       *out++ = static_cast<float>(co);
       const double s2 = 2 * s * co, c2 = co * co - s * s;
@@ -135,14 +143,14 @@ void encodeDirections(DirectionEncoding encoding, const std::array<double, 3>& l
   stereographicOfUnit(light, out);
   stereographicOfUnit(view, out + 2);
   if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light, view, out + 4);
-  if (encoding == DirectionEncoding::StereographicFourier) fourierInputs(out, out + 4);
+  if (fourierOctaves(encoding) > 0) fourierInputs(out, fourierOctaves(encoding), out + 4);
 }
 
 void encodeDirections(DirectionEncoding encoding, const Direction& light, const Direction& view, float* out) {
   auto l = stereographic(light), v = stereographic(view);
   out[0] = l[0], out[1] = l[1], out[2] = v[0], out[3] = v[1];  // the paper's formula, as trained before
   if (encoding == DirectionEncoding::StereographicHalf) halfVectorInputs(light.unitVector(), view.unitVector(), out + 4);
-  if (encoding == DirectionEncoding::StereographicFourier) fourierInputs(out, out + 4);
+  if (fourierOctaves(encoding) > 0) fourierInputs(out, fourierOctaves(encoding), out + 4);
 }
 
 Direction parseDirection(const std::string& text, const std::string& what) {

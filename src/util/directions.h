@@ -42,12 +42,21 @@ std::array<float, 2> stereographic(const Direction& d);
 // stereographic coordinates c, sin(2^o pi c) and cos(2^o pi c) for octaves o = 0..2 (4 + 24
 // inputs): a ReLU network fits sharp angular features from them in far fewer steps than from
 // the coordinates alone (the spectral bias of MLPs; Tancik et al. 2020, Fourier features).
-enum class DirectionEncoding : std::uint8_t { Stereographic = 1, StereographicHalf = 2, StereographicFourier = 3 };
-constexpr int kFourierOctaves = 3;
-constexpr int kMaxDirectionInputs = 4 + 4 * 2 * kFourierOctaves;
+// StereographicFourier2 (format 1.7, the default) stops at octave 1 (4 + 16 inputs): octave 2
+// fits the measured images a little better but interpolates specular peaks between them worse.
+enum class DirectionEncoding : std::uint8_t {
+  Stereographic = 1,
+  StereographicHalf = 2,
+  StereographicFourier = 3,
+  StereographicFourier2 = 4
+};
+constexpr int kMaxFourierOctaves = 3;
+constexpr int kMaxDirectionInputs = 4 + 4 * 2 * kMaxFourierOctaves;
 bool isDirectionEncoding(int code);                              // a value this build knows
-int directionInputCount(DirectionEncoding encoding);             // 4, 8 or 28
-std::string directionEncodingName(DirectionEncoding encoding);   // "stereographic" | "stereographic+half" | "stereographic+fourier"
+int fourierOctaves(DirectionEncoding encoding);                  // 3, 2, or 0 for the encodings without them
+int directionInputCount(DirectionEncoding encoding);             // 4, 8, 28 or 20
+// "stereographic" | "stereographic+half" | "stereographic+fourier" | "stereographic+fourier2"
+std::string directionEncodingName(DirectionEncoding encoding);
 // What the inputs are, for info and reports ("stereographic projection (eq. 7-9), ... (N inputs)").
 std::string directionEncodingDescription(DirectionEncoding encoding);
 // Throws nbtf::Error naming the accepted names.
