@@ -300,24 +300,25 @@ TEST(Decoder, CommittedFormat15FileDecodesAsBefore) {
   EXPECT_EQ(b.modulation.terms, 1);
 }
 
-// Format 1.6 (Fourier direction inputs, the default since session 13), written by commit
-// 6325403's `nbtf compress` of the same satin with the same options and the default config.
-TEST(Decoder, CommittedFormat16FileDecodesAsBefore) {
-  expectCommittedAnswers("compact_v1_6", 6, 6);
-  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_6.nbtf");
-  EXPECT_EQ(b.directionEncoding, DirectionEncoding::StereographicFourier);
-  EXPECT_EQ(b.decoder.inputSize(), b.latentDim + 28);
+// A committed default file with Fourier direction inputs: its answers, encoding and first-layer width.
+void expectCommittedFourierFile(const std::string& name, int formatMinor, DirectionEncoding encoding, int inputs) {
+  expectCommittedAnswers(name, formatMinor, 6);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/" + name + ".nbtf");
+  EXPECT_EQ(b.directionEncoding, encoding);
+  EXPECT_EQ(b.decoder.inputSize(), b.latentDim + inputs);
   EXPECT_EQ(b.modulation.channels, 3);
 }
 
-// Format 1.7 (two-octave Fourier direction inputs, the default since session 16), written by
-// `nbtf compress` of the same satin with the same options and the default config (session 16).
+// Format 1.6 (Fourier direction inputs at 3 octaves, the default of sessions 13-15), written by
+// commit 6325403's `nbtf compress` of the same satin with the same options and the default config.
+TEST(Decoder, CommittedFormat16FileDecodesAsBefore) {
+  expectCommittedFourierFile("compact_v1_6", 6, DirectionEncoding::StereographicFourier, 28);
+}
+
+// Format 1.7 (2 octaves, the default since session 16), written by commit 9d1460f's `nbtf
+// compress` of the same satin with the same options and the default config.
 TEST(Decoder, CommittedFormat17FileDecodesAsBefore) {
-  expectCommittedAnswers("compact_v1_7", 7, 6);
-  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_7.nbtf");
-  EXPECT_EQ(b.directionEncoding, DirectionEncoding::StereographicFourier2);
-  EXPECT_EQ(b.decoder.inputSize(), b.latentDim + 20);
-  EXPECT_EQ(b.modulation.channels, 3);
+  expectCommittedFourierFile("compact_v1_7", 7, DirectionEncoding::StereographicFourier2, 20);
 }
 
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
