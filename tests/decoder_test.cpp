@@ -63,9 +63,7 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
   for (int k : {5, 0})
     for (const auto& widths : shapes) {
       // Every shape with the paper's direction inputs, the default one with the half vector too.
-      for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier,
-                                         DirectionEncoding::StereographicFourier2}) {
+      for (DirectionEncoding encoding : directionEncodings()) {
       if (encoding != DirectionEncoding::Stereographic && widths != shapes[0]) continue;
       CompressedBtf b = makeDecoderMaterial(k, widths, 7, 5, 11, encoding);
       if (widths.size() == 3 && widths[1] == 5) b.decoder.layers[1].activation = Activation::Sigmoid;
@@ -85,9 +83,7 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
 // inputs: decoder input = latent | stereographic light | stereographic view.
 TEST(Decoder, AgreesWithTheModelsForwardPass) {
   for (int k : {6, 0})
-  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier,
-                                         DirectionEncoding::StereographicFourier2}) {
+  for (DirectionEncoding encoding : directionEncodings()) {
     CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4, 11, encoding);
     NbtfDecoder dec(b);
     std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
@@ -336,9 +332,7 @@ TEST(Decoder, BatchEqualsSingleQueries) {
   // (the batch shares their first-layer work) and also change on every query.
   setThreadCount(2);
   for (int k : {5, 0})
-  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier,
-                                         DirectionEncoding::StereographicFourier2}) {
+  for (DirectionEncoding encoding : directionEncodings()) {
     CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 7, 5, 11, encoding);
     NbtfDecoder dec(b);
     std::mt19937 rng(3);
@@ -410,9 +404,7 @@ TEST(Decoder, LargerImagesTileTheTexture) {
 }
 
 TEST(Decoder, UnitVectorQueriesMatchAngles) {
-  for (DirectionEncoding encoding : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                                         DirectionEncoding::StereographicFourier,
-                                         DirectionEncoding::StereographicFourier2}) {
+  for (DirectionEncoding encoding : directionEncodings()) {
   CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5, 11, encoding);
   NbtfDecoder dec(b);
   std::vector<UvQuery> qs;

@@ -174,9 +174,11 @@ TEST(Directions, FourierOctavesByAngleDoublingMatchTheDirectSinesAndCosines) {
 }
 
 TEST(Directions, EncodingNamesRoundTripAndUnknownNamesAreRefused) {
-  for (DirectionEncoding e : {DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
-                              DirectionEncoding::StereographicFourier, DirectionEncoding::StereographicFourier2})
-    EXPECT_EQ(parseDirectionEncoding(directionEncodingName(e)), e);
+  EXPECT_EQ(directionEncodings(),
+            (std::vector<DirectionEncoding>{DirectionEncoding::Stereographic, DirectionEncoding::StereographicHalf,
+                                            DirectionEncoding::StereographicFourier,
+                                            DirectionEncoding::StereographicFourier2}));
+  for (DirectionEncoding e : directionEncodings()) EXPECT_EQ(parseDirectionEncoding(directionEncodingName(e)), e);
   EXPECT_EQ(directionEncodingName(DirectionEncoding::StereographicFourier2), "stereographic+fourier2");
   for (int code = 1; code <= 4; ++code) EXPECT_TRUE(isDirectionEncoding(code)) << code;
   EXPECT_FALSE(isDirectionEncoding(0));

@@ -135,8 +135,7 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
   const int latent = static_cast<int>(r.latents.size() / r.latentRows);
   // The direction encoding the decoder was trained with: the one whose input count fits.
   DirectionEncoding encoding = DirectionEncoding::Stereographic;
-  for (DirectionEncoding e : {DirectionEncoding::StereographicHalf, DirectionEncoding::StereographicFourier,
-                              DirectionEncoding::StereographicFourier2})
+  for (DirectionEncoding e : directionEncodings())
     if (latent + directionInputCount(e) == r.decoder.inputSize()) encoding = e;
   const int dirInputs = directionInputCount(encoding);
   double sse = 0;

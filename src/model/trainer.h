@@ -30,7 +30,7 @@ struct ModelConfig {
   int outputTerms = 1;
   // The decoder's direction input (util/directions.h): the paper's 4 stereographic
   // coordinates, those plus the half vector and cos(theta_d) (8), or those plus their sines
-  // and cosines at 3 octaves (28, the default: docs/model.md, *Direction inputs*).
+  // and cosines at 3 octaves (28) or 2 (20, the default: docs/model.md, *Direction inputs*).
   DirectionEncoding directionInputs = DirectionEncoding::StereographicFourier2;
   int directionInputCount() const { return nbtf::directionInputCount(directionInputs); }
 };

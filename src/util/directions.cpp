@@ -91,14 +91,19 @@ std::string directionEncodingDescription(DirectionEncoding encoding) {
   return base + " (" + inputs;
 }
 
+std::vector<DirectionEncoding> directionEncodings() {
+  std::vector<DirectionEncoding> all;
+  for (int code = 1; isDirectionEncoding(code); ++code) all.push_back(static_cast<DirectionEncoding>(code));
+  return all;
+}
+
 DirectionEncoding parseDirectionEncoding(const std::string& name) {
-  for (int code = 1; isDirectionEncoding(code); ++code) {
-    const auto encoding = static_cast<DirectionEncoding>(code);
+  std::string expected;
+  for (DirectionEncoding encoding : directionEncodings()) {
     if (name == directionEncodingName(encoding)) return encoding;
+    expected += (expected.empty() ? "\"" : ", \"") + directionEncodingName(encoding) + "\"";
   }
-  throw Error("unknown direction encoding \"" + name +
-              "\" (expected \"stereographic\", \"stereographic+half\", \"stereographic+fourier\" or "
-              "\"stereographic+fourier2\")");
+  throw Error("unknown direction encoding \"" + name + "\" (expected one of " + expected + ")");
 }
 
 namespace {

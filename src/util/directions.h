@@ -53,6 +53,7 @@ enum class DirectionEncoding : std::uint8_t {
 constexpr int kMaxFourierOctaves = 3;
 constexpr int kMaxDirectionInputs = 4 + 4 * 2 * kMaxFourierOctaves;
 bool isDirectionEncoding(int code);                              // a value this build knows
+std::vector<DirectionEncoding> directionEncodings();            // every encoding this build knows, by code
 int fourierOctaves(DirectionEncoding encoding);                  // 3, 2, or 0 for the encodings without them
 int directionInputCount(DirectionEncoding encoding);             // 4, 8, 28 or 20
 // "stereographic" | "stereographic+half" | "stereographic+fourier" | "stereographic+fourier2"
