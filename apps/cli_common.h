@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "util/error.h"
+#include "util/path_guard.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -100,6 +101,18 @@ inline void checkFolderCreatable(const std::string& folder) {
     throw fileError(folder, "cannot be created: the folder '" + p.string() + "' is not writable");
 }
 
+// Creates the output folder (and its parents) that checkFolderCreatable accepted.
+inline void createFolder(const std::string& folder) {
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec) throw fileError(folder, "cannot create the folder: " + ec.message());
+}
+
+inline bool isFolder(const std::string& path) {
+  std::error_code ec;
+  return std::filesystem::is_directory(path, ec);
+}
+
 inline bool quiet(const cxxopts::ParseResult& result) { return result.count("quiet") > 0; }
 
 // Runs the body; prints nbtf::Error and other exceptions as "nbtf <cmd>: error: ..." and returns 1.
@@ -107,7 +120,7 @@ inline int runGuarded(const std::string& command, const std::function<int()>& bo
   try {
     return body();
   } catch (const std::exception& e) {
-    std::cerr << "nbtf " << command << ": error: " << e.what() << std::endl;
+    std::cerr << "nbtf " << command << ": error: " << userMessage(e) << std::endl;
     return 1;
   }
 }

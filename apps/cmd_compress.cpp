@@ -240,6 +240,9 @@ int compressMain(int argc, char** argv) {
       o.memoryLimitText = "--memory-limit " + limit;
     }
     std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
+    // Before anything is created or read: no output may be an input or another output.
+    refuseOverlappingCompressPaths(input, output, o, args.count("config") ? args["config"].as<std::string>() : "",
+                                   {{"--stats-json", statsPath}});
     // Every command creates the missing folders above its outputs.
     for (const std::string& out : {output, statsPath, o.saveEncoderPath})
       if (!out.empty()) createParentFolders(out);

@@ -7,6 +7,7 @@
 #include "codec/decoder.h"
 #include "pipeline/decoder_output.h"
 #include "commands.h"
+#include "util/atomic_file.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -17,7 +18,9 @@ int decodeMain(int argc, char** argv) {
                              "Reconstruct a BTF image stack from a .nbtf file (all images, a subset, or any angles)");
     options.positional_help("<file.nbtf> -o <dir>");
     options.add_options()("file", "Compressed material (.nbtf)", cxxopts::value<std::string>())(
-        "o,output", "Output folder (created if missing; existing images are replaced); ubo2014: the .btf file",
+        "o,output",
+        "Output folder: new, empty, or an earlier nbtf decode (replaced as a whole once every image is written); "
+        "ubo2014: the .btf file",
         cxxopts::value<std::string>())(
         "layout",
         "Output layout and names: ubo2003 or utia (default: the source's), or ubo2014: one Bonn .btf file at -o",
@@ -48,12 +51,14 @@ int decodeMain(int argc, char** argv) {
       if (args.count(one) && args.count(list))
         throw Error(std::string("--") + one + " and --" + list + " both choose the " + list + "; give one of them");
 
-    DecoderOptions decoderOptions;
-    decoderOptions.isa = parseDecoderIsa(args["isa"].as<std::string>());
-    NbtfDecoder decoder = NbtfDecoder::open(args["file"].as<std::string>(), decoderOptions);
-
+    const std::string file = args["file"].as<std::string>(), output = args["output"].as<std::string>();
     DecodeStackOptions o;
     if (args.count("layout")) o.layout = parseLayout(args["layout"].as<std::string>());
+    refuseOverlappingPaths({{"<file.nbtf>", file}}, {{"-o", output, o.layout != Layout::Ubo2014}});
+    DecoderOptions decoderOptions;
+    decoderOptions.isa = parseDecoderIsa(args["isa"].as<std::string>());
+    NbtfDecoder decoder = NbtfDecoder::open(file, decoderOptions);
+
     if (args.count("format")) o.format = parseImageFormat(args["format"].as<std::string>());
     if (args.count("lights")) o.lights = parseDirectionList(args["lights"].as<std::string>(), decoder.lights(), "--lights");
     if (args.count("views")) o.views = parseDirectionList(args["views"].as<std::string>(), decoder.views(), "--views");
@@ -69,13 +74,14 @@ int decodeMain(int argc, char** argv) {
       Ubo2014FactorizeOptions f;
       f.components = args["components"].as<int>();
       f.colorModel = args["color-model"].as<int>();
-      DecodeUbo2014Result r = writeDecodedUbo2014(decoder, args["output"].as<std::string>(), o, f);
+      createParentFolders(output);
+      DecodeUbo2014Result r = writeDecodedUbo2014(decoder, output, o, f);
       std::fputs(formatDecodeUbo2014Summary(r).c_str(), stdout);
       return 0;
     }
     for (const char* only : {"components", "color-model"})
       if (args.count(only)) throw Error(std::string("--") + only + " applies to --layout ubo2014 only");
-    DecodeStackResult result = writeDecodedStack(decoder, args["output"].as<std::string>(), o);
+    DecodeStackResult result = writeDecodedStack(decoder, output, o);
     std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);  // -q hides progress only, as everywhere
     return 0;
   });

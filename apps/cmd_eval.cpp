@@ -21,8 +21,11 @@ namespace {
 int runSummarize(const cxxopts::ParseResult& args) {
   if (!args.count("output")) throw Error("missing -o <folder> for the sweep summary (see 'nbtf eval --help')");
   if (!args.count("files")) throw Error("--summarize needs report.json files");
+  std::vector<PathUse> reports;
+  for (const auto& path : args["files"].as<std::vector<std::string>>()) reports.push_back({"report", path});
+  refuseOverlappingPaths(reports, {{"-o", args["output"].as<std::string>(), true}});
   std::vector<SweepEntry> entries;
-  for (const auto& path : args["files"].as<std::vector<std::string>>()) entries.push_back(readSweepEntry(path));
+  for (const auto& report : reports) entries.push_back(readSweepEntry(report.path));
   SweepFiles files = writeSweepSummary(entries, args["output"].as<std::string>());
   std::printf("%s", sweepTablesMarkdown(entries).c_str());
   std::printf("table           %s\n", files.table.c_str());
@@ -80,8 +83,13 @@ int runEval(const cxxopts::ParseResult& args) {
   if (options.blurSampleImages < 0) throw Error("--blur-images must be >= 0");
   options.progress = !args.count("quiet");
 
-  // Fail on an unwritable output before decoding anything; the folder (and its missing
-  // parents) is made when the report is written.
+  // Fail on an unwritable output, or one that would overwrite an input, before decoding
+  // anything; the folder (and its missing parents) is made when the report is written.
+  refuseOverlappingPaths({{"<file.nbtf>", file},
+                          {"--reference", referencePath, isFolder(referencePath)},
+                          {"--render-compare", args.count("render-compare") ? args["render-compare"].as<std::string>() : "",
+                           true}},
+                         {{"-o", outDir, true}});
   checkFolderCreatable(outDir);
   RenderSection render;
   if (args.count("render-compare")) render = loadRenderSection(args["render-compare"].as<std::string>());

@@ -67,6 +67,19 @@ nlohmann::json statsJson(const RenderResult& r, const RenderOptions& o) {
 
 }  // namespace
 
+namespace {
+// --compare renders the measured stack beside the file made from it: measured at the same
+// directions (the check eval makes), or the comparison means nothing.
+void checkCompareDirections(const MaterialSource& reference, const MaterialSource& compressed) {
+  const auto* stack = dynamic_cast<const StackMaterial*>(&reference);
+  const auto* file = dynamic_cast<const NbtfMaterial*>(&compressed);
+  if (!stack || !file) return;
+  const std::string prefix = "--compare '" + reference.name() + "' does not match '" + compressed.name() + "': ";
+  checkSameDirections(stack->stack().lights(), file->decoder().lights(), "light", prefix);
+  checkSameDirections(stack->stack().views(), file->decoder().views(), "view", prefix);
+}
+}  // namespace
+
 int renderMain(int argc, char** argv) {
   return runGuarded("render", [&] {
     cxxopts::Options options("nbtf render", "Ray trace a BTF material on an object (adaptive anti-aliasing by automatic differentiation)");
@@ -113,7 +126,7 @@ int renderMain(int argc, char** argv) {
     const bool compare = args.count("compare") > 0;
 
     RenderOptions ro;
-    auto [w, h] = parseImageSize(args["size"].as<std::string>(), "--size");
+    auto [w, h] = parseImageSize(args["size"].as<std::string>(), "--size", kMaxRenderSide);
     ro.width = w, ro.height = h;
     if (args.count("uniform") + args.count("spp") + args.count("adaptive") > 1)
       throw Error("give one of --adaptive, --uniform N and --spp N");
@@ -151,11 +164,19 @@ int renderMain(int argc, char** argv) {
     const std::string mask = args.count("show-refined") ? args["show-refined"].as<std::string>() : "";
     const std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
 
+    // No output may overwrite an input or another output; then every output's folders are made.
+    const std::string stackPath = compare ? args["compare"].as<std::string>() : "";
+    const std::string referenceExr = args.count("reference") ? args["reference"].as<std::string>() : "";
+    refuseOverlappingPaths({{"<material>", material, isFolder(material)},
+                            {"--compare", stackPath, isFolder(stackPath)},
+                            {"--reference", referenceExr}},
+                           {{"-o", output, compare}, {"--exr", exr}, {"--show-refined", mask}, {"--stats-json", statsPath}});
+    for (const std::string& out : {exr, mask, statsPath})
+      if (!out.empty()) createParentFolders(out);
+
     if (compare) {
       for (const char* o : {"exr", "show-refined", "reference", "ray-cost"})
         if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
-      std::filesystem::create_directories(output);
-      const std::string stackPath = args["compare"].as<std::string>();
       if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
         throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
                     "nbtf render --compare STACK FILE.nbtf -o DIR)");
@@ -163,6 +184,9 @@ int renderMain(int argc, char** argv) {
         throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
       std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
       std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
+      checkCompareDirections(*reference, *compressed);
+      checkFolderCreatable(output);
+      createFolder(output);
       if (reference->width() != compressed->width() || reference->height() != compressed->height())
         std::cerr << "nbtf render: warning: " << stackPath << " is " << reference->width() << "x" << reference->height()
                   << " texels, " << material << " is " << compressed->width() << "x" << compressed->height()
@@ -197,6 +221,7 @@ int renderMain(int argc, char** argv) {
     for (const char* o : {"magnify"})
       if (args.count(o)) throw Error(std::string("--") + o + " is for --compare");
     imageFormatFromName(output);  // a clear error for an unknown extension, before rendering
+    createParentFolders(output);
     checkWritable(output);
     if (!exr.empty()) checkWritable(exr);
     if (!mask.empty()) checkWritable(mask), imageFormatFromName(mask);

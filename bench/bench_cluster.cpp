@@ -265,7 +265,7 @@ int main(int argc, char** argv) {
     std::cerr << "usage: nbtf-bench-cluster matrix|run [options]\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "nbtf-bench-cluster: error: " << e.what() << std::endl;
+    std::cerr << "nbtf-bench-cluster: error: " << userMessage(e) << std::endl;
     return 1;
   }
 }

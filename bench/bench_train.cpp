@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
       }
     }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "nbtf-bench-train: error: %s\n", e.what());
+    std::fprintf(stderr, "nbtf-bench-train: error: %s\n", userMessage(e).c_str());
     return 1;
   }
   return 0;

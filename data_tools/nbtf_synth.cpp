@@ -124,7 +124,7 @@ int main(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
-    std::cerr << "nbtf-synth: error: " << e.what() << std::endl;
+    std::cerr << "nbtf-synth: error: " << userMessage(e) << std::endl;
     return 1;
   }
 }

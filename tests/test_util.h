@@ -89,9 +89,10 @@ struct RunResult {
   std::string output;
   double seconds = 0;
 };
-inline RunResult runNbtf(const std::string& args) {
+// Any program of the build's bin/ folder ("nbtf", "nbtf-bench-train", ...).
+inline RunResult runProgram(const std::string& program, const std::string& args) {
   const auto start = std::chrono::steady_clock::now();
-  std::string cmd = std::string(NBTF_BIN_DIR) + "/nbtf " + args + " 2>&1";
+  std::string cmd = std::string(NBTF_BIN_DIR) + "/" + program + " " + args + " 2>&1";
   RunResult r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -103,5 +104,6 @@ inline RunResult runNbtf(const std::string& args) {
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
+inline RunResult runNbtf(const std::string& args) { return runProgram("nbtf", args); }
 
 }  // namespace nbtf::test

@@ -25,26 +25,6 @@ std::vector<int> clusterGenerationsOf(const CompressedBtf& btf) {
   }
   return out;
 }
-namespace {
-
-bool sameDirection(const Direction& a, const Direction& b) {
-  auto u = a.unitVector(), v = b.unitVector();
-  double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-  return dot > std::cos(1e-3 * 3.14159265358979323846 / 180);
-}
-
-void checkDirections(const std::vector<Direction>& ref, const std::vector<Direction>& file, const char* what,
-                     const std::string& prefix) {
-  if (ref.size() != file.size())
-    throw Error(prefix + "the reference has " + std::to_string(ref.size()) + " " + what + " directions, the file " +
-                std::to_string(file.size()));
-  for (std::size_t i = 0; i < ref.size(); ++i)
-    if (!sameDirection(ref[i], file[i]))
-      throw Error(prefix + what + " direction " + std::to_string(i) + " is " + formatDirection(ref[i]) +
-                  " in the reference but " + formatDirection(file[i]) + " in the file");
-}
-
-}  // namespace
 
 CompressedReconstruction::CompressedReconstruction(const CompressedBtf& btf, const std::string& name)
     : decoder_(btf, DecoderOptions{}, name) {}  // the decoder validates the shapes (CompressedBtf::validate)
@@ -69,8 +49,8 @@ void checkReferenceMatches(const CompressedBtf& btf, const BtfStack& ref, const 
                 " in the file (which was made from " + crop + " of " + std::to_string(btf.sourceWidth) + " x " +
                 std::to_string(btf.sourceHeight) + " images)");
   }
-  checkDirections(ref.lights(), btf.lights, "light", prefix);
-  checkDirections(ref.views(), btf.views, "view", prefix);
+  checkSameDirections(ref.lights(), btf.lights, "light", prefix);
+  checkSameDirections(ref.views(), btf.views, "view", prefix);
 }
 
 SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {

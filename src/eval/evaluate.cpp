@@ -17,18 +17,6 @@
 namespace nbtf {
 namespace {
 
-std::string formatAngle(double deg) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", std::round(deg * 1000) / 1000);
-  return buf;
-}
-
-bool sameDirection(const Direction& a, const Direction& b) {
-  auto u = a.unitVector(), v = b.unitVector();
-  double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-  return dot > std::cos(1e-3 * 3.14159265358979323846 / 180);  // within 0.001 degrees
-}
-
 std::string imageName(const EvalResult& r, int image) {
   int nv = static_cast<int>(r.views.size());
   return "image " + std::to_string(image) + " (light " + formatDirection(r.lights[image / nv]) + ", view " +
@@ -36,10 +24,6 @@ std::string imageName(const EvalResult& r, int image) {
 }
 
 }  // namespace
-
-std::string formatDirection(const Direction& d) {
-  return "(" + formatAngle(d.thetaDeg) + "\xC2\xB0, " + formatAngle(d.phiDeg) + "\xC2\xB0)";
-}
 
 std::vector<DirectionPair> paperFigure7Pairs() {
   return {

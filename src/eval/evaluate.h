@@ -144,7 +144,4 @@ struct EvalResult {
 // value for a non-finite reconstruction.
 EvalResult evaluate(const EvalInputs& inputs, const EvalOptions& options = {});
 
-// "(theta, phi)" in degrees, as the report prints directions.
-std::string formatDirection(const Direction& d);
-
 }  // namespace nbtf

@@ -94,6 +94,8 @@ SweepEntry sweepEntryFromReport(const json& j, const std::string& path) {
 }
 
 SweepEntry readSweepEntry(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw fileError(path, "is a folder, expected a report.json file");
   std::ifstream in(path);
   if (!in) throw fileError(path, "cannot be read");
   json j;
@@ -200,13 +202,16 @@ Image8 rateDistortionChart(const std::string& material, const std::vector<SweepE
 SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::string& dir) {
   namespace fs = std::filesystem;
   if (entries.empty()) throw Error("sweep: no reports to summarize");
+  // The tables check the entries (duplicates): before the folder is made, so a refused
+  // summary leaves nothing behind.
+  const std::string tables = "# BTF compression sweep\n\n" + sweepTablesMarkdown(entries);
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec || !fs::is_directory(dir)) throw fileError(dir, "cannot create the sweep folder: " + ec.message());
   auto path = [&](const std::string& name) { return (fs::path(dir) / name).string(); };
   SweepFiles out;
   out.table = path("sweep.md");
-  writeFileAtomic(out.table, "# BTF compression sweep\n\n" + sweepTablesMarkdown(entries));
+  writeFileAtomic(out.table, tables);
 
   std::set<std::string> materials;
   for (const auto& e : entries) materials.insert(e.material);

@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <regex>
 #include <set>
 #include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "io/btf_names.h"
 #include "io/image_io.h"
@@ -20,26 +23,29 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool isImageFile(const fs::path& p) {
-  // Hidden files are never stack images: among them are the temporaries an interrupted
-  // atomic write leaves (".<name>.tmp<pid>_<n>.<ext>", which still carry angle tokens).
-  if (!p.filename().empty() && p.filename().string()[0] == '.') return false;
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".exr";
-}
-
-bool isViewFolderName(const std::string& name) {
-  static const std::regex re(R"(.*tv\d+(\.\d+)?_pv\d+(\.\d+)?.*)");
-  return std::regex_match(name, re);
-}
-
 // Directions compare by angle; sort ring ascending, then phi ascending.
 struct DirLess {
   bool operator()(const Direction& a, const Direction& b) const {
     return a.thetaDeg != b.thetaDeg ? a.thetaDeg < b.thetaDeg : a.phiDeg < b.phiDeg;
   }
 };
+
+// An nbtf decode or nbtf-synth run writes its description ("complete": false) before its first
+// image and marks it complete after the last: a folder whose description says otherwise was
+// interrupted, and its images are a part of the material, or two materials mixed.
+void refuseInterruptedOutput(const fs::path& folder) {
+  for (const char* name : {kDecodeDescriptionName, "synth.json"}) {
+    const fs::path description = folder / name;
+    std::error_code ec;
+    if (!fs::is_regular_file(description, ec)) continue;
+    std::ifstream in(description);
+    const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (j.is_object() && j.contains("complete") && j["complete"] == false)
+      throw fileError(folder.string(), std::string("is the output of an interrupted ") +
+                                           (name == std::string("synth.json") ? "nbtf-synth run" : "nbtf decode") +
+                                           " (" + name + " says \"complete\": false): run it again");
+  }
+}
 
 std::string describe(const Direction& d) {
   std::ostringstream s;
@@ -53,6 +59,9 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw fileError(path, "no such file or folder");
   if (looksLikeUbo2014(path)) {
+    if (forced != Layout::Unknown && forced != Layout::Ubo2014)
+      throw fileError(path, "is a UBO2014 .btf file: --layout " + layoutName(forced) +
+                                " applies to folders of images only (leave it out, or give --layout ubo2014)");
     // The directions are the file's own; reading the factors is the check that they fit.
     Ubo2014Btf btf = Ubo2014Btf::read(path);
     StackListing listing;
@@ -64,6 +73,7 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
   if (!fs::is_directory(path, ec))
     throw fileError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)");
   if (forced == Layout::Ubo2014) forced = Layout::Unknown;  // a folder's layout is detected from its names
+  refuseInterruptedOutput(path);
 
   // Collect candidate image files: the folder itself and its view folders.
   std::vector<fs::path> candidates;
@@ -79,11 +89,11 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
       for (const auto& e : fs::directory_iterator(p, ec)) inner.push_back(e.path());
       std::sort(inner.begin(), inner.end());
       for (const auto& q : inner) {
-        if (fs::is_regular_file(q, ec) && isImageFile(q)) candidates.push_back(q);
+        if (fs::is_regular_file(q, ec) && isImageFileName(q.filename().string())) candidates.push_back(q);
         else if (fs::is_regular_file(q, ec)) ++otherFiles;
       }
     } else if (fs::is_regular_file(p, ec)) {
-      if (isImageFile(p)) candidates.push_back(p);
+      if (isImageFileName(p.filename().string())) candidates.push_back(p);
       else ++otherFiles;
     }
   }
@@ -114,6 +124,14 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
 
   StackListing listing;
   listing.layout = forced;
+  if (forced == Layout::Utia && layoutVotes[static_cast<int>(Layout::Utia)] == 0) {
+    // Every name carries UBO2003's running index: forcing UTIA would change nothing but the
+    // colour space of EXR images, silently. (Names without an index may be either layout, so
+    // --layout ubo2003 over them is honoured.)
+    throw fileError(path, "--layout utia: the images are named in the ubo2003 layout, with a running index (e.g. '" +
+                              fs::path(files.front().path).filename().string() +
+                              "'); leave --layout out or give --layout ubo2003");
+  }
   if (forced == Layout::Unknown)
     listing.layout = layoutVotes[static_cast<int>(Layout::Ubo2003)] >= layoutVotes[static_cast<int>(Layout::Utia)]
                          ? Layout::Ubo2003

@@ -1,5 +1,7 @@
 #include "io/btf_names.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <regex>
@@ -79,6 +81,20 @@ std::string ubo2003FileName(int index, const Direction& light, const Direction& 
 std::string utiaFileName(const Direction& light, const Direction& view, const std::string& ext) {
   return "tl" + formatAngle(light.thetaDeg) + "_pl" + formatAngle(light.phiDeg) + "_tv" + formatAngle(view.thetaDeg) +
          "_pv" + formatAngle(view.phiDeg) + ext;
+}
+
+bool isImageFileName(const std::string& name) {
+  if (name.empty() || name[0] == '.') return false;
+  const auto dot = name.rfind('.');
+  if (dot == std::string::npos) return false;
+  std::string ext = name.substr(dot);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".exr";
+}
+
+bool isViewFolderName(const std::string& name) {
+  static const std::regex re(R"(.*tv\d+(\.\d+)?_pv\d+(\.\d+)?.*)");
+  return std::regex_match(name, re);
 }
 
 }  // namespace nbtf

@@ -23,6 +23,14 @@ struct ParsedBtfName {
 // out of range.
 std::optional<ParsedBtfName> parseBtfFileName(const std::string& fileName);
 
+// What a stack folder holds: image files (.jpg, .jpeg, .png, .exr; never hidden files, which
+// include the temporaries of an interrupted atomic write) and view folders ("tv030_pv030").
+bool isImageFileName(const std::string& fileName);
+bool isViewFolderName(const std::string& folderName);
+
+// The description `nbtf decode` writes into its output folder (docs/decoding.md).
+inline constexpr const char* kDecodeDescriptionName = "nbtf_decode.json";
+
 // The names nbtf writes (and the loaders read), for image (light, view).
 std::string viewFolderName(const Direction& view);  // "tv030_pv030"
 std::string ubo2003FileName(int index, const Direction& light, const Direction& view, const std::string& ext);

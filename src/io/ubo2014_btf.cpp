@@ -503,6 +503,8 @@ Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint6
   std::vector<float> sv = r.scalars(k, scalarSize, "the singular values");
   std::vector<float> u = r.scalars(static_cast<std::uint64_t>(rows) * k, scalarSize, "U");
   std::vector<float> sxv = r.scalars(static_cast<std::uint64_t>(cols) * k, scalarSize, "SxV");
+  for (float f : sv)
+    if (!std::isfinite(f)) r.fail("a singular value is not finite (NaN or infinity)");
   for (const std::vector<float>* part : {&u, &sxv})
     for (float f : *part)
       if (!std::isfinite(f)) r.fail("a factor is not finite (NaN or infinity)");
@@ -550,6 +552,10 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   const std::uint64_t metaStart = r.offset();
   const std::uint32_t metaSize = r.value<std::uint32_t>("the meta data size");
   m.metaVersion = r.value<std::uint32_t>("the meta data version");
+  // Versions 1 to 4 are known (read_meta_data.m); a later one may add fields this reader
+  // would take for directions.
+  if (m.metaVersion < 1 || m.metaVersion > 4)
+    r.fail("unknown meta data version " + std::to_string(m.metaVersion) + " (nbtf reads versions 1 to 4)");
   auto fixed = [&](const char* what) {
     std::string s = r.text(80, what);
     return s.substr(0, s.find('\0'));
@@ -656,6 +662,8 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
     ch.s = r.scalars(k, ch.scalarSize, which + "'s singular values");
     ch.u = r.scalars(static_cast<std::uint64_t>(rows) * k, ch.scalarSize, which + "'s U");
     ch.sxv = r.scalars(static_cast<std::uint64_t>(cols) * k, ch.scalarSize, which + "'s SxV");
+    for (float f : ch.s)
+      if (!std::isfinite(f)) r.fail(which + ": a singular value is not finite (NaN or infinity)");
     for (const std::vector<float>* part : {&ch.u, &ch.sxv})
       for (float f : *part)
         if (!std::isfinite(f)) r.fail(which + ": a factor is not finite (NaN or infinity)");

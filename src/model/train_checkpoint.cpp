@@ -1,7 +1,10 @@
 #include "model/train_checkpoint.h"
 
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+
+#include "codec/crc32.h"
 
 #include "util/atomic_file.h"
 #include "util/error.h"
@@ -9,6 +12,59 @@
 namespace nbtf {
 namespace {
 constexpr std::int64_t kCheckpointVersion = 1;
+
+// The file: this header, then torch's archive. A flipped byte anywhere in the archive would
+// otherwise load (torch checks the zip's structure, not the tensors' bytes) and train on
+// garbage until the latents turned NaN.
+//   "NBTFCKPT"  8 bytes
+//   crc32       4 bytes, little-endian, of the archive bytes
+//   size        8 bytes, little-endian, of the archive bytes
+constexpr char kMagic[8] = {'N', 'B', 'T', 'F', 'C', 'K', 'P', 'T'};
+constexpr std::size_t kHeaderBytes = 8 + 4 + 8;
+
+void putLittleEndian(std::string& out, std::uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
+}
+std::uint64_t getLittleEndian(const std::uint8_t* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v |= static_cast<std::uint64_t>(p[i]) << (8 * i);
+  return v;
+}
+
+void writeArchive(const std::string& path, torch::serialize::OutputArchive& archive) {
+  std::string payload;
+  archive.save_to([&](const void* data, std::size_t size) {
+    payload.append(static_cast<const char*>(data), size);
+    return size;
+  });
+  std::string file(kMagic, sizeof kMagic);
+  putLittleEndian(file, crc32(payload.data(), payload.size()), 4);
+  putLittleEndian(file, payload.size(), 8);
+  file += payload;
+  writeFileAtomic(path, file);
+}
+
+// Reads the file, checks its header and checksum, and loads the archive; a damaged or
+// foreign file is refused here, by name, before any of it is used.
+void readArchive(const std::string& path, torch::serialize::InputArchive& archive) {
+  const std::vector<std::uint8_t> bytes = readFileBytes(path);
+  const std::string advice = "; remove it, or run without --resume to start over";
+  if (bytes.size() < kHeaderBytes || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+    throw fileError(path, "is not an nbtf checkpoint (no NBTFCKPT header; an older nbtf wrote checkpoints without "
+                          "checksums)" + advice);
+  const std::uint32_t stored = static_cast<std::uint32_t>(getLittleEndian(bytes.data() + 8, 4));
+  const std::uint64_t size = getLittleEndian(bytes.data() + 12, 8);
+  if (size != bytes.size() - kHeaderBytes)
+    throw fileError(path, "checkpoint is damaged: its header says " + std::to_string(size) + " bytes of data, the file has " +
+                              std::to_string(bytes.size() - kHeaderBytes) + advice);
+  const std::uint32_t actual = crc32(bytes.data() + kHeaderBytes, size);
+  if (actual != stored) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "checksum %08x, stored %08x", actual, stored);
+    throw fileError(path, std::string("checkpoint is damaged (") + buf + ")" + advice);
+  }
+  archive.load_from(reinterpret_cast<const char*>(bytes.data() + kHeaderBytes), size);
+}
 
 std::uint64_t hashCombine(std::uint64_t h, std::uint64_t v) { return SplitMix64::mix(h, v); }
 std::uint64_t hashString(std::uint64_t h, const std::string& s) {
@@ -49,6 +105,7 @@ void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::
   archive.write("step", torch::tensor(meta.step));
   archive.write("elapsed_seconds", torch::tensor(meta.elapsedSeconds, torch::kDouble));
   archive.write("ema_loss", torch::tensor(meta.emaLoss, torch::kDouble));
+  archive.write("total_steps", torch::tensor(meta.totalSteps));
   // The fingerprint is 64 bits; store it as the signed value with the same bits.
   archive.write("fingerprint", torch::tensor(static_cast<std::int64_t>(meta.fingerprint)));
   encoder.save(enc);
@@ -57,7 +114,7 @@ void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::
   archive.write("encoder", enc);
   archive.write("decoder", dec);
   archive.write("optimizer", opt);
-  writeAtomicVia(path, [&](const std::string& tmp) { archive.save_to(tmp); });
+  writeArchive(path, archive);
 }
 
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
@@ -65,7 +122,7 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
   CheckpointMeta meta;
   try {
     torch::serialize::InputArchive archive, enc, dec, opt;
-    archive.load_from(path);
+    readArchive(path, archive);
     // A fresh tensor per value: read() into a defined tensor calls set_(), which keeps that
     // tensor's dtype and reinterprets the stored bytes (the double elapsed_seconds read into
     // the int64 tensor of the step came back as 4.6e18 s, so a resumed --time-budget run
@@ -87,6 +144,7 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
     meta.step = value("step").item<std::int64_t>();
     meta.elapsedSeconds = value("elapsed_seconds").item<double>();
     meta.emaLoss = value("ema_loss").item<double>();
+    meta.totalSteps = value("total_steps").item<std::int64_t>();
     archive.read("encoder", enc);
     archive.read("decoder", dec);
     archive.read("optimizer", opt);
@@ -124,7 +182,7 @@ CheckpointState readCheckpointState(const std::string& path) {
   CheckpointState state;
   try {
     torch::serialize::InputArchive archive;
-    archive.load_from(path);
+    readArchive(path, archive);
     torch::Tensor t;
     archive.read("step", t);
     state.step = t.item<std::int64_t>();
@@ -168,6 +226,8 @@ CheckpointState readCheckpointState(const std::string& path) {
         state.tensors.emplace_back(prefix + "step", std::vector<double>{step.isInt() ? static_cast<double>(step.toInt())
                                                                                    : step.toDouble()});
     }
+  } catch (const Error&) {
+    throw;
   } catch (const std::exception& e) {
     std::string what = e.what();
     throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')));

@@ -15,6 +15,9 @@ struct CheckpointMeta {
   double elapsedSeconds = 0;  // training time so far, for time budgets across resumes
   double emaLoss = -1;
   std::uint64_t fingerprint = 0;
+  // The run's planned optimizer steps (0: bounded by a time budget only). The learning-rate
+  // schedule spans them, so a resumed run must plan the same.
+  std::int64_t totalSteps = 0;
 };
 
 // What must match for a checkpoint to be resumable: model shape, optimizer, data shape,

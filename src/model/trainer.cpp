@@ -234,6 +234,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   // ---- Resume.
   CheckpointMeta meta;
   meta.fingerprint = checkpointFingerprint(config, set);
+  meta.totalSteps = totalSteps;
   std::int64_t step = 0;
   double priorSeconds = 0, emaLoss = -1;
   TrainResult result;
@@ -243,6 +244,16 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   if ((config.resume || config.warmStart) && checkpointExists(config.checkpointPath)) {
     CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer,
                                           !config.warmStart);
+    if (config.resume && !config.warmStart && saved.totalSteps != totalSteps) {
+      auto plan = [](std::int64_t steps) {
+        return steps > 0 ? std::to_string(steps) + " steps" : std::string("a time budget only");
+      };
+      throw fileError(config.checkpointPath,
+                      "checkpoint of a run planned for " + plan(saved.totalSteps) + ", this run plans " +
+                          plan(totalSteps) + " (--epochs or the config's step bounds changed); the learning-rate "
+                          "schedule spans the whole run, so resume with the options of the interrupted run, or "
+                          "start over without --resume");
+    }
     step = saved.step;
     priorSeconds = saved.elapsedSeconds;
     emaLoss = saved.emaLoss;

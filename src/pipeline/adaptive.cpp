@@ -605,9 +605,11 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
 
   // ---- A byte budget is a promise: merge (without further training) until the file fits.
   for (int attempt = 0; a.sizeBudget > 0 && stages.back().bytes > a.sizeBudget; ++attempt) {
-    if (k <= 1 || attempt >= 30)
+    if (k <= 1 || attempt >= 30) {
+      removeTemporary.active = true;  // no resumed run could meet the budget either
       throw Error("--size-budget " + std::to_string(a.sizeBudget) + " bytes is below the smallest file this run " +
                   "can write (" + std::to_string(stages.back().bytes) + " bytes at k = " + std::to_string(k) + ")");
+    }
     const double excess = static_cast<double>(stages.back().bytes - a.sizeBudget);
     const int count = std::min(k - 1, std::max(1, static_cast<int>(std::ceil(excess / (latentBytes + 2))) + 1));
     std::vector<float> decoded, best;
@@ -637,6 +639,11 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
 
   // ---- The final material: its stage entry records the written size exactly (the entry is
   // part of the metadata it measures, so settle it in a few rounds).
+  if (a.targetRmse > 0 && last.rmseTrain > a.targetRmse) {
+    char missed[128];
+    std::snprintf(missed, sizeof missed, "target rmse %g missed (%.5f at the end)", a.targetRmse, last.rmseTrain);
+    stopReason = std::string(missed) + "; " + stopReason;
+  }
   stats.clusters = k;
   stats.adaptiveStopReason = stopReason;
   stats.epochs = last.epochsRun;

@@ -54,6 +54,14 @@ void checkClusterCount(int clusters, std::int64_t texels, const std::string& wha
                 " texels of " + what + " (k must be at most the texel count; 0 = per-texel)");
 }
 
+// k and, with adaptive clusters, its cap: both at most the texel count.
+void checkClusterCounts(const CompressOptions& o, std::int64_t texels, const std::string& what) {
+  checkClusterCount(o.clusters, texels, what);
+  if (o.adaptive.enabled && o.adaptive.maxClusters > texels)
+    throw Error("--max-clusters " + std::to_string(o.adaptive.maxClusters) + " is larger than the " +
+                std::to_string(texels) + " texels of " + what + " (at most the texel count)");
+}
+
 }  // namespace
 
 namespace detail {
@@ -264,7 +272,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.images = stack.numImages();
   stats.clusters = o.clusters;
   stats.method = o.clusters > 0 ? CodecMethod::ClusteredNeural : CodecMethod::PerTexelNeural;
-  checkClusterCount(o.clusters, texels, stack.source.empty() ? "the material" : stack.source);
+  checkClusterCounts(o, texels, stack.source.empty() ? "the material" : stack.source);
 
   // ---- Preprocess: log + standardize (eq. 1-4), alpha (eq. 5). Clustered: the statistics
   // only, from the stack; the standardized ABRDF matrix is streamed from the stack in slices
@@ -399,13 +407,26 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   return b;
 }
 
-CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options) {
-  // ---- Fail before hours of work: every output must be creatable now.
-  checkWritable(output);
-  if (!options.saveEncoderPath.empty()) {
-    if (options.saveEncoderPath == output) throw Error("--save-encoder must name a file other than the output");
-    checkWritable(options.saveEncoderPath);
+void refuseOverlappingCompressPaths(const std::string& input, const std::string& output, const CompressOptions& options,
+                                    const std::string& configPath, const std::vector<PathUse>& extraOutputs) {
+  std::error_code ec;
+  std::vector<PathUse> inputs{{"the input", input, std::filesystem::is_directory(input, ec)}, {"--config", configPath}};
+  std::vector<PathUse> outputs{{"-o", output}, {"--save-encoder", options.saveEncoderPath}};
+  if (!options.pcaBaseline) {
+    const std::string checkpoint = checkpointPathFor(output, options);
+    outputs.push_back({"the checkpoint", checkpoint});
+    if (options.adaptive.enabled) outputs.push_back({"the adaptive state", adaptiveStatePath(checkpoint)});
   }
+  outputs.insert(outputs.end(), extraOutputs.begin(), extraOutputs.end());
+  refuseOverlappingPaths(inputs, outputs);
+}
+
+CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options) {
+  // ---- Fail before hours of work: no output may overwrite the input or another output, and
+  // every output must be creatable now.
+  refuseOverlappingCompressPaths(input, output, options);
+  checkWritable(output);
+  if (!options.saveEncoderPath.empty()) checkWritable(options.saveEncoderPath);
   CompressOptions o = options;
   if (o.pcaBaseline) {
     if (!o.saveEncoderPath.empty()) throw Error("--save-encoder: the PCA baseline has no encoder");
@@ -422,8 +443,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
   if (!o.pcaBaseline && !o.load.crop.empty()) {
     checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
-    checkClusterCount(o.clusters, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height,
-                      "the crop");
+    checkClusterCounts(o, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height, "the crop");
   }
 
   CompressStats stats;

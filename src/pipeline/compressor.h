@@ -12,6 +12,7 @@
 #include "codec/nbtf_file.h"
 #include "io/btf_loader.h"
 #include "model/trainer.h"
+#include "util/path_guard.h"
 
 namespace nbtf {
 
@@ -116,6 +117,14 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
 // The whole pipeline. Checks that `output` (and the encoder file) can be written before
 // any work is done. When interrupted, returns with stats.interrupted set and writes nothing.
 CompressStats compressBtf(const std::string& input, const std::string& output, const CompressOptions& options);
+
+// The paths a compress run reads and writes, by the option that names them: the input and
+// the config it was given (`configPath`, may be empty) as inputs; -o, --save-encoder, the
+// checkpoint and its adaptive state, and `extraOutputs` (--stats-json) as outputs.
+// refuseOverlappingPaths (util/path_guard.h) over them is compressBtf's first check.
+void refuseOverlappingCompressPaths(const std::string& input, const std::string& output, const CompressOptions& options,
+                                    const std::string& configPath = "",
+                                    const std::vector<PathUse>& extraOutputs = {});
 
 // "<output>.ckpt": where training checkpoints go unless configured otherwise.
 std::string defaultCheckpointPath(const std::string& output);

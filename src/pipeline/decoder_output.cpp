@@ -16,10 +16,14 @@
 #include <set>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "io/btf_names.h"
+#include "pipeline/decode_folder.h"
 #include "io/color.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/memory.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -36,7 +40,8 @@ double normalizedPhi(double phi) {
   return p;
 }
 
-bool sameDirection(const Direction& a, const Direction& b) {
+// To the 1e-6 degrees of a typed angle (tTHETApPHI), by the angles themselves.
+bool sameAngles(const Direction& a, const Direction& b) {
   constexpr double kTol = 1e-6;
   if (std::fabs(a.thetaDeg - b.thetaDeg) > kTol) return false;
   if (a.thetaDeg <= kTol) return true;  // the pole: every azimuth is the same direction
@@ -65,7 +70,7 @@ DirectionChoice chooseDirection(const Direction& d, const std::vector<Direction>
   DirectionChoice c;
   c.direction = {d.thetaDeg, normalizedPhi(d.phiDeg)};
   for (std::size_t i = 0; i < measured.size(); ++i)
-    if (sameDirection(c.direction, measured[i])) {
+    if (sameAngles(c.direction, measured[i])) {
       c.direction = measured[i];
       c.index = static_cast<int>(i);
       break;
@@ -91,7 +96,7 @@ std::vector<DirectionChoice> parseDirectionList(const std::string& text, const s
   std::vector<DirectionChoice> out;
   auto add = [&](const DirectionChoice& c) {
     for (const auto& e : out)
-      if (c.measured() ? e.index == c.index : (!e.measured() && sameDirection(e.direction, c.direction))) return;
+      if (c.measured() ? e.index == c.index : (!e.measured() && sameAngles(e.direction, c.direction))) return;
     out.push_back(c);
   };
   std::string item;
@@ -129,12 +134,12 @@ std::vector<DirectionChoice> parseDirectionList(const std::string& text, const s
   return out;
 }
 
-std::pair<int, int> parseImageSize(const std::string& text, const std::string& option) {
+std::pair<int, int> parseImageSize(const std::string& text, const std::string& option, int maxSide) {
   long w = 0, h = 0;
   auto x = text.find_first_of("xX");
   if (x == std::string::npos || !parseInt(text.substr(0, x), w) || !parseInt(text.substr(x + 1), h))
     throw Error(option + ": expected WxH (e.g. 256x256), got '" + text + "'");
-  constexpr long kMax = 1 << 16;
+  const long kMax = maxSide;
   if (w < 1 || h < 1 || w > kMax || h > kMax)
     throw Error(option + ": size " + text + " is out of range (1 .. " + std::to_string(kMax) + " per side)");
   return {static_cast<int>(w), static_cast<int>(h)};
@@ -344,31 +349,20 @@ constexpr std::size_t kQueuedBytes = std::size_t(256) << 20;  // bound on images
 }  // namespace
 
 namespace {
-// A folder that already holds images named for the other layout would end up with both
-// namings mixed, a stack no loader reads: refuse before writing anything.
-void refuseOtherLayout(const std::string& folder, Layout layout, const std::vector<DirectionChoice>& views) {
-  std::vector<fs::path> places{fs::path(folder)};
-  for (const auto& v : views) places.push_back(fs::path(folder) / viewFolderName(v.direction));
-  std::error_code ec;
-  for (const auto& place : places) {
-    if (!fs::is_directory(place, ec)) continue;
-    for (const auto& entry : fs::directory_iterator(place, ec)) {
-      if (!entry.is_regular_file(ec)) continue;
-      const std::string name = entry.path().filename().string();
-      if (!name.empty() && name[0] == '.') continue;  // hidden: a temporary file of an interrupted write
-      std::optional<ParsedBtfName> parsed;
-      try {
-        parsed = parseBtfFileName(name);
-      } catch (const Error&) {
-        continue;  // not one of ours either way
-      }
-      if (parsed && parsed->layout != Layout::Unknown && parsed->layout != layout)
-        throw fileError(folder, "holds images in the " + layoutName(parsed->layout) + " layout (e.g. '" +
-                                    entry.path().string() + "'); decoding the " + layoutName(layout) +
-                                    " layout into it would mix two namings. Use an empty folder, remove them, or "
-                                    "pass --layout " + layoutName(parsed->layout));
-    }
-  }
+// Images in flight: one being decoded per thread (linear floats and the encoded copy), the
+// writers' queue and the one each writer holds. Refused before any allocation when that
+// cannot fit (a --size of 65536 x 65536 is 51 GB an image).
+void checkDecodeMemory(int width, int height) {
+  const double values = 3.0 * width * height;
+  const double perImage = values * (sizeof(float) + sizeof(float));
+  const double inFlight = threadCount() + kWriterThreads + 2;
+  const double need = perImage * inFlight;
+  const double limit = static_cast<double>(defaultMemoryLimit());
+  if (need > limit)
+    throw Error("--size " + std::to_string(width) + "x" + std::to_string(height) + ": decoding needs about " +
+                formatBytes(static_cast<std::size_t>(need)) + " (" + formatBytes(static_cast<std::size_t>(perImage)) +
+                " per image, " + std::to_string(static_cast<int>(inFlight)) + " in flight), more than the " +
+                formatBytes(static_cast<std::size_t>(limit)) + " allowed (75% of physical memory)");
 }
 }  // namespace
 
@@ -389,14 +383,22 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   r.height = options.height ? options.height : decoder.height();
   if (options.jpegQuality < 1 || options.jpegQuality > 100)
     throw Error("JPEG quality " + std::to_string(options.jpegQuality) + " is outside 1..100");
+  checkDecodeMemory(r.width, r.height);
 
-  refuseOtherLayout(folder, r.layout, views);
-  // Folders first (once, before the parallel part), and an early check that we can write.
+  // The images go into a staging folder that replaces `folder` as a whole at the end
+  // (pipeline/decode_folder.h): an interrupted decode never leaves two decodes mixed.
+  nlohmann::json description = {{"generator", "nbtf decode"},
+                                 {"layout", layoutName(r.layout)},
+                                 {"format", extensionOf(r.format).substr(1)},
+                                 {"lights", r.lights},
+                                 {"views", r.views},
+                                 {"images", r.images},
+                                 {"width", r.width},
+                                 {"height", r.height}};
+  DecodeFolder output(folder, description.dump());
   std::error_code ec;
-  fs::create_directories(folder, ec);
-  if (ec || !fs::is_directory(folder)) throw fileError(folder, "cannot create the output folder: " + ec.message());
   for (const auto& v : views) {
-    fs::path sub = fs::path(folder) / viewFolderName(v.direction);
+    fs::path sub = fs::path(output.staging()) / viewFolderName(v.direction);
     fs::create_directories(sub, ec);
     if (ec) throw fileError(sub.string(), "cannot create folder: " + ec.message());
   }
@@ -405,7 +407,7 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   for (const auto& l : lights) allMeasured = allMeasured && l.measured();
   for (const auto& v : views) allMeasured = allMeasured && v.measured();
   auto pathOf = [&](int image) {
-    return (fs::path(folder) / decodedImagePath(r.layout, r.format, lights[image / r.views], views[image % r.views],
+    return (fs::path(output.staging()) / decodedImagePath(r.layout, r.format, lights[image / r.views], views[image % r.views],
                                                 numViews, allMeasured ? -1 : image))
         .string();
   };
@@ -470,6 +472,7 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
     }
   });
   writers.finish();
+  output.commit();
   progress.finish();
   r.seconds = progress.elapsedSeconds();
   r.evaluations = static_cast<std::uint64_t>(r.images) * static_cast<std::uint64_t>(decoder.latentRows());

@@ -47,8 +47,8 @@ std::vector<DirectionChoice> parseDirectionList(const std::string& text, const s
 DirectionChoice chooseDirection(const Direction& d, const std::vector<Direction>& measured);
 std::vector<DirectionChoice> allDirections(const std::vector<Direction>& measured);
 
-// "WxH" -> (width, height), both >= 1; throws naming `option`.
-std::pair<int, int> parseImageSize(const std::string& text, const std::string& option);
+// "WxH" -> (width, height), both in 1..maxSide; throws naming `option`.
+std::pair<int, int> parseImageSize(const std::string& text, const std::string& option, int maxSide = 1 << 16);
 
 struct DecodeStackOptions {
   Layout layout = Layout::Unknown;  // Unknown: the material's source layout (UBO2003 if unknown)

@@ -18,8 +18,9 @@ const char* refineReasonName(int bit) {
 }
 
 void checkRenderOptions(const RenderOptions& o) {
-  if (o.width < 1 || o.height < 1 || o.width > 16384 || o.height > 16384)
-    throw Error("--size must be between 1x1 and 16384x16384, got " + std::to_string(o.width) + "x" + std::to_string(o.height));
+  if (o.width < 1 || o.height < 1 || o.width > kMaxRenderSide || o.height > kMaxRenderSide)
+    throw Error("--size must be between 1x1 and " + std::to_string(kMaxRenderSide) + "x" +
+                std::to_string(kMaxRenderSide) + ", got " + std::to_string(o.width) + "x" + std::to_string(o.height));
   if (o.mode == SamplingMode::Uniform && (o.uniform < 1 || o.uniform > 64))
     throw Error("--uniform N must be in 1..64, got " + std::to_string(o.uniform));
   if (o.mode == SamplingMode::Adaptive && (o.levels < 1 || o.levels > 3))

@@ -87,6 +87,8 @@ struct RenderResult {
   RenderStats stats;
 };
 
+// The largest render, per side.
+inline constexpr int kMaxRenderSide = 16384;
 void checkRenderOptions(const RenderOptions& options);
 RenderResult renderImage(const Scene& scene, const Camera& camera, const MaterialSource& material,
                          const RenderOptions& options);

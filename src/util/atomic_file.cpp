@@ -154,6 +154,8 @@ void checkWritable(const std::string& requested) {
   fs::path p(path);
   fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw fileError(path, "'" + dir.string() + "' is a file, not a folder");
   if (!fs::is_directory(dir, ec)) throw fileError(path, "output folder '" + dir.string() + "' does not exist");
   if (::access(dir.c_str(), W_OK) != 0)
     throw fileError(path, "output folder '" + dir.string() + "' is not writable");
@@ -175,6 +177,14 @@ void createParentFolders(const std::string& path) {
   fs::path dir = fs::path(linkTarget(path)).parent_path();
   if (dir.empty()) return;
   std::error_code ec;
+  // A file where a folder should be ("some.nbtf/a.png"): name it, not "does not exist".
+  for (fs::path p = dir; !p.empty() && p != p.parent_path(); p = p.parent_path())
+    if (fs::exists(p, ec)) {
+      if (!fs::is_directory(p, ec))
+        throw fileError(path, "cannot create the folder '" + dir.string() + "': '" + p.string() +
+                                  "' is a file, not a folder");
+      break;
+    }
   fs::create_directories(dir, ec);
   if (ec) throw fileError(path, "cannot create the folder '" + dir.string() + "': " + ec.message());
 }

@@ -1,6 +1,7 @@
 #include "util/directions.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <sstream>
 
@@ -178,6 +179,32 @@ int nearestDirection(const std::vector<Direction>& set, const Direction& d) {
     if (dot > bestDot) bestDot = dot, best = static_cast<int>(i);
   }
   return best;
+}
+
+std::string formatDirection(const Direction& d) {
+  auto angle = [](double deg) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", std::round(deg * 1000) / 1000);
+    return std::string(buf);
+  };
+  return "(" + angle(d.thetaDeg) + "\xC2\xB0, " + angle(d.phiDeg) + "\xC2\xB0)";
+}
+
+bool sameDirection(const Direction& a, const Direction& b) {
+  auto u = a.unitVector(), v = b.unitVector();
+  double dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+  return dot > std::cos(1e-3 * 3.14159265358979323846 / 180);
+}
+
+void checkSameDirections(const std::vector<Direction>& ref, const std::vector<Direction>& file, const char* what,
+                         const std::string& prefix) {
+  if (ref.size() != file.size())
+    throw Error(prefix + "the reference has " + std::to_string(ref.size()) + " " + what + " directions, the file " +
+                std::to_string(file.size()));
+  for (std::size_t i = 0; i < ref.size(); ++i)
+    if (!sameDirection(ref[i], file[i]))
+      throw Error(prefix + what + " direction " + std::to_string(i) + " is " + formatDirection(ref[i]) +
+                  " in the reference but " + formatDirection(file[i]) + " in the file");
 }
 
 }  // namespace nbtf

@@ -70,6 +70,16 @@ void encodeDirections(DirectionEncoding encoding, const Direction& light, const 
 // "THETA,PHI" in degrees -> Direction; throws nbtf::Error naming `what` on bad text.
 Direction parseDirection(const std::string& text, const std::string& what);
 
+// "(15°, 60°)": a direction in messages and reports (degrees to 0.001).
+std::string formatDirection(const Direction& d);
+// The same direction to within 0.001 degrees (the angle between the unit vectors).
+bool sameDirection(const Direction& a, const Direction& b);
+// A stack compared with (or rendered beside) a material must have been measured at the same
+// directions: throws nbtf::Error, `prefix` + "the reference has N light directions, the file M"
+// or the first direction that differs (`what`: "light" or "view").
+void checkSameDirections(const std::vector<Direction>& reference, const std::vector<Direction>& file,
+                         const char* what, const std::string& prefix);
+
 // Index of the nearest direction in `set` by angle between unit vectors.
 int nearestDirection(const std::vector<Direction>& set, const Direction& d);
 

@@ -16,4 +16,21 @@ inline Error fileError(const std::string& path, const std::string& message) {
   return Error(path + ": " + message);
 }
 
+// The text of an exception as a user reads it: one line per line of the message, without
+// the stack trace libtorch appends to its c10::Error ("Exception raised from F at FILE:LINE
+// (most recent call first):" and a frame per line). An internal check keeps its place:
+// "message (internal check at FILE:LINE)".
+inline std::string userMessage(const std::exception& e) {
+  std::string text = e.what();
+  const std::string marker = "\nException raised from ";
+  const auto at = text.find(marker);
+  if (at == std::string::npos) return text;
+  std::string where = text.substr(at + marker.size());
+  where = where.substr(0, where.find('\n'));
+  const auto file = where.find(" at "), end = where.find(" (most recent");
+  text = text.substr(0, at);
+  if (file != std::string::npos) text += " (internal check at " + where.substr(file + 4, end == std::string::npos ? std::string::npos : end - file - 4) + ")";
+  return text;
+}
+
 }  // namespace nbtf

@@ -39,7 +39,8 @@ std::size_t parseByteSize(const std::string& text, const std::string& option) {
   else if (unit == "T") scale = 1024.0 * 1024 * 1024 * 1024;
   else throw bad("unknown unit '" + text.substr(pos) + "'; use K, M, G or T");
   const double bytes = value * scale;
-  if (!(bytes >= 1) || !std::isfinite(bytes) || bytes > 1e18) throw bad("must be at least 1 byte");
+  if (!std::isfinite(bytes) || bytes > 1e18) throw bad("too large: at most 1e18 bytes");
+  if (!(bytes >= 1)) throw bad("must be at least 1 byte");
   return static_cast<std::size_t>(bytes);
 }
 

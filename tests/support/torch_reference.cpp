@@ -11,6 +11,8 @@
 #include "model/fused_adam.h"
 #include "model/small_linear.h"
 #include "model/torch_modules.h"
+#include "util/directions.h"
+#include "util/random.h"
 
 namespace nbtf {
 
@@ -219,7 +221,18 @@ DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPer
   detail::Decoder decoder(model);
   detail::DecoderBackprop backprop(decoder, model.latentDim);
   const int rows = tiles * rowsPerTile;
-  torch::Tensor z = torch::randn({tiles, model.latentDim}), dirs = torch::rand({rows, 4}), y = torch::rand({rows, 3});
+  torch::Tensor z = torch::randn({tiles, model.latentDim}), y = torch::rand({rows, 3});
+  // Direction inputs as training builds them (TrainingSet): the model's encoding of measured
+  // (light, view) pairs, one pair per row.
+  const int width = model.directionInputCount();
+  torch::Tensor dirs = torch::empty({rows, width});
+  const std::vector<Direction>& measured = hemisphere81();
+  SplitMix64 pick(7);
+  for (int r = 0; r < rows; ++r) {
+    const Direction& light = measured[pick.next() % measured.size()];
+    const Direction& view = measured[pick.next() % measured.size()];
+    encodeDirections(model.directionInputs, light, view, dirs.data_ptr<float>() + static_cast<std::size_t>(r) * width);
+  }
   torch::Tensor dz;
   backprop.trainStep(z, dirs, y, rowsPerTile, dz);  // warm-up
   auto cpu = [] {

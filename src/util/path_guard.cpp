@@ -1,0 +1,89 @@
+#include "util/path_guard.h"
+
+#include <sys/stat.h>
+
+#include <filesystem>
+
+#include "util/error.h"
+
+namespace nbtf {
+namespace fs = std::filesystem;
+
+namespace {
+
+// The path with symbolic links and `..` resolved as far as it exists, the rest appended.
+fs::path resolved(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  if (ec) p = fs::absolute(path).lexically_normal();
+  return p;
+}
+
+bool isStream(const std::string& path) {
+  if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) return true;
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+// Same file: the same inode where both exist, else the same resolved path.
+bool sameFile(const std::string& a, const std::string& b) {
+  struct stat sa, sb;
+  const bool hasA = ::stat(a.c_str(), &sa) == 0, hasB = ::stat(b.c_str(), &sb) == 0;
+  if (hasA && hasB) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+  if (hasA != hasB) return false;
+  return resolved(a) == resolved(b);
+}
+
+// `inner` lies strictly inside the folder `outer`: one of inner's existing ancestors is outer
+// (by inode), or outer's resolved path is a prefix of inner's.
+bool inside(const std::string& inner, const std::string& outer) {
+  const fs::path in = resolved(inner), out = resolved(outer);
+  for (fs::path p = in.parent_path(); !p.empty(); p = p.parent_path()) {
+    if (sameFile(p.string(), out.string())) return true;
+    if (p == p.parent_path()) break;
+  }
+  return false;
+}
+
+std::string describe(const PathUse& use) { return use.option + " '" + use.path + "'"; }
+
+// Why `out` (an output) must not be written, given `other` (an input, or another output); "" if fine.
+std::string clash(const PathUse& out, const PathUse& other, bool otherIsInput) {
+  if (sameFile(out.path, other.path))
+    return otherIsInput ? describe(out) + " is the same " + (other.folder ? "folder" : "file") + " as the input " +
+                              describe(other) + ": writing it would destroy the input"
+                        : describe(out) + " and " + describe(other) +
+                              " are the same file: one would overwrite the other";
+  if (out.folder && inside(other.path, out.path))
+    return otherIsInput ? "the output folder " + describe(out) + " holds the input " + describe(other)
+                        : describe(other) + " lies inside the output folder " + describe(out);
+  if (other.folder && inside(out.path, other.path) && (out.folder || !otherIsInput))
+    return otherIsInput ? "the output folder " + describe(out) + " lies inside the input folder " + describe(other)
+                        : describe(out) + " lies inside the output folder " + describe(other);
+  return "";
+}
+
+}  // namespace
+
+bool samePath(const std::string& a, const std::string& b) { return sameFile(a, b); }
+
+void refuseOverlappingPaths(const std::vector<PathUse>& inputs, const std::vector<PathUse>& outputs) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    const PathUse& out = outputs[i];
+    if (out.path.empty() || isStream(out.path)) continue;
+    for (const PathUse& in : inputs) {
+      if (in.path.empty() || isStream(in.path)) continue;
+      const std::string why = clash(out, in, true);
+      if (!why.empty()) throw Error(why + "; choose another output path (nothing was written)");
+    }
+    for (std::size_t j = i + 1; j < outputs.size(); ++j) {
+      const PathUse& other = outputs[j];
+      if (other.path.empty() || isStream(other.path)) continue;
+      std::string why = clash(out, other, false);
+      if (why.empty()) why = clash(other, out, false);
+      if (!why.empty()) throw Error(why + "; give each output its own path (nothing was written)");
+    }
+  }
+}
+
+}  // namespace nbtf
