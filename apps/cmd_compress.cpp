@@ -184,7 +184,8 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value("1"))(
         "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
         cxxopts::value<int>()->default_value("0"))(
-        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1)", cxxopts::value<std::string>())(
+        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1; rank 0 listens on that address only)",
+        cxxopts::value<std::string>())(
         "dist-timeout", "Seconds the rendezvous and every collective may wait for the other ranks",
         cxxopts::value<double>()->default_value("120"))(
         "dist-secret",

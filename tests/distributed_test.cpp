@@ -158,7 +158,7 @@ bool connects(const std::string& address, int port) {
 detail::StoreBytes bytes(const std::string& s) { return detail::StoreBytes(s.begin(), s.end()); }
 std::chrono::steady_clock::time_point inSeconds(int s) { return std::chrono::steady_clock::now() + std::chrono::seconds(s); }
 
-TEST(RendezvousStore, ServesTheStoreOperations) {
+TEST(DistributedStore, ServesTheStoreOperations) {
   const int port = freePort();
   detail::RendezvousServer server("127.0.0.1", port, "s3cret");
   EXPECT_EQ(server.address(), "127.0.0.1:" + std::to_string(port));
@@ -186,7 +186,7 @@ TEST(RendezvousStore, ServesTheStoreOperations) {
   later.join();
 }
 
-TEST(RendezvousStore, ListensOnlyOnTheMasterAddress) {
+TEST(DistributedStore, ListensOnlyOnTheMasterAddress) {
   const int port = freePort();
   detail::RendezvousServer server("127.0.0.1", port, "s3cret");
   // The system's own table of listening sockets: one, on 127.0.0.1 (0100007F as /proc writes it).
@@ -197,7 +197,7 @@ TEST(RendezvousStore, ListensOnlyOnTheMasterAddress) {
   EXPECT_FALSE(connects(other, port)) << "the rendezvous answered on " << other;
 }
 
-TEST(RendezvousStore, APeerWithAWrongSecretIsRefused) {
+TEST(DistributedStore, APeerWithAWrongSecretIsRefused) {
   const int port = freePort();
   detail::RendezvousServer server("127.0.0.1", port, "s3cret");
   ::testing::internal::CaptureStderr();
@@ -229,7 +229,7 @@ TEST(RendezvousStore, APeerWithAWrongSecretIsRefused) {
   EXPECT_EQ(rank.numKeys(), 0);
 }
 
-TEST(RendezvousStore, APortInUseFailsAtOnceNamingIt) {
+TEST(DistributedStore, APortInUseFailsAtOnceNamingIt) {
   const int port = freePort();
   const int busy = listenOn(port);
   ASSERT_GE(busy, 0);
@@ -238,7 +238,7 @@ TEST(RendezvousStore, APortInUseFailsAtOnceNamingIt) {
   close(busy);
 }
 
-TEST(RendezvousStore, SecretsCompareExactly) {
+TEST(DistributedStore, SecretsCompareExactly) {
   EXPECT_TRUE(detail::sameSecret("abc", "abc"));
   EXPECT_FALSE(detail::sameSecret("abd", "abc"));
   EXPECT_FALSE(detail::sameSecret("abcabc", "abc"));  // a repetition is not the secret

@@ -480,7 +480,8 @@ RendezvousClient::RendezvousClient(const std::string& host, int port, const std:
       !recvAll(fd_, reply.data(), 2) || reply != StoreBytes{'O', 'K'}) {
     ::close(fd_);
     fd_ = -1;
-    throw Error(where_ + " refused this rank: its shared secret (--dist-secret / NBTF_DIST_SECRET) is not rank 0's");
+    throw Error(where_ + " refused this rank: its shared secret (--dist-secret / NBTF_DIST_SECRET) is not rank 0's "
+                "(or something other than an nbtf rank 0 listens there)");
   }
 }
 
