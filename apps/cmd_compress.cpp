@@ -184,9 +184,14 @@ int compressMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value("1"))(
         "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
         cxxopts::value<int>()->default_value("0"))(
-        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1)", cxxopts::value<std::string>())(
+        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1; rank 0 listens on that address only)",
+        cxxopts::value<std::string>())(
         "dist-timeout", "Seconds the rendezvous and every collective may wait for the other ranks",
         cxxopts::value<double>()->default_value("120"))(
+        "dist-secret",
+        "Shared secret every rank presents at the rendezvous (default: NBTF_DIST_SECRET, which keeps it out of the "
+        "process list; rank 0 generates and prints one when neither is set)",
+        cxxopts::value<std::string>())(
         "adaptive",
         "Adaptive clusters: train in stages, splitting the clusters with the largest share of the error and "
         "merging near-duplicates between stages (training steps as for fixed k = --clusters)")(
@@ -228,6 +233,8 @@ int compressMain(int argc, char** argv) {
     if (dist.enabled() && !args.count("master")) throw Error("--world-size > 1 needs --master HOST:PORT");
     if (dist.enabled() && o.pcaBaseline) throw Error("--world-size: the PCA baseline has no training to distribute");
     validateDistributedConfig(dist);
+    if (args.count("dist-secret")) dist.secret = args["dist-secret"].as<std::string>();
+    completeDistributedSecret(dist);
     applyAdaptive(args, config.adaptive, o);
     if (dist.enabled() && o.adaptive.enabled)
       throw Error("--adaptive cannot be used with --world-size > 1 (its stages restart from checkpoints)");
@@ -261,7 +268,18 @@ int compressMain(int argc, char** argv) {
     CompressStats stats = compressBtf(input, output, o);
     if (stats.interrupted) {
       std::error_code ec;
-      if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
+      if (dist.enabled()) {  // --resume is for one process; rank 0's checkpoint can go on in one
+        const bool checkpoint = dist.rank == 0 && !stats.checkpointPath.empty() &&
+                                std::filesystem::exists(stats.checkpointPath, ec);
+        std::fprintf(stderr,
+                     "nbtf compress: interrupted; nothing written to %s. A data-parallel run cannot --resume: "
+                     "restart every rank with the same command to train from the beginning%s\n",
+                     output.c_str(),
+                     checkpoint ? (", or continue in one process from the training state in " + stats.checkpointPath +
+                                   ": the same command without --world-size, --rank and --master, with --resume.")
+                                      .c_str()
+                                : ".");
+      } else if (!stats.checkpointPath.empty() && std::filesystem::exists(stats.checkpointPath, ec))
         std::fprintf(stderr,
                      "nbtf compress: interrupted; nothing written to %s. Training state is in %s: run the same "
                      "command with --resume to continue.\n",

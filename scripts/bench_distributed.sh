@@ -28,6 +28,9 @@ echo "== 1 process, 1 thread (the same arithmetic as each rank: the RMSE referen
 echo "== 1 process, $cores threads"
 "$bin/nbtf" compress "${common[@]}" --threads "$cores" -o "$work/one.nbtf" --stats-json "$work/one.json" > /dev/null
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+# Every rank presents the run's shared secret at the rendezvous (docs/model.md).
+NBTF_DIST_SECRET=$(od -An -N16 -tx1 /dev/urandom | tr -d ' \n')
+export NBTF_DIST_SECRET
 echo "== 2 processes, 1 thread each, loopback (master 127.0.0.1:$port)"
 "$bin/nbtf" compress "${common[@]}" --threads 1 -o "$work/rank1.nbtf" --world-size 2 --rank 1 \
   --master "127.0.0.1:$port" > "$work/rank1.log" 2>&1 &

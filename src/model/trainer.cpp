@@ -227,7 +227,17 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       throw Error("--world-size " + std::to_string(config.distributed.worldSize) + " exceeds the " +
                   std::to_string(tiles) + " encoder inputs of a step: every rank needs at least one");
     tileShare(tiles, config.distributed.rank, config.distributed.worldSize, shareBegin, shareEnd);
-    group = std::make_unique<detail::DistributedGroup>(config.distributed);
+    // The training set follows from the settings the pipeline listed, but it is what the
+    // collectives' buffer sizes come from: checked too, so no rank reaches Gloo with others.
+    DistributedConfig dist = config.distributed;
+    std::string holdout;
+    for (int i : set.holdoutImages()) holdout += (holdout.empty() ? "" : ",") + std::to_string(i);
+    dist.mustAgree.push_back({"training set: encoder inputs", std::to_string(set.groups())});
+    dist.mustAgree.push_back({"training set: images", std::to_string(set.images())});
+    dist.mustAgree.push_back({"training set: texels", std::to_string(set.texels())});
+    dist.mustAgree.push_back({"training set: held-out images", holdout.empty() ? "none" : holdout});
+    dist.mustAgree.push_back({"training set: per-texel modulation (checksum)", std::to_string(set.texelCoefficientHash())});
+    group = std::make_unique<detail::DistributedGroup>(dist);
   }
   const bool worker = group && group->rank() != 0;
 

@@ -264,6 +264,68 @@ std::string trainConfigJson(const TrainConfig& c) {
   return j.dump();
 }
 
+namespace {
+
+std::string hex64(std::uint64_t h) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 0xcbf29ce484222325ull) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+
+void flattenJson(const json& j, const std::string& path, std::vector<std::pair<std::string, std::string>>& out) {
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it) flattenJson(*it, path.empty() ? it.key() : path + "." + it.key(), out);
+    return;
+  }
+  out.push_back({path, j.dump()});
+}
+
+// What every rank of a data-parallel run must share (DistributedConfig::mustAgree), named as
+// the user knows it, the options first: ranks started with different commands get the option
+// named, not a checksum.
+std::vector<std::pair<std::string, std::string>> distributedSettings(const BtfStack& stack, const CompressOptions& o,
+                                                                     const TrainConfig& config,
+                                                                     const std::vector<std::int32_t>& ids,
+                                                                     int pcaComponents) {
+  std::vector<std::pair<std::string, std::string>> s;
+  s.push_back({"nbtf version", NBTF_VERSION});
+  s.push_back({"--clusters", std::to_string(o.clusters)});
+  s.push_back({"--seed", std::to_string(config.seed)});
+  s.push_back({"--epochs", std::to_string(config.epochs)});
+  s.push_back({"--holdout", json(config.holdoutFraction).dump()});
+  s.push_back({"--components", std::to_string(pcaComponents)});
+  s.push_back({"--crop", o.load.crop.empty() ? "none"
+                                             : std::to_string(o.load.crop.x) + "," + std::to_string(o.load.crop.y) +
+                                                   "," + std::to_string(o.load.crop.width) + "," +
+                                                   std::to_string(o.load.crop.height)});
+  s.push_back({"--layout", layoutName(stack.layout)});
+  s.push_back({"source size (width x height, lights x views)",
+               std::to_string(stack.width()) + "x" + std::to_string(stack.height()) + ", " +
+                   std::to_string(stack.lights().size()) + "x" + std::to_string(stack.views().size())});
+  const std::string fingerprint = sourceFingerprintJson(sourceFingerprint(stack));
+  s.push_back({"source data (fingerprint of the images)", hex64(fnv1a(fingerprint.data(), fingerprint.size()))});
+  // The recipe, key by key; threads may differ (the summed gradients do not depend on them).
+  std::vector<std::pair<std::string, std::string>> recipe;
+  flattenJson(json::parse(trainConfigJson(config)), "", recipe);
+  for (auto& [key, value] : recipe)
+    if (key != "training.seed" && key != "training.epochs" && key != "training.holdout_fraction" &&
+        key != "training.threads")
+      s.push_back({key + " (--config)", value});
+  s.push_back({"training.backend (--config)", config.backend});
+  // Clustering is deterministic for the settings above and the thread count; should it still
+  // differ (another --threads, another CPU), the ranks would train on different clusters.
+  s.push_back({"the texels' clusters (checksum; same --threads on every rank?)",
+               ids.empty() ? "per-texel" : hex64(fnv1a(ids.data(), ids.size() * sizeof ids[0]))});
+  return s;
+}
+
+}  // namespace
+
 CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
   if (o.pcaBaseline) return compressPcaStack(stack, o, stats);
   if (o.adaptive.enabled && o.clusters <= 0) throw Error("--adaptive needs the clustered mode (--clusters > 0)");
@@ -369,6 +431,8 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   config.stopFlag = o.stopFlag;
   config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
   stats.checkpointPath = config.checkpointPath;
+  if (config.distributed.enabled())
+    config.distributed.mustAgree = distributedSettings(stack, o, config, inputs.ids, pcaComponents);
   t = Clock::now();
   TrainResult train = trainModel(inputs, config);
   stats.seconds.train = secondsSince(t);
@@ -379,12 +443,12 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.worldSize = config.distributed.worldSize;
   stats.allReduceBytesPerStep = train.allReduceBytesPerStep;
   stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
-  if (train.worker) {  // rank > 0: its shares are trained; rank 0 assembles and writes the file
-    stats.worker = true;
+  if (train.interrupted) {  // on a worker too: a stopped rank has not trained its shares
+    stats.interrupted = true;
     return {};
   }
-  if (train.interrupted) {
-    stats.interrupted = true;
+  if (train.worker) {  // rank > 0: its shares are trained; rank 0 assembles and writes the file
+    stats.worker = true;
     return {};
   }
   stats.rmseTrain = train.rmseTrain;
