@@ -52,20 +52,33 @@ std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference
     return "not checked: the file has no source fingerprint (made by an older nbtf)";
   }
   FingerprintCheck c = checkSourceFingerprint(*stored, reference);
-  char pct[32];
+  char pct[32], pattern[160];
   std::snprintf(pct, sizeof pct, "%.1f%%", 100 * c.medianDifference);
-  if (c.matches) return std::string("matches the file's source fingerprint (median difference ") + pct + ")";
-  const Direction& l = reference.lights()[c.worstImage / reference.numViews()];
-  const Direction& v = reference.views()[c.worstImage % reference.numViews()];
-  std::string what = "reference '" + referencePath + "' is not the material '" + file +
-                     "' was made from: per-image mean linear RGB differs by " + pct +
-                     " (median over " + std::to_string(stored->images.size()) + " images, tolerance 10%); image " +
-                     std::to_string(c.worstImage) + " (light " + formatDirection(l) + ", view " + formatDirection(v) +
-                     ") has " + rgbText(c.measured) + " in the reference, " + rgbText(c.stored) + " in the source";
+  std::snprintf(pattern, sizeof pattern,
+                c.patternDifference >= 0 ? "texel pattern difference %.3f (tolerance 0.35)" : "texel pattern not compared",
+                c.patternDifference);
+  if (c.matches)
+    return std::string("matches the file's source fingerprint (median difference ") + pct + ", " + pattern + ")";
+  std::string what = "reference '" + referencePath + "' is not the material '" + file + "' was made from: ";
+  std::string summary;
+  if (c.medianDifference > 0.1 || c.patternMatches) {
+    const Direction& l = reference.lights()[c.worstImage / reference.numViews()];
+    const Direction& v = reference.views()[c.worstImage % reference.numViews()];
+    what += "per-image mean linear RGB differs by " + std::string(pct) + " (median over " +
+            std::to_string(stored->images.size()) + " images, tolerance 10%); image " + std::to_string(c.worstImage) +
+            " (light " + formatDirection(l) + ", view " + formatDirection(v) + ") has " + rgbText(c.measured) +
+            " in the reference, " + rgbText(c.stored) + " in the source";
+    summary = std::string("per-image mean linear RGB differs by ") + pct + " (median)";
+  } else {
+    // The same kind of material, another piece of it: the means agree, the texels do not.
+    what += std::string("the means agree (median difference ") + pct + ") but the texels do not: " + pattern +
+            "; the RMS difference of the mean luminance at " + std::to_string(stored->pattern.size()) +
+            " sampled texels, over the source's spread (another capture of the same kind of material?)";
+    summary = std::string(pattern);
+  }
   if (!force) throw Error(what + " (--force evaluates anyway)");
   std::fprintf(stderr, "nbtf eval: warning: %s; evaluating anyway (--force)\n", what.c_str());
-  return std::string("MISMATCH, evaluated anyway (--force): per-image mean linear RGB differs by ") + pct +
-         " (median) from the file's source";
+  return "MISMATCH, evaluated anyway (--force): " + summary + " from the file's source";
 }
 
 int runEval(const cxxopts::ParseResult& args) {

@@ -30,7 +30,7 @@ TEST(BenchTrain, EveryPartRunsForEveryDirectionEncoding) {
                                 R"( "min_steps": 0, "max_steps": 0}})");
     const test::RunResult r = test::runProgram(
         "nbtf-bench-train",
-        "--threads 1 --matmul --n 32 --decoder-only --steps 2 --throughput --size 8 --directions 9 --seconds 0.5 "
+        "--threads 1 --matmul -n 32 --decoder-only --steps 2 --throughput --size 8 --directions 9 --seconds 0.5 "
         "--clusters 4 --converge '" + stack + "' --long-factor 1 --config '" + config + "'");
     ASSERT_EQ(r.exitCode, 0) << name << "\n" << r.output;
     for (const char* key : {"matmul_gflops", "decoder_only_gflops", "decoder_only_samples_per_second",

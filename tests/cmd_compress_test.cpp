@@ -60,6 +60,43 @@ class CmdCompress : public ::testing::Test {
     return path("quick.json");
   }
 
+  // Starts `nbtf compress` on a run far too long to finish, checkpointing every 0.2 s, and
+  // sends SIGINT once its checkpoint shows that training has started.
+  struct Interrupted {
+    int status = 0;
+    std::string log;
+  };
+  Interrupted interruptTraining(const std::string& stack, const std::string& out) {
+    std::string config = writeQuickConfig(1000000, 0.2);
+    std::string log = path("int.log"), bin = std::string(NBTF_BIN_DIR) + "/nbtf";
+    pid_t pid = fork();
+    if (pid == 0) {
+      int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+      ::execl(bin.c_str(), "nbtf", "compress", stack.c_str(), "-o", out.c_str(), "--clusters", "5", "--threads", "1",
+              "--config", config.c_str(), "-q", static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    auto waitFor = [](auto condition, double seconds) {
+      for (int i = 0; i < seconds * 20 && !condition(); ++i) ::usleep(50000);
+      return condition();
+    };
+    const bool training = waitFor([&] { return fs::exists(out + ".ckpt"); }, 60);
+    ::kill(pid, SIGINT);
+    Interrupted result;
+    bool exited = false;  // waitpid reaps once: remember the answer
+    waitFor([&] { return exited = exited || ::waitpid(pid, &result.status, WNOHANG) == pid; }, 60);
+    if (!exited) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &result.status, 0);
+    }
+    result.log = std::string((std::istreambuf_iterator<char>(*std::make_unique<std::ifstream>(log))), {});
+    EXPECT_TRUE(training) << "no checkpoint appeared";
+    EXPECT_TRUE(exited) << "nbtf compress did not stop after SIGINT";
+    return result;
+  }
+
   fs::path dir_;
 };
 
@@ -336,41 +373,63 @@ TEST_F(CmdCompress, PcaCompressThenInfoEndToEnd) {
 
 TEST_F(CmdCompress, SigintCheckpointsAndWritesNothing) {
   std::string stack = writeStack();
-  // A run far too long to finish, checkpointing every 0.2 s so its checkpoint shows that
-  // training has started.
-  std::string config = writeQuickConfig(1000000, 0.2);
-  std::string out = path("int.nbtf"), log = path("int.log"), bin = std::string(NBTF_BIN_DIR) + "/nbtf";
-  pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(fd, 1);
-    ::dup2(fd, 2);
-    ::execl(bin.c_str(), "nbtf", "compress", stack.c_str(), "-o", out.c_str(), "--clusters", "5", "--threads", "1",
-            "--config", config.c_str(), "-q", static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  auto waitFor = [](auto condition, double seconds) {
-    for (int i = 0; i < seconds * 20 && !condition(); ++i) ::usleep(50000);
-    return condition();
-  };
-  bool training = waitFor([&] { return fs::exists(out + ".ckpt"); }, 60);
-  ::kill(pid, SIGINT);
-  int status = 0;
-  bool exited = false;  // waitpid reaps once: remember the answer
-  waitFor([&] { return exited = exited || ::waitpid(pid, &status, WNOHANG) == pid; }, 60);
-  if (!exited) {
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-  }
-  ASSERT_TRUE(training) << "no checkpoint appeared";
-  ASSERT_TRUE(exited) << "nbtf compress did not stop after SIGINT";
-  std::string text((std::istreambuf_iterator<char>(*std::make_unique<std::ifstream>(log))), {});
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 130) << text;
-  EXPECT_FALSE(fs::exists(out)) << text;
+  std::string out = path("int.nbtf");
+  const Interrupted run = interruptTraining(stack, out);
+  EXPECT_TRUE(WIFEXITED(run.status) && WEXITSTATUS(run.status) == 130) << run.log;
+  EXPECT_FALSE(fs::exists(out)) << run.log;
   EXPECT_TRUE(fs::exists(out + ".ckpt"));
-  EXPECT_TRUE(contains(text, "interrupted; nothing written to " + out)) << text;
-  EXPECT_TRUE(contains(text, "--resume")) << text;
+  EXPECT_TRUE(contains(run.log, "interrupted; nothing written to " + out)) << run.log;
+  EXPECT_TRUE(contains(run.log, "--resume")) << run.log;
+}
+
+TEST_F(CmdCompress, ResumeRefusesADamagedCheckpointOrAnotherPlanByName) {
+  std::string stack = writeStack();
+  std::string out = path("int.nbtf"), ckpt = out + ".ckpt";
+  ASSERT_EQ(WEXITSTATUS(interruptTraining(stack, out).status), 130);
+  const std::string same = stack + " -o " + out + " --clusters 5 --threads 1 --config " + path("quick.json") + " -q --resume";
+  // Another number of steps: the learning-rate schedule would not be the one it was trained on.
+  RunResult epochs = run("compress " + same + " --epochs 3");
+  EXPECT_EQ(epochs.exitCode, 1) << epochs.output;
+  EXPECT_TRUE(contains(epochs.output, ckpt + ": checkpoint of a run planned for")) << epochs.output;
+  EXPECT_TRUE(contains(epochs.output, "start over without --resume")) << epochs.output;
+  // One flipped byte in the middle: refused at once, by name, before any training.
+  std::vector<std::uint8_t> bytes = readFileBytes(ckpt);
+  bytes[bytes.size() / 2] ^= 0x10;
+  writeFileAtomic(ckpt, bytes.data(), bytes.size());
+  RunResult damaged = run("compress " + same);
+  EXPECT_EQ(damaged.exitCode, 1) << damaged.output;
+  EXPECT_TRUE(contains(damaged.output, ckpt + ": checkpoint is damaged (checksum")) << damaged.output;
+  EXPECT_FALSE(contains(damaged.output, "NaN")) << damaged.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(CmdCompress, AnOutputThatIsAnInputIsRefusedAndTheInputKept) {
+  std::string stack = writeStack();
+  const std::string btf = path("in.btf");
+  writeFileAtomic(btf, std::string("a measured UBO2014 file, as far as this test is concerned"));
+  const std::vector<std::uint8_t> before = readFileBytes(btf);
+  fs::create_symlink(btf, path("link.btf"));
+  struct Case {
+    std::string args, expect;
+  };
+  const std::string quick = " --clusters 4 --epochs 1 -q";
+  const std::vector<Case> cases = {
+      {btf + " -o " + btf + quick, "-o '" + btf + "' is the same file as the input"},
+      {btf + " -o " + path("link.btf") + quick, "is the same file as the input"},
+      {btf + " -o " + path("x/../in.btf") + quick, "is the same file as the input"},
+      {btf + " -o " + path("a.nbtf") + " --stats-json " + btf + quick, "--stats-json '" + btf + "' is the same file"},
+      {stack + " -o " + path("a.nbtf") + " --stats-json " + path("a.nbtf") + quick, "are the same file"},
+      {btf + " -o " + path("a.nbtf") + " --save-encoder " + btf + quick, "--save-encoder '" + btf + "' is the same"},
+      {stack + " -o " + stack + quick, "is the same folder as the input"},
+      {btf + ".ckpt -o " + btf + quick, "the checkpoint '" + btf + ".ckpt' is the same file as the input"},
+  };
+  for (const Case& c : cases) {
+    RunResult r = run("compress " + c.args);
+    EXPECT_EQ(r.exitCode, 1) << c.args << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, c.expect)) << c.args << "\n" << r.output;
+  }
+  EXPECT_EQ(readFileBytes(btf), before);
+  EXPECT_FALSE(fs::exists(path("a.nbtf")));
 }
 
 TEST_F(CmdCompress, InfoRejectsDamagedFiles) {

@@ -20,6 +20,43 @@ std::array<double, 3> meanOfImage(const BtfStack& stack, int image, std::vector<
   return sum;
 }
 
+constexpr int kPatternGrid = 16;
+
+// The sampled texels of the pattern (texel indices), for a stack of this size.
+std::vector<int> patternTexels(int width, int height, int& gridX, int& gridY) {
+  gridX = std::min(kPatternGrid, width), gridY = std::min(kPatternGrid, height);
+  std::vector<int> texels;
+  for (int j = 0; j < gridY; ++j)
+    for (int i = 0; i < gridX; ++i) {
+      const int x = static_cast<int>((2LL * i + 1) * width / (2 * gridX));
+      const int y = static_cast<int>((2LL * j + 1) * height / (2 * gridY));
+      texels.push_back(y * width + x);
+    }
+  return texels;
+}
+
+// Mean linear luminance over `images` at each sampled texel.
+std::vector<double> patternOf(const BtfStack& stack, const std::vector<int>& images, const std::vector<int>& texels) {
+  std::vector<double> lum(texels.size(), 0.0);
+  std::vector<float> buffer(static_cast<std::size_t>(stack.numTexels()) * 3);
+  for (int image : images) {
+    stack.imageLinear(image, buffer.data());
+    for (std::size_t t = 0; t < texels.size(); ++t) {
+      const float* rgb = buffer.data() + 3 * static_cast<std::size_t>(texels[t]);
+      lum[t] += 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    }
+  }
+  for (double& v : lum) v /= std::max<std::size_t>(1, images.size());
+  return lum;
+}
+
+std::string toHex(const std::vector<std::uint8_t>& bytes) {
+  static const char digits[] = "0123456789abcdef";
+  std::string s;
+  for (std::uint8_t b : bytes) s += digits[b >> 4], s += digits[b & 15];
+  return s;
+}
+
 }  // namespace
 
 SourceFingerprint sourceFingerprint(const BtfStack& stack, int maxImages) {
@@ -31,6 +68,13 @@ SourceFingerprint sourceFingerprint(const BtfStack& stack, int maxImages) {
     fp.images.push_back(image);
     fp.meanRgb.push_back(meanOfImage(stack, image, buffer));
   }
+  const std::vector<double> lum =
+      patternOf(stack, fp.images, patternTexels(stack.width(), stack.height(), fp.gridX, fp.gridY));
+  fp.patternMin = *std::min_element(lum.begin(), lum.end());
+  fp.patternMax = *std::max_element(lum.begin(), lum.end());
+  const double range = fp.patternMax - fp.patternMin;
+  for (double v : lum)
+    fp.pattern.push_back(range > 0 ? static_cast<std::uint8_t>(std::lround(255 * (v - fp.patternMin) / range)) : 0);
   return fp;
 }
 
@@ -41,6 +85,12 @@ std::string sourceFingerprintJson(const SourceFingerprint& fp) {
   json means = json::array();
   for (const auto& m : fp.meanRgb) means.push_back({m[0], m[1], m[2]});
   j["mean_linear_rgb"] = means;
+  if (!fp.pattern.empty())
+    j["texel_pattern"] = {{"what", "mean linear luminance over those images at a grid of texels, 8 bits from min to max"},
+                          {"grid", {fp.gridX, fp.gridY}},
+                          {"min", fp.patternMin},
+                          {"max", fp.patternMax},
+                          {"hex", toHex(fp.pattern)}};
   return j.dump();
 }
 
@@ -71,10 +121,31 @@ std::optional<SourceFingerprint> sourceFingerprintOf(const std::string& metadata
     fp.images.push_back(idx.get<int>());
     fp.meanRgb.push_back(m);
   }
+  if (j.contains("texel_pattern")) {
+    const json& p = j["texel_pattern"];
+    if (!p.is_object() || !p.contains("grid") || !p["grid"].is_array() || p["grid"].size() != 2 ||
+        !p["grid"][0].is_number_integer() || !p["grid"][1].is_number_integer() || !p.contains("min") ||
+        !p["min"].is_number() || !p.contains("max") || !p["max"].is_number() || !p.contains("hex") ||
+        !p["hex"].is_string())
+      throw bad("\"texel_pattern\" needs \"grid\" [x, y], \"min\", \"max\" and \"hex\"");
+    fp.gridX = p["grid"][0].get<int>(), fp.gridY = p["grid"][1].get<int>();
+    fp.patternMin = p["min"].get<double>(), fp.patternMax = p["max"].get<double>();
+    const std::string hex = p["hex"].get<std::string>();
+    if (fp.gridX < 1 || fp.gridY < 1 || fp.gridX > 1024 || fp.gridY > 1024 ||
+        hex.size() != 2 * static_cast<std::size_t>(fp.gridX) * fp.gridY || !std::isfinite(fp.patternMin) ||
+        !std::isfinite(fp.patternMax) || fp.patternMax < fp.patternMin)
+      throw bad("\"texel_pattern\" is inconsistent (grid, hex length or range)");
+    for (std::size_t i = 0; i < hex.size(); i += 2) {
+      const std::string byte = hex.substr(i, 2);
+      if (byte.find_first_not_of("0123456789abcdef") != std::string::npos) throw bad("\"texel_pattern\" is not hex");
+      fp.pattern.push_back(static_cast<std::uint8_t>(std::stoi(byte, nullptr, 16)));
+    }
+  }
   return fp;
 }
 
-FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const BtfStack& reference, double tolerance) {
+FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const BtfStack& reference, double tolerance,
+                                        double patternTolerance) {
   FingerprintCheck check;
   double brightest = 0;
   for (const auto& m : stored.meanRgb) brightest = std::max({brightest, m[0], m[1], m[2]});
@@ -106,6 +177,26 @@ FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const B
   std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
   check.medianDifference = diffs[diffs.size() / 2];
   check.matches = check.medianDifference <= tolerance;
+
+  // The texel pattern, where the file has one, the reference has the size it was sampled at
+  // and the material has a pattern at all (a spread of at least 1% of its brightest mean).
+  int gx = 0, gy = 0;
+  const std::vector<int> texels = patternTexels(reference.width(), reference.height(), gx, gy);
+  const double range = stored.patternMax - stored.patternMin;
+  if (!stored.pattern.empty() && gx == stored.gridX && gy == stored.gridY && range > 0.01 * brightest) {
+    const std::vector<double> lum = patternOf(reference, stored.images, texels);
+    std::vector<double> a(lum.size());
+    double mean = 0;
+    for (std::size_t t = 0; t < a.size(); ++t) mean += a[t] = stored.patternMin + range * stored.pattern[t] / 255.0;
+    mean /= static_cast<double>(a.size());
+    double variance = 0, sse = 0;
+    for (std::size_t t = 0; t < a.size(); ++t) variance += (a[t] - mean) * (a[t] - mean), sse += (a[t] - lum[t]) * (a[t] - lum[t]);
+    if (variance > 0) {
+      check.patternDifference = std::sqrt(sse / variance);
+      check.patternMatches = check.patternDifference <= patternTolerance;
+      check.matches = check.matches && check.patternMatches;
+    }
+  }
   return check;
 }
 

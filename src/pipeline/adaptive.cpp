@@ -639,11 +639,6 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
 
   // ---- The final material: its stage entry records the written size exactly (the entry is
   // part of the metadata it measures, so settle it in a few rounds).
-  if (a.targetRmse > 0 && last.rmseTrain > a.targetRmse) {
-    char missed[128];
-    std::snprintf(missed, sizeof missed, "target rmse %g missed (%.5f at the end)", a.targetRmse, last.rmseTrain);
-    stopReason = std::string(missed) + "; " + stopReason;
-  }
   stats.clusters = k;
   stats.adaptiveStopReason = stopReason;
   stats.epochs = last.epochsRun;
@@ -661,15 +656,29 @@ CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, 
           clusterValues(stack, alpha, ids, k, coefficients.data(), terms, false, false, channels)
               .floorRmse(trainImages, texels);
   }
-  for (int round = 0; round < 4; ++round) {
-    b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));
-    const std::uint64_t bytes = writtenBytes(b);
-    if (bytes == stages.back().bytes) break;
-    stages.back().bytes = bytes;
+  // The metadata is zstd-coded, so its size can swing between two values as the recorded
+  // size's digits change (the size with A recorded is B, with B it is A). Then a run of
+  // spaces after the JSON (which readers skip) of growing length is tried until the recorded
+  // size is the size: the first that settles is kept.
+  std::string padding;
+  for (int attempt = 0; attempt < 64; ++attempt, padding += ' ') {
+    bool settled = false;
+    for (int round = 0; round < 4 && !settled; ++round) {
+      b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason)) + padding;
+      const std::uint64_t bytes = writtenBytes(b);
+      settled = bytes == stages.back().bytes;
+      stages.back().bytes = bytes;
+    }
+    if (settled) break;
   }
-  b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));
   if (a.sizeBudget > 0 && writtenBytes(b) > a.sizeBudget)
     throw Error("--size-budget: internal error, the final file exceeds the budget");
+  // The summary says so when the target was not met (the file records the stages' RMSE).
+  if (a.targetRmse > 0 && last.rmseTrain > a.targetRmse) {
+    char missed[128];
+    std::snprintf(missed, sizeof missed, "target rmse %g missed (%.5f at the end)", a.targetRmse, last.rmseTrain);
+    stats.adaptiveStopReason = std::string(missed) + "; " + stopReason;
+  }
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
   return b;

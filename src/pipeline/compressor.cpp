@@ -474,7 +474,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
 void refuseOverlappingCompressPaths(const std::string& input, const std::string& output, const CompressOptions& options,
                                     const std::string& configPath, const std::vector<PathUse>& extraOutputs) {
   std::error_code ec;
-  std::vector<PathUse> inputs{{"the input", input, std::filesystem::is_directory(input, ec)}, {"--config", configPath}};
+  std::vector<PathUse> inputs{{"<input>", input, std::filesystem::is_directory(input, ec)}, {"--config", configPath}};
   std::vector<PathUse> outputs{{"-o", output}, {"--save-encoder", options.saveEncoderPath}};
   if (!options.pcaBaseline) {
     const std::string checkpoint = checkpointPathFor(output, options);
