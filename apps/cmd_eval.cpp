@@ -55,7 +55,7 @@ std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference
   char pct[32], pattern[160];
   std::snprintf(pct, sizeof pct, "%.1f%%", 100 * c.medianDifference);
   std::snprintf(pattern, sizeof pattern,
-                c.patternDifference >= 0 ? "texel pattern difference %.3f (tolerance 0.35)" : "texel pattern not compared",
+                c.patternDifference >= 0 ? "texel pattern difference %.3f (tolerance 0.1)" : "texel pattern not compared",
                 c.patternDifference);
   if (c.matches)
     return std::string("matches the file's source fingerprint (median difference ") + pct + ", " + pattern + ")";
@@ -72,7 +72,7 @@ std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference
   } else {
     // The same kind of material, another piece of it: the means agree, the texels do not.
     what += std::string("the means agree (median difference ") + pct + ") but the texels do not: " + pattern +
-            "; the RMS difference of the mean luminance at " + std::to_string(stored->pattern.size()) +
+            "; the RMS difference of the median luminance at " + std::to_string(stored->pattern.size()) +
             " sampled texels, over the source's spread (another capture of the same kind of material?)";
     summary = std::string(pattern);
   }

@@ -403,6 +403,46 @@ TEST_F(CmdCompress, ResumeRefusesADamagedCheckpointOrAnotherPlanByName) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// Issue 38's smaller rough edges, each as a new user met it.
+TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
+  std::string stack = writeStack();  // 8 x 8 texels (UTIA names), 9 x 9 directions
+  const std::string out = path("x.nbtf");
+  RunResult r = run("compress " + stack + " -o " + out + " -q --memory-limit 99999999999999999999");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--memory-limit")) << r.output;
+  EXPECT_TRUE(contains(r.output, "too large")) << r.output;
+  r = run("compress " + stack + " -o " + out + " -q --crop 0,0,4294967296,4");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--crop: 4294967296 in '0,0,4294967296,4' is too large")) << r.output;
+  // --max-clusters above the texel count is an error, as --clusters is.
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --max-clusters 65 --epochs 1");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--max-clusters 65 is larger than the 64 texels")) << r.output;
+  // An impossible size budget leaves no checkpoint or adaptive state behind.
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 1000 --stages 2 --epochs 2");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--size-budget 1000 bytes is below the smallest file")) << r.output;
+  EXPECT_FALSE(fs::exists(out + ".ckpt"));
+  EXPECT_FALSE(fs::exists(out + ".ckpt.adaptive.json"));
+  EXPECT_FALSE(fs::exists(out));
+  // An unreachable target says it was missed.
+  r = run("compress " + stack + " -o " + out + " --clusters 8 --adaptive --target-rmse 0.000001 --stages 2 --epochs 2 "
+          "--stats-json " + path("s.json") + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "target rmse 1e-06 missed")) << r.output;
+  // A layout the names contradict, and a layout given to a .btf file.
+  const std::string ubo = path("ubo");
+  for (const auto& e : fs::recursive_directory_iterator(stack)) {
+    if (!e.is_regular_file()) continue;
+    const fs::path rel = fs::relative(e.path(), stack);
+    fs::create_directories(fs::path(ubo) / rel.parent_path());
+    fs::copy_file(e.path(), fs::path(ubo) / rel.parent_path() / ("00001 " + rel.filename().string()));
+  }
+  r = run("info " + ubo + " --layout utia");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--layout utia: the images are named in the ubo2003 layout")) << r.output;
+}
+
 TEST_F(CmdCompress, AnOutputThatIsAnInputIsRefusedAndTheInputKept) {
   std::string stack = writeStack();
   const std::string btf = path("in.btf");

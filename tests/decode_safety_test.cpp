@@ -124,6 +124,23 @@ TEST_F(DecodeSafety, AnInterruptedDecodeIsRefusedByTheLoaderAndCleanedByTheNextD
   EXPECT_TRUE(fs::exists(dir_ / ".out.nbtf-decoding/precious.txt"));
 }
 
+TEST_F(DecodeSafety, ImpossibleSizesAreRefusedAndFileOutputsGetTheirFolders) {
+  test::RunResult r = decode(a_, dir_ / "big", "--size 65536x65536");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("--size 65536x65536: decoding needs about"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("bad_alloc"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir_ / "big"));
+  const std::string btf = dir_ / "a/b/x.btf";
+  r = test::runNbtf("decode '" + a_ + "' --layout ubo2014 --components 2 -o '" + btf + "' -q");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(fs::is_regular_file(btf));
+  // The input itself is never an output.
+  r = test::runNbtf("decode '" + a_ + "' --layout ubo2014 -o '" + a_ + "' -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("is the same file as the input <file.nbtf>"), std::string::npos) << r.output;
+  EXPECT_NO_THROW(readNbtf(a_));
+}
+
 TEST_F(DecodeSafety, AKilledDecodeLeavesTheEarlierDecodeOrTheNewOneNeverAMixture) {
   // Large images (the texture tiled to 384 x 384) so that a decode takes a while.
   const std::string out = dir_ / "out", refB = dir_ / "ref_b";

@@ -320,6 +320,11 @@ TEST_F(DistributedCli, TwoProcessesMatchOneWithTheSameGlobalBatch) {
   waitFor(rank1);
   ASSERT_EQ(two.exitCode, 0) << two.output << "\nrank 1:\n" << slurp(path("rank1.log"));
   EXPECT_NE(two.output.find("data-parallel: 2 processes"), std::string::npos) << two.output;
+  // libtorch's logging (glog) is initialized quietly: none of its lines reach the user.
+  for (const std::string& text : {two.output, slurp(path("rank1.log"))}) {
+    EXPECT_EQ(text.find("InitGoogleLogging"), std::string::npos) << text;
+    EXPECT_EQ(text.find("frame #"), std::string::npos) << text;
+  }
   EXPECT_NE(slurp(path("rank1.log")).find("rank 1 of 2: trained its share"), std::string::npos)
       << slurp(path("rank1.log"));
   EXPECT_FALSE(fs::exists(path("rank1.nbtf"))) << "only rank 0 writes the file";
@@ -440,6 +445,7 @@ TEST_F(DistributedCli, AKilledWorkerStopsTheOthersWithAnError) {
   killer.join();
   EXPECT_EQ(r.exitCode, 1) << "124: it waited past `timeout 60`\n" << r.output;
   EXPECT_NE(r.output.find("distributed training (rank 0 of 2"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("InitGoogleLogging"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(path("two.nbtf")));
 }
 

@@ -11,6 +11,7 @@
 
 #include "codec/decoder.h"
 #include "pipeline/decoder_output.h"
+#include "codec_fixtures.h"
 #include "decoder_fixtures.h"
 #include "io/image_io.h"
 #include "test_util.h"
@@ -65,7 +66,12 @@ TEST_F(RenderCli, RendersPngExrMaskAndStats) {
   EXPECT_GT(j["derivative_rays"].get<double>(), 0);
   EXPECT_GT(j["refined_fraction"].get<double>(), 0);
   EXPECT_LT(j["refined_fraction"].get<double>(), 1);
-  EXPECT_GT(j["ray_cost"]["derivative_over_plain"].get<double>(), 1);
+  // --ray-cost is a timing: the test checks that it was measured, not what it measured
+  // (a loaded machine can make either kind of ray the slower one); scripts/bench_render.sh
+  // reports the figure.
+  EXPECT_GT(j["ray_cost"]["samples"].get<double>(), 0);
+  EXPECT_GT(j["ray_cost"]["plain_seconds"].get<double>(), 0);
+  EXPECT_GT(j["ray_cost"]["derivative_seconds"].get<double>(), 0);
   // The same scene, uniform, against the first render as a reference.
   const CliRun u = runNbtf("render '" + file + "' -o '" + (dir / "u.png") + "' --scene cloth --size 48x36 --tiling 2 --uniform 3 "
                         "--reference '" + exr + "' --stats-json '" + stats + "' -q", dir);
@@ -112,6 +118,39 @@ TEST_F(RenderCli, ClearErrors) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("x.bmp"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "x.png"));
+}
+
+}  // namespace
+}  // namespace nbtf
+
+namespace nbtf {
+namespace {
+
+// Issue 38: --compare refuses a stack measured at other directions (eval's check), and every
+// output's missing folders are made, with a clear error where a file is in the way.
+TEST(RenderCliChecks, CompareNeedsTheSameDirectionsAndOutputsGetTheirFolders) {
+  test::TempDir dir;
+  const std::string file = dir / "m.nbtf";
+  writeNbtf(file, testing::makeSmoothMaterial(3, 6, 4));  // the 81-direction hemisphere
+  const std::string stack = testing::writeTestStack(dir / "stack");  // 9 x 9 directions
+  CliRun r = runNbtf("render --compare '" + stack + "' '" + file + "' -o '" + (dir / "cmp") + "' --size 8x6 -q", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("does not match"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the reference has 9 light directions, the file 81"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "cmp"));
+  r = runNbtf("render '" + file + "' -o '" + (dir / "new/deep/a.png") + "' --stats-json '" + (dir / "other/s.json") +
+                  "' --size 8x6 -q",
+              dir);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "new/deep/a.png"));
+  EXPECT_TRUE(fs::exists(dir / "other/s.json"));
+  r = runNbtf("render '" + file + "' -o '" + file + "/a.png' --size 8x6 -q", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("'" + file + "' is a file, not a folder"), std::string::npos) << r.err;
+  // The size limit its message states is the one it checks.
+  r = runNbtf("render '" + file + "' -o '" + (dir / "b.png") + "' --size 20000x10 -q", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("1 .. 16384 per side"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -53,7 +53,7 @@ TEST(SourceFingerprint, SameMaterialMatchesAlsoAs8BitOtherMaterialDoesNot) {
   EXPECT_TRUE(same.matches);
   EXPECT_EQ(same.medianDifference, 0);
   FingerprintCheck eight = checkSourceFingerprint(fp, asSrgb8(s));
-  EXPECT_TRUE(eight.matches) << eight.medianDifference;
+  EXPECT_TRUE(eight.matches) << eight.medianDifference << " pattern " << eight.patternDifference;
   EXPECT_LT(eight.medianDifference, 0.02);
   FingerprintCheck other = checkSourceFingerprint(fp, scaled(s, 0.5f, 1.0f, 1.6f));
   EXPECT_FALSE(other.matches);

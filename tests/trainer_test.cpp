@@ -297,7 +297,7 @@ TEST(Trainer, ResumedTimeBudgetSpendsTheRemainingBudget) {
   TrainResult part = trainModel(m.clustered(), c);
   ASSERT_TRUE(part.interrupted);
   ASSERT_EQ(part.steps, 5);
-  ASSERT_LT(part.seconds, 1.5) << "this machine is too slow for the test's budget";
+  if (part.seconds >= 1.5) GTEST_SKIP() << "5 steps took " << part.seconds << " s here: too slow for the test's budget";
 
   c.resume = true;
   c.stopAtStep = 0;

@@ -311,6 +311,30 @@ TEST(Ubo2014Btf, SizesThatDoNotFitAreNamed) {
   EXPECT_NE(errorOf(dir / "lab.btf").find("colour model LAB is not supported"), std::string::npos) << errorOf(dir / "lab.btf");
 }
 
+TEST(Ubo2014Btf, UnknownMetaVersionsAndNonFiniteSingularValuesAreRefused) {
+  test::TempDir dir;
+  const std::string good = dir / "good.btf";
+  smallMaterial(0, 2).write(good);
+  const std::vector<char> bytes = fileBytes(good);
+  // The meta data version follows the 10-byte signature and the meta data size (uint32).
+  const std::size_t version = 10 + 4;
+  ASSERT_EQ(bytes[version], 4);
+  std::vector<char> bad = bytes;
+  bad[version] = 99;
+  writeBytes(dir / "v99.btf", bad);
+  EXPECT_NE(errorOf(dir / "v99.btf").find("unknown meta data version 99 (nbtf reads versions 1 to 4)"),
+            std::string::npos)
+      << errorOf(dir / "v99.btf");
+  // Channel 0's first singular value (half float after its 13-byte header) as NaN (0x7e00).
+  const std::size_t perChannel = 13 + 2 * (2 + 6 * 2 + 12 * 2);
+  const std::size_t s0 = bytes.size() - 3 * perChannel + 13;
+  bad = bytes;
+  bad[s0] = 0x00, bad[s0 + 1] = 0x7e;
+  writeBytes(dir / "nan.btf", bad);
+  EXPECT_NE(errorOf(dir / "nan.btf").find("channel 0: a singular value is not finite"), std::string::npos)
+      << errorOf(dir / "nan.btf");
+}
+
 // FMF (read_ubo_fmf.m): one U for all channels (rows channel fastest), one SxV; header version
 // 1 adds the dynamic range reduction (exp(x) - eps), version 2 a height map.
 TEST(Ubo2014Btf, ReadsFmfAsThreeChannels) {

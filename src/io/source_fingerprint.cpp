@@ -35,18 +35,25 @@ std::vector<int> patternTexels(int width, int height, int& gridX, int& gridY) {
   return texels;
 }
 
-// Mean linear luminance over `images` at each sampled texel.
+// Median linear luminance over `images` at each sampled texel: the median, so that the few
+// images whose highlights clip in an 8-bit copy of the stack do not move it.
 std::vector<double> patternOf(const BtfStack& stack, const std::vector<int>& images, const std::vector<int>& texels) {
-  std::vector<double> lum(texels.size(), 0.0);
+  std::vector<std::vector<double>> values(texels.size());
   std::vector<float> buffer(static_cast<std::size_t>(stack.numTexels()) * 3);
   for (int image : images) {
     stack.imageLinear(image, buffer.data());
     for (std::size_t t = 0; t < texels.size(); ++t) {
       const float* rgb = buffer.data() + 3 * static_cast<std::size_t>(texels[t]);
-      lum[t] += 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+      values[t].push_back(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]);
     }
   }
-  for (double& v : lum) v /= std::max<std::size_t>(1, images.size());
+  std::vector<double> lum(texels.size(), 0.0);
+  for (std::size_t t = 0; t < texels.size(); ++t) {
+    std::vector<double>& v = values[t];
+    if (v.empty()) continue;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    lum[t] = v[v.size() / 2];
+  }
   return lum;
 }
 
@@ -86,7 +93,7 @@ std::string sourceFingerprintJson(const SourceFingerprint& fp) {
   for (const auto& m : fp.meanRgb) means.push_back({m[0], m[1], m[2]});
   j["mean_linear_rgb"] = means;
   if (!fp.pattern.empty())
-    j["texel_pattern"] = {{"what", "mean linear luminance over those images at a grid of texels, 8 bits from min to max"},
+    j["texel_pattern"] = {{"what", "median linear luminance over those images at a grid of texels, 8 bits from min to max"},
                           {"grid", {fp.gridX, fp.gridY}},
                           {"min", fp.patternMin},
                           {"max", fp.patternMax},

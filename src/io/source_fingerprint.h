@@ -1,6 +1,6 @@
 // A small fingerprint of the stack a file was made from (META JSON, "source"."fingerprint"):
 // the mean linear RGB of evenly spaced images over the texels compressed, and the pattern of
-// the texels: the mean luminance over those images at a grid of up to 16 x 16 texels, in 8
+// the texels: the median luminance over those images at a grid of up to 16 x 16 texels, in 8
 // bits between its minimum and maximum (about 300 bytes in the file). `nbtf eval` checks its
 // reference against it, so a report against the wrong material cannot pass silently: the
 // means tell materials apart, the pattern tells apart two captures of one kind of material
@@ -20,7 +20,7 @@ struct SourceFingerprint {
   std::vector<int> images;                     // image indices (light * views + view)
   std::vector<std::array<double, 3>> meanRgb;  // per image: mean linear RGB over the texels
   // The texel pattern (empty in files made before it was recorded): gridX x gridY texels,
-  // texel (i, j) at x = (2i + 1) * width / (2 gridX) (likewise y), row-major; each the mean
+  // texel (i, j) at x = (2i + 1) * width / (2 gridX) (likewise y), row-major; each the median
   // linear luminance over `images`, coded in 8 bits from patternMin to patternMax.
   int gridX = 0, gridY = 0;
   double patternMin = 0, patternMax = 0;
@@ -43,8 +43,9 @@ struct FingerprintCheck {
   bool matches = true;
   double medianDifference = 0;  // relative
   // The texel pattern: RMS difference of the sampled luminances over their standard deviation
-  // in the stored pattern (0 = the same; two unrelated textures of one kind: about 1.4); -1
-  // when not compared (an older file, or a uniform material, which has no pattern).
+  // in the stored pattern. Measured on nbtf-synth's five presets (24 x 24, JPEG stacks): the
+  // capture itself 0.004-0.014, the same preset with another seed 0.43-1.30. -1 when not
+  // compared (an older file, or a uniform material, which has no pattern).
   double patternDifference = -1;
   bool patternMatches = true;
   int worstImage = -1;          // image index with the largest difference
@@ -52,6 +53,6 @@ struct FingerprintCheck {
 };
 // The pattern matches when its difference is at most `patternTolerance`.
 FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const BtfStack& reference,
-                                        double tolerance = 0.1, double patternTolerance = 0.35);
+                                        double tolerance = 0.1, double patternTolerance = 0.1);
 
 }  // namespace nbtf

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "model/distributed_group.h"
+#include "model/torch_logging.h"
 #include "model/rendezvous_store.h"
 #include "util/error.h"
 
@@ -230,6 +231,7 @@ struct DistributedGroup::State {
 };
 
 DistributedGroup::DistributedGroup(const DistributedConfig& config) : config_(config), state_(new State) {
+  quietTorchLogging();
   validateDistributedConfig(config_);
   completeDistributedSecret(config_);
   std::string host;

@@ -3,6 +3,8 @@
 // step the optimizer; checkpoint, resume, and finally the exact per-texel RMSE.
 #include "model/trainer.h"
 
+#include "model/torch_logging.h"
+
 #include <ATen/Parallel.h>
 
 #if defined(__GLIBC__)
@@ -178,6 +180,7 @@ std::string formatStatus(double loss, double rmse, double samplesPerSecond, doub
 }  // namespace
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
+  detail::quietTorchLogging();
   validateTrainConfig(config, "training config");
 #if defined(__GLIBC__)
   // A step allocates and frees the same few-megabyte activation tensors every time. glibc
