@@ -14,6 +14,7 @@ PACKAGES=(
   nlohmann-json3-dev      # configs, reports
   libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
   libgloo-dev             # headers of libtorch's distributed backend (c10d Gloo): data-parallel training
+  libgoogle-glog-dev      # libtorch's logging, initialized quietly by nbtf (src/model/torch_logging.cpp)
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do
