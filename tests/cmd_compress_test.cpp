@@ -418,10 +418,16 @@ TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --max-clusters 65 --epochs 1");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--max-clusters 65 is larger than the 64 texels")) << r.output;
-  // An impossible size budget leaves no checkpoint or adaptive state behind.
+  // A size budget below the decoder alone is refused before loading; one below the smallest
+  // file the run can write is found after the first stage. Neither leaves a checkpoint or
+  // adaptive state behind.
   r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 1000 --stages 2 --epochs 2");
   EXPECT_EQ(r.exitCode, 1);
-  EXPECT_TRUE(contains(r.output, "--size-budget 1000 bytes is below the smallest file")) << r.output;
+  EXPECT_TRUE(contains(r.output, "--size-budget 1000 bytes is below the decoder alone")) << r.output;
+  EXPECT_FALSE(fs::exists(out + ".ckpt"));
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 27100 --stages 2 --epochs 2");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--size-budget 27100 bytes is below the smallest file")) << r.output;
   EXPECT_FALSE(fs::exists(out + ".ckpt"));
   EXPECT_FALSE(fs::exists(out + ".ckpt.adaptive.json"));
   EXPECT_FALSE(fs::exists(out));

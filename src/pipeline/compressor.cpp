@@ -54,6 +54,21 @@ void checkClusterCount(int clusters, std::int64_t texels, const std::string& wha
                 " texels of " + what + " (k must be at most the texel count; 0 = per-texel)");
 }
 
+// An adaptive --size-budget below the decoder's own stored bytes cannot be met by any number
+// of clusters: refused before loading (a budget above it but below the smallest file the run
+// can write is found after the first stage).
+void checkSizeBudgetAgainstTheDecoder(const CompressOptions& o) {
+  if (!o.adaptive.enabled || o.adaptive.sizeBudget == 0) return;
+  const std::string& storage = o.train.storage.decoder;
+  const std::uint64_t bytesPerValue = storage == "int8" ? 1 : storage == "half" ? 2 : 4;
+  std::uint64_t bytes = 0;
+  for (const DenseLayer& layer : decoderShape(o.train.model).layers)
+    bytes += bytesPerValue * (static_cast<std::uint64_t>(layer.in) * layer.out + layer.out);
+  if (o.adaptive.sizeBudget < bytes)
+    throw Error("--size-budget " + std::to_string(o.adaptive.sizeBudget) + " bytes is below the decoder alone (" +
+                std::to_string(bytes) + " bytes as " + storage + ", before any cluster or texel data)");
+}
+
 // k and, with adaptive clusters, its cap: both at most the texel count.
 void checkClusterCounts(const CompressOptions& o, std::int64_t texels, const std::string& what) {
   checkClusterCount(o.clusters, texels, what);
@@ -489,6 +504,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   // ---- Fail before hours of work: no output may overwrite the input or another output, and
   // every output must be creatable now.
   refuseOverlappingCompressPaths(input, output, options);
+  checkSizeBudgetAgainstTheDecoder(options);
   checkWritable(output);
   if (!options.saveEncoderPath.empty()) checkWritable(options.saveEncoderPath);
   CompressOptions o = options;
