@@ -305,13 +305,13 @@ void expectCommittedFourierFile(const std::string& name, int formatMinor, Direct
   EXPECT_EQ(b.modulation.channels, 3);
 }
 
-// Format 1.6 (Fourier direction inputs at 3 octaves, the default of sessions 13-15), written by
+// Format 1.6 (Fourier direction inputs at 3 octaves, the default from commit 48bb1be to 9d1460f), written by
 // commit 6325403's `nbtf compress` of the same satin with the same options and the default config.
 TEST(Decoder, CommittedFormat16FileDecodesAsBefore) {
   expectCommittedFourierFile("compact_v1_6", 6, DirectionEncoding::StereographicFourier, 28);
 }
 
-// Format 1.7 (2 octaves, the default since session 16), written by commit 9d1460f's `nbtf
+// Format 1.7 (2 octaves, the default since commit 9d1460f), written by commit 9d1460f's `nbtf
 // compress` of the same satin with the same options and the default config.
 TEST(Decoder, CommittedFormat17FileDecodesAsBefore) {
   expectCommittedFourierFile("compact_v1_7", 7, DirectionEncoding::StereographicFourier2, 20);

@@ -30,7 +30,7 @@ namespace nbtf {
 // decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ), 1.5 for per-channel
 // modulation coefficients (TXCH), 1.6 for the Fourier direction inputs (encoding 3: a reader
 // before 1.6 refuses the file as having an unknown direction encoding), 1.7 for the two-octave
-// Fourier inputs (encoding 4, the default since session 16).
+// Fourier inputs (encoding 4, the default since commit 9d1460f).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
 constexpr std::uint16_t kNbtfFormatMinor = 7;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
