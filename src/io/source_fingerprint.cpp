@@ -5,20 +5,12 @@
 #include <nlohmann/json.hpp>
 
 #include "util/error.h"
+#include "util/hex.h"
 
 namespace nbtf {
 namespace {
 
 using json = nlohmann::json;
-
-std::array<double, 3> meanOfImage(const BtfStack& stack, int image, std::vector<float>& buffer) {
-  buffer.resize(static_cast<std::size_t>(stack.numTexels()) * 3);
-  stack.imageLinear(image, buffer.data());
-  std::array<double, 3> sum{0, 0, 0};
-  for (std::size_t i = 0; i < buffer.size(); ++i) sum[i % 3] += buffer[i];
-  for (double& s : sum) s /= std::max(1, stack.numTexels());
-  return sum;
-}
 
 constexpr int kPatternGrid = 16;
 
@@ -35,33 +27,40 @@ std::vector<int> patternTexels(int width, int height, int& gridX, int& gridY) {
   return texels;
 }
 
-// Median linear luminance over `images` at each sampled texel: the median, so that the few
-// images whose highlights clip in an 8-bit copy of the stack do not move it.
-std::vector<double> patternOf(const BtfStack& stack, const std::vector<int>& images, const std::vector<int>& texels) {
+// What the fingerprint holds, measured on a stack in one read of each image: per image the mean
+// linear RGB over the texels, and per sampled texel the median linear luminance over the
+// images (the median, so that the few images whose highlights clip in an 8-bit copy of the
+// stack do not move it).
+struct Measured {
+  std::vector<std::array<double, 3>> means;
+  std::vector<double> pattern;
+};
+Measured measure(const BtfStack& stack, const std::vector<int>& images, const std::vector<int>& texels) {
+  Measured m;
   std::vector<std::vector<double>> values(texels.size());
   std::vector<float> buffer(static_cast<std::size_t>(stack.numTexels()) * 3);
   for (int image : images) {
+    if (image >= stack.numImages())
+      throw Error("the source fingerprint names image " + std::to_string(image) + " but the reference has " +
+                  std::to_string(stack.numImages()) + " images");
     stack.imageLinear(image, buffer.data());
+    std::array<double, 3> sum{0, 0, 0};
+    for (std::size_t i = 0; i < buffer.size(); ++i) sum[i % 3] += buffer[i];
+    for (double& v : sum) v /= std::max(1, stack.numTexels());
+    m.means.push_back(sum);
     for (std::size_t t = 0; t < texels.size(); ++t) {
       const float* rgb = buffer.data() + 3 * static_cast<std::size_t>(texels[t]);
       values[t].push_back(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]);
     }
   }
-  std::vector<double> lum(texels.size(), 0.0);
+  m.pattern.assign(texels.size(), 0.0);
   for (std::size_t t = 0; t < texels.size(); ++t) {
     std::vector<double>& v = values[t];
     if (v.empty()) continue;
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    lum[t] = v[v.size() / 2];
+    m.pattern[t] = v[v.size() / 2];
   }
-  return lum;
-}
-
-std::string toHex(const std::vector<std::uint8_t>& bytes) {
-  static const char digits[] = "0123456789abcdef";
-  std::string s;
-  for (std::uint8_t b : bytes) s += digits[b >> 4], s += digits[b & 15];
-  return s;
+  return m;
 }
 
 }  // namespace
@@ -69,14 +68,10 @@ std::string toHex(const std::vector<std::uint8_t>& bytes) {
 SourceFingerprint sourceFingerprint(const BtfStack& stack, int maxImages) {
   SourceFingerprint fp;
   const int n = stack.numImages(), count = std::min(n, std::max(1, maxImages));
-  std::vector<float> buffer;
-  for (int i = 0; i < count; ++i) {
-    const int image = static_cast<int>(static_cast<long long>(i) * n / count);
-    fp.images.push_back(image);
-    fp.meanRgb.push_back(meanOfImage(stack, image, buffer));
-  }
-  const std::vector<double> lum =
-      patternOf(stack, fp.images, patternTexels(stack.width(), stack.height(), fp.gridX, fp.gridY));
+  for (int i = 0; i < count; ++i) fp.images.push_back(static_cast<int>(static_cast<long long>(i) * n / count));
+  Measured measured = measure(stack, fp.images, patternTexels(stack.width(), stack.height(), fp.gridX, fp.gridY));
+  fp.meanRgb = std::move(measured.means);
+  const std::vector<double>& lum = measured.pattern;
   fp.patternMin = *std::min_element(lum.begin(), lum.end());
   fp.patternMax = *std::max_element(lum.begin(), lum.end());
   const double range = fp.patternMax - fp.patternMin;
@@ -97,7 +92,7 @@ std::string sourceFingerprintJson(const SourceFingerprint& fp) {
                           {"grid", {fp.gridX, fp.gridY}},
                           {"min", fp.patternMin},
                           {"max", fp.patternMax},
-                          {"hex", toHex(fp.pattern)}};
+                          {"hex", toHex(fp.pattern.data(), fp.pattern.size())}};
   return j.dump();
 }
 
@@ -142,11 +137,7 @@ std::optional<SourceFingerprint> sourceFingerprintOf(const std::string& metadata
         hex.size() != 2 * static_cast<std::size_t>(fp.gridX) * fp.gridY || !std::isfinite(fp.patternMin) ||
         !std::isfinite(fp.patternMax) || fp.patternMax < fp.patternMin)
       throw bad("\"texel_pattern\" is inconsistent (grid, hex length or range)");
-    for (std::size_t i = 0; i < hex.size(); i += 2) {
-      const std::string byte = hex.substr(i, 2);
-      if (byte.find_first_not_of("0123456789abcdef") != std::string::npos) throw bad("\"texel_pattern\" is not hex");
-      fp.pattern.push_back(static_cast<std::uint8_t>(std::stoi(byte, nullptr, 16)));
-    }
+    if (!fromHex(hex, fp.pattern)) throw bad("\"texel_pattern\" is not hex");
   }
   return fp;
 }
@@ -158,14 +149,13 @@ FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const B
   for (const auto& m : stored.meanRgb) brightest = std::max({brightest, m[0], m[1], m[2]});
   const double floor = 0.01 * brightest + 1e-12;
   std::vector<double> diffs;
-  std::vector<float> buffer;
   double worst = -1;
+  int gx = 0, gy = 0;
+  const std::vector<int> texels = patternTexels(reference.width(), reference.height(), gx, gy);
+  const Measured measuredRef = measure(reference, stored.images, texels);
   for (std::size_t i = 0; i < stored.images.size(); ++i) {
     const int image = stored.images[i];
-    if (image >= reference.numImages())
-      throw Error("the source fingerprint names image " + std::to_string(image) + " but the reference has " +
-                  std::to_string(reference.numImages()) + " images");
-    const std::array<double, 3> measured = meanOfImage(reference, image, buffer);
+    const std::array<double, 3>& measured = measuredRef.means[i];
     double imageWorst = 0;
     for (int c = 0; c < 3; ++c) {
       const double a = stored.meanRgb[i][c], b = measured[c];
@@ -187,11 +177,9 @@ FingerprintCheck checkSourceFingerprint(const SourceFingerprint& stored, const B
 
   // The texel pattern, where the file has one, the reference has the size it was sampled at
   // and the material has a pattern at all (a spread of at least 1% of its brightest mean).
-  int gx = 0, gy = 0;
-  const std::vector<int> texels = patternTexels(reference.width(), reference.height(), gx, gy);
   const double range = stored.patternMax - stored.patternMin;
   if (!stored.pattern.empty() && gx == stored.gridX && gy == stored.gridY && range > 0.01 * brightest) {
-    const std::vector<double> lum = patternOf(reference, stored.images, texels);
+    const std::vector<double>& lum = measuredRef.pattern;
     std::vector<double> a(lum.size());
     double mean = 0;
     for (std::size_t t = 0; t < a.size(); ++t) mean += a[t] = stored.patternMin + range * stored.pattern[t] / 255.0;

@@ -104,17 +104,9 @@ namespace detail {
 
 namespace {
 
-// An exception's message on one line: c10::Error's without the C++ backtrace it carries.
+// An exception's message on one line (userMessage, without libtorch's backtrace).
 std::string oneLine(const std::exception& e) {
-  std::string s;
-  if (const auto* c10 = dynamic_cast<const c10::Error*>(&e))
-    s = c10->what_without_backtrace();
-  else
-    s = e.what();
-  const auto raised = s.find("\nException raised from");
-  if (raised != std::string::npos) s.resize(raised);
-  const auto frames = s.find("\nframe #");
-  if (frames != std::string::npos) s.resize(frames);
+  std::string s = userMessage(e);
   for (char& ch : s)
     if (ch == '\n') ch = ' ';
   return s;

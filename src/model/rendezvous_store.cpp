@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "util/error.h"
+#include "util/hex.h"
 
 namespace nbtf::detail {
 
@@ -199,10 +200,7 @@ std::string randomSecret() {
   unsigned char bytes[16];
   if (!in.read(reinterpret_cast<char*>(bytes), sizeof bytes))
     throw Error("cannot read /dev/urandom to generate a --dist-secret; pass one with --dist-secret");
-  static const char hex[] = "0123456789abcdef";
-  std::string s;
-  for (unsigned char b : bytes) s += hex[b >> 4], s += hex[b & 15];
-  return s;
+  return toHex(bytes, sizeof bytes);
 }
 
 // ---------------------------------------------------------------------------------------------

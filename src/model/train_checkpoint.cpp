@@ -4,6 +4,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "codec/byte_io.h"
 #include "codec/crc32.h"
 
 #include "util/atomic_file.h"
@@ -22,26 +23,18 @@ constexpr std::int64_t kCheckpointVersion = 1;
 constexpr char kMagic[8] = {'N', 'B', 'T', 'F', 'C', 'K', 'P', 'T'};
 constexpr std::size_t kHeaderBytes = 8 + 4 + 8;
 
-void putLittleEndian(std::string& out, std::uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
-}
-std::uint64_t getLittleEndian(const std::uint8_t* p, int bytes) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < bytes; ++i) v |= static_cast<std::uint64_t>(p[i]) << (8 * i);
-  return v;
-}
-
 void writeArchive(const std::string& path, torch::serialize::OutputArchive& archive) {
   std::string payload;
   archive.save_to([&](const void* data, std::size_t size) {
     payload.append(static_cast<const char*>(data), size);
     return size;
   });
-  std::string file(kMagic, sizeof kMagic);
-  putLittleEndian(file, crc32(payload.data(), payload.size()), 4);
-  putLittleEndian(file, payload.size(), 8);
-  file += payload;
-  writeFileAtomic(path, file);
+  ByteWriter file;
+  file.raw(kMagic, sizeof kMagic);
+  file.u32(crc32(payload.data(), payload.size()));
+  file.u64(payload.size());
+  file.raw(payload.data(), payload.size());
+  writeFileAtomic(path, file.bytes().data(), file.bytes().size());
 }
 
 // Reads the file, checks its header and checksum, and loads the archive; a damaged or
@@ -52,8 +45,9 @@ void readArchive(const std::string& path, torch::serialize::InputArchive& archiv
   if (bytes.size() < kHeaderBytes || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
     throw fileError(path, "is not an nbtf checkpoint (no NBTFCKPT header; an older nbtf wrote checkpoints without "
                           "checksums)" + advice);
-  const std::uint32_t stored = static_cast<std::uint32_t>(getLittleEndian(bytes.data() + 8, 4));
-  const std::uint64_t size = getLittleEndian(bytes.data() + 12, 8);
+  ByteReader header(bytes.data() + sizeof kMagic, kHeaderBytes - sizeof kMagic, path, "checkpoint header");
+  const std::uint32_t stored = header.u32();
+  const std::uint64_t size = header.u64();
   if (size != bytes.size() - kHeaderBytes)
     throw fileError(path, "checkpoint is damaged: its header says " + std::to_string(size) + " bytes of data, the file has " +
                               std::to_string(bytes.size() - kHeaderBytes) + advice);

@@ -16,6 +16,12 @@
 namespace nbtf {
 namespace fs = std::filesystem;
 
+bool isStreamOutput(const std::string& path) {
+  if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) return true;
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
 std::string temporaryPathFor(const std::string& path) {
   static std::atomic<unsigned> counter{0};
   fs::path p(path);
@@ -43,14 +49,6 @@ void syncAndRename(const std::string& tmp, const std::string& path) {
 
 namespace {
 
-// An output that is not replaced but written in place: a device, pipe or socket
-// (`/dev/stdout`, `/dev/null`, a FIFO), or anything under /dev and /proc (whose links lead to
-// such things, or to the file the shell redirected stdout to).
-bool isStreamOutput(const std::string& path) {
-  if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) return true;
-  struct stat st;
-  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
-}
 
 // Through symbolic links to the file they name (so the link stays a link and its target is
 // replaced); the path itself when it is not a link.

@@ -22,6 +22,11 @@ inline void writeFileAtomic(const std::string& path, const std::string& text) {
 // temporary is removed and an nbtf::Error is thrown.
 void writeAtomicVia(const std::string& path, const std::function<void(const std::string&)>& write);
 
+// An output that is not replaced but written in place: a device, pipe or socket
+// (`/dev/stdout`, `/dev/null`, a FIFO), or anything under /dev and /proc (whose links lead to
+// such things, or to the file the shell redirected stdout to).
+bool isStreamOutput(const std::string& path);
+
 // The temporary name used for `path` (same folder, so rename stays atomic).
 std::string temporaryPathFor(const std::string& path);
 

@@ -24,7 +24,7 @@ inline std::string userMessage(const std::exception& e) {
   std::string text = e.what();
   const std::string marker = "\nException raised from ";
   const auto at = text.find(marker);
-  if (at == std::string::npos) return text;
+  if (at == std::string::npos) return text.substr(0, text.find("\nframe #"));
   std::string where = text.substr(at + marker.size());
   where = where.substr(0, where.find('\n'));
   const auto file = where.find(" at "), end = where.find(" (most recent");

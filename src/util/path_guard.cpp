@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "util/atomic_file.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -17,12 +18,6 @@ fs::path resolved(const std::string& path) {
   fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
   if (ec) p = fs::absolute(path).lexically_normal();
   return p;
-}
-
-bool isStream(const std::string& path) {
-  if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) return true;
-  struct stat st;
-  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
 }
 
 // Same file: the same inode where both exist, else the same resolved path.
@@ -70,15 +65,15 @@ bool samePath(const std::string& a, const std::string& b) { return sameFile(a, b
 void refuseOverlappingPaths(const std::vector<PathUse>& inputs, const std::vector<PathUse>& outputs) {
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     const PathUse& out = outputs[i];
-    if (out.path.empty() || isStream(out.path)) continue;
+    if (out.path.empty() || isStreamOutput(out.path)) continue;
     for (const PathUse& in : inputs) {
-      if (in.path.empty() || isStream(in.path)) continue;
+      if (in.path.empty() || isStreamOutput(in.path)) continue;
       const std::string why = clash(out, in, true);
       if (!why.empty()) throw Error(why + "; choose another output path (nothing was written)");
     }
     for (std::size_t j = i + 1; j < outputs.size(); ++j) {
       const PathUse& other = outputs[j];
-      if (other.path.empty() || isStream(other.path)) continue;
+      if (other.path.empty() || isStreamOutput(other.path)) continue;
       std::string why = clash(out, other, false);
       if (why.empty()) why = clash(other, out, false);
       if (!why.empty()) throw Error(why + "; give each output its own path (nothing was written)");
