@@ -67,7 +67,7 @@ TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
       {R"({"adaptive": {"growth_fraction": 1}})", "'adaptive.growth_fraction' must be in (0, 1)"},
       {R"({"adaptive": {"merge_tolerance": -1}})", "'adaptive.merge_tolerance' must be a number >= 0"},
       {R"({"adaptive": 5})", "'adaptive' must be an object"},
-      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, optimizer, training, modulation, storage, adaptive)"},
+      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, direction_planes, optimizer, training, modulation, storage, adaptive)"},
       {R"({"model": {"latent_dim": 0}, "adaptive": {}})", "'model.latent_dim' must be in 1..4096"},
   };
   for (const auto& [text, message] : cases) {
@@ -77,7 +77,7 @@ TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
   // The training recipe's own loader knows no "adaptive" object: it says which objects it reads.
   const std::string path = writeConfig(dir, R"({"adaptive": {"enabled": true}})");
   test::expectErrorContaining([&] { loadTrainConfig(path); },
-                              {path, "'adaptive' unknown key (expected model, optimizer, training, modulation, storage)"});
+                              {path, "'adaptive' unknown key (expected model, direction_planes, optimizer, training, modulation, storage)"});
 }
 
 TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {

@@ -9,6 +9,7 @@
 
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
+#include "util/direction_planes.h"
 #include "util/directions.h"
 
 namespace nbtf::testing {
@@ -21,9 +22,14 @@ inline std::array<double, 3> referenceOutput(const CompressedBtf& b, int texel, 
   std::vector<double> x, m;
   const float* z = b.latentOfTexel(texel);
   for (int q = 0; q < b.latentDim; ++q) x.push_back(z[q]);
-  float d[kMaxDirectionInputs];
+  float d[kMaxDecoderDirectionInputs];
   encodeDirections(b.directionEncoding, light, view, d);
-  x.insert(x.end(), d, d + directionInputCount(b.directionEncoding));
+  if (!b.planes.empty()) {  // the direction planes' features follow (util/direction_planes.h)
+    float points[6];
+    directionPlanePoints(light.unitVector(), view.unitVector(), points);
+    sampleDirectionPlanes(b.planes, points, d + directionInputCount(b.directionEncoding));
+  }
+  x.insert(x.end(), d, d + b.directionInputs());
   for (double xi : x) m.push_back(std::fabs(xi));
   for (const DenseLayer& layer : b.decoder.layers) {
     std::vector<double> y(layer.out), ym(layer.out);
@@ -52,11 +58,19 @@ inline double decoderTolerance(double magnitude) { return 1e-6 + 2e-6 * magnitud
 // deliberately not multiples of the SIMD width. k = 0: per-texel.
 inline CompressedBtf makeDecoderMaterial(int k, std::vector<int> widths = {37, 21}, int width = 7, int height = 5,
                                          unsigned seed = 11,
-                                         DirectionEncoding encoding = DirectionEncoding::Stereographic) {
+                                         DirectionEncoding encoding = DirectionEncoding::Stereographic,
+                                         int planeFeatures = 0) {
   CompressedBtf b = makeBtf(k, width, height, 8, seed);
   std::mt19937 rng(seed + 1);
   b.directionEncoding = encoding;
-  b.decoder = makeDecoder(b.latentDim, std::move(widths), rng, directionInputCount(encoding));
+  if (planeFeatures > 0) {  // random direction planes of 6 x 6 points
+    b.planes.resolution = 6;
+    b.planes.features = planeFeatures;
+    std::normal_distribution<float> value(0, 0.5f);
+    b.planes.values.resize(b.planes.valueCount());
+    for (float& v : b.planes.values) v = value(rng);
+  }
+  b.decoder = makeDecoder(b.latentDim, std::move(widths), rng, b.directionInputs());
   // He-style scale (makeDecoder draws N(0, 0.5)), so activations stay of order 1.
   for (DenseLayer& l : b.decoder.layers)
     for (float& w : l.weight) w *= static_cast<float>(2.0 * std::sqrt(2.0 / l.in));

@@ -83,17 +83,18 @@ TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
 // inputs: decoder input = latent | stereographic light | stereographic view.
 TEST(Decoder, AgreesWithTheModelsForwardPass) {
   for (int k : {6, 0})
+  for (int planeFeatures : {0, 3})
   for (DirectionEncoding encoding : directionEncodings()) {
-    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4, 11, encoding);
+    CompressedBtf b = makeDecoderMaterial(k, {106, 106, 106}, 9, 4, 11, encoding, planeFeatures);
     NbtfDecoder dec(b);
     std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
-    const int dirInputs = directionInputCount(b.directionEncoding);
+    const int dirInputs = b.directionInputs();
     RowMatrix in(b.numTexels() * static_cast<int>(pairs.size()), b.latentDim + dirInputs);
     for (std::size_t p = 0; p < pairs.size(); ++p)
       for (int t = 0; t < b.numTexels(); ++t) {
         auto row = in.row(static_cast<Eigen::Index>(p * b.numTexels() + t));
         for (int q = 0; q < b.latentDim; ++q) row(q) = b.latentOfTexel(t)[q];
-        auto d = decoderDirectionInput(b.directionEncoding, pairs[p].first, pairs[p].second);
+        auto d = decoderDirectionInput(b, pairs[p].first, pairs[p].second);
         for (int q = 0; q < dirInputs; ++q) row(b.latentDim + q) = d[q];
       }
     RowMatrix out = mlpForward(b.decoder, in);
@@ -617,6 +618,77 @@ TEST(Decoder, PcaUnmeasuredPairIsTheWeightedBlendOfItsNeighbours) {
   // Bad input is checked as for the neural methods.
   EXPECT_THROW(dec.evaluate(4, 0, light, view), Error);
   EXPECT_THROW(dec.evaluate(0, 0, Direction{95, 0}, view), Error);
+}
+
+}  // namespace
+}  // namespace nbtf
+
+namespace nbtf {
+namespace {
+
+// A material with learned direction planes (format 1.8): images, texel queries and UV queries
+// agree with the naive reference, and the material decodes bit for bit the same after a round
+// trip through the file (float32 and half storage).
+TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
+  using testing::decoderTolerance;
+  using testing::makeDecoderMaterial;
+  using testing::referenceOutput;
+  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 3);
+  NbtfDecoder dec(b);
+  EXPECT_EQ(dec.directionInputs(), 20 + 9);
+  const std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
+  for (const auto& [l, v] : pairs) {
+    std::vector<float> img(3 * b.numTexels()), byTexel(3 * b.numTexels()), byUv(3 * b.numTexels());
+    dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
+    std::vector<TexelQuery> tq;
+    std::vector<UvQuery> uq;
+    const auto lu = l.unitVector(), vu = v.unitVector();
+    for (int t = 0; t < b.numTexels(); ++t) {
+      tq.push_back({t % b.width, t / b.width, l, v});
+      uq.push_back({(t % b.width + 0.5f) / b.width, (t / b.width + 0.5f) / b.height,
+                    {float(lu[0]), float(lu[1]), float(lu[2])}, {float(vu[0]), float(vu[1]), float(vu[2])}});
+    }
+    dec.evaluate(tq.data(), tq.size(), byTexel.data(), OutputScale::Normalized);
+    dec.evaluate(uq.data(), uq.size(), byUv.data(), OutputScale::Normalized);
+    for (int t = 0; t < b.numTexels(); ++t) {
+      std::array<double, 3> mag;
+      const std::array<double, 3> want = referenceOutput(b, t, l, v, &mag);
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(img[3 * t + c], want[c], 2 * decoderTolerance(mag[c])) << "texel " << t;
+        EXPECT_EQ(byTexel[3 * t + c], img[3 * t + c]) << "texel " << t;
+        // UV queries arrive as float unit vectors: the same pair to float precision.
+        EXPECT_NEAR(byUv[3 * t + c], want[c], 1e-4 + 1e-4 * mag[c]) << "texel " << t;
+      }
+    }
+  }
+  for (bool half : {false, true}) {
+    CompressedBtf stored = b;
+    stored.storage.decoderHalf = half;
+    roundToStorage(stored);
+    const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
+    EXPECT_EQ(bytes[10], 8);  // format 1.8
+    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(back.planes.values, stored.planes.values);
+    EXPECT_EQ(serializeNbtf(back), bytes);
+    EXPECT_EQ(computeSizes(back).planes, 3u * 6 * 6 * 3 * (half ? 2 : 4));
+    std::vector<float> a(3 * b.numTexels()), c(3 * b.numTexels());
+    NbtfDecoder(stored).decodeImage({37.5, 200}, {10, 45}, a.data(), OutputScale::Normalized);
+    NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
+    EXPECT_EQ(a, c);
+  }
+}
+
+TEST(Decoder, DirectionPlanesContentIsCheckedByName) {
+  CompressedBtf b = testing::makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 2);
+  CompressedBtf bad = b;
+  bad.planes.values.pop_back();
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"m.nbtf", "direction planes hold 215 values, expected 216"});
+  bad = b;
+  bad.planes.values[5] = std::nanf("");
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"direction planes contain non-finite values"});
+  bad = b;
+  bad.planes = DirectionPlanes{};  // the decoder still takes the planes' inputs
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"decoder layer 0 takes 34 inputs, expected 28"});
 }
 
 }  // namespace

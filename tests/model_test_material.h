@@ -136,7 +136,7 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
   // The direction encoding the decoder was trained with: the one whose input count fits.
   DirectionEncoding encoding = DirectionEncoding::Stereographic;
   for (DirectionEncoding e : directionEncodings())
-    if (latent + directionInputCount(e) == r.decoder.inputSize()) encoding = e;
+    if (latent + directionInputCount(e) + r.planes.inputCount() == r.decoder.inputSize()) encoding = e;
   const int dirInputs = directionInputCount(encoding);
   double sse = 0;
   RowMatrix in(static_cast<Eigen::Index>(imageSet.size()), r.decoder.inputSize());
@@ -145,10 +145,16 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
     for (std::size_t j = 0; j < imageSet.size(); ++j) {
       int img = imageSet[j];
       for (int d = 0; d < latent; ++d) in(j, d) = r.latents[static_cast<std::size_t>(g) * latent + d];
-      float d[kMaxDirectionInputs];
-      encodeDirections(encoding, m.stack.lights()[img / m.stack.numViews()], m.stack.views()[img % m.stack.numViews()],
-                       d);
-      for (int q = 0; q < dirInputs; ++q) in(j, latent + q) = d[q];
+      float d[kMaxDecoderDirectionInputs];
+      const Direction& light = m.stack.lights()[img / m.stack.numViews()];
+      const Direction& view = m.stack.views()[img % m.stack.numViews()];
+      encodeDirections(encoding, light, view, d);
+      if (!r.planes.empty()) {  // the learned planes' features follow (util/direction_planes.h)
+        float points[6];
+        directionPlanePoints(light.unitVector(), view.unitVector(), points);
+        sampleDirectionPlanes(r.planes, points, d + dirInputs);
+      }
+      for (int q = 0; q < dirInputs + r.planes.inputCount(); ++q) in(j, latent + q) = d[q];
     }
     RowMatrix out = mlpForward(r.decoder, in);
     for (std::size_t j = 0; j < imageSet.size(); ++j)

@@ -318,6 +318,80 @@ TEST(Trainer, ResumedTimeBudgetSpendsTheRemainingBudget) {
 // default does*; measured in docs/BENCHMARKS.md, *Default amount of training*.)
 // optimizer.learning_rate_scaling "inputs" (the default): x sqrt(encoder inputs per step / 32),
 // from 1 (512 images or more per input: the recipe's 32 inputs) to 2.5 (81 images: 202 inputs).
+// Direction planes (util/direction_planes.h): training with them lowers the loss, the RMSE the
+// trainer reports is what the exported decoder, latents and planes give texel by texel, and the
+// torch backend (autograd's input gradient) reaches the fused backend's RMSE: the fused
+// backend's plane gradient is checked against autograd.
+TEST(Trainer, DirectionPlanesTrainAndAgreeWithAutograd) {
+  const TestMaterial& m = material();
+  for (bool clustered : {true, false}) {
+    TrainConfig c = quickConfig();
+    c.epochs = clustered ? 300 : 40;
+    c.model.planeFeatures = 2;
+    c.model.planeResolution = 5;
+    c.planeLearningRate = 1e-2;
+    const TrainInputs in = clustered ? m.clustered() : m.perTexel();
+    TrainResult fused = trainModel(in, c);
+    ASSERT_EQ(fused.planes.features, 2);
+    ASSERT_EQ(fused.planes.values.size(), 3u * 5 * 5 * 2);
+    EXPECT_EQ(fused.decoder.inputSize(), 8 + 20 + 6);
+    EXPECT_LT(fused.rmseTrain, 0.5 * testing::imageMeanRmse(m));
+    EXPECT_NEAR(testing::decodedRmse(m, fused, clustered ? asInts(m.ids) : std::vector<int>{}, allImages(m)),
+                fused.rmseTrain, 1e-4 + 1e-3 * fused.rmseTrain);
+    // The planes moved from their initial values (uniform in [-0.1, 0.1]).
+    float largest = 0;
+    for (float v : fused.planes.values) largest = std::max(largest, std::abs(v));
+    EXPECT_GT(largest, 0.1f);
+    c.backend = "torch";
+    TrainResult stock = trainModel(in, c);
+    EXPECT_NEAR(stock.rmseTrain, fused.rmseTrain, 0.03 * fused.rmseTrain)
+        << (clustered ? "clustered" : "per-texel") << ": fused " << fused.rmseTrain << ", torch " << stock.rmseTrain;
+  }
+}
+
+// Free latents (optimizer.latent_learning_rate): in the polish phase the stored latents move
+// from the encoder's outputs and fit the decoder better than the encoder's own; the reported
+// RMSE is what they give; the torch backend (autograd) agrees; a resume inside the phase,
+// which must restore the moved latents and their optimizer, equals the uninterrupted run (with
+// direction planes and their own learning rate too: a second parameter group).
+TEST(Trainer, FreeLatentsFitBetterAndResumeExactly) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 200;
+  c.polishFraction = 0.3;
+  c.model.planeFeatures = 2;
+  c.model.planeResolution = 5;
+  c.planeLearningRate = 1e-2;
+  TrainResult fixed = trainModel(m.clustered(), c);
+  c.latentLearningRate = 3e-2;
+  TrainResult free = trainModel(m.clustered(), c);
+  EXPECT_EQ(free.steps, fixed.steps);
+  EXPECT_NE(free.latents, fixed.latents);
+  EXPECT_LT(free.rmseTrain, fixed.rmseTrain) << "fixed " << fixed.rmseTrain;
+  EXPECT_NEAR(testing::decodedRmse(m, free, asInts(m.ids), allImages(m)), free.rmseTrain, 1e-4 + 1e-3 * free.rmseTrain);
+  TrainConfig stockConfig = c;
+  stockConfig.backend = "torch";
+  EXPECT_NEAR(trainModel(m.clustered(), stockConfig).rmseTrain, free.rmseTrain, 0.03 * free.rmseTrain);
+
+  const std::string ckpt = tempPath("free_latents.ckpt");
+  std::filesystem::remove(ckpt);
+  c.checkpointPath = ckpt;
+  c.stopAtStep = free.steps - 10;  // inside the polish phase (the last 30%)
+  ASSERT_TRUE(trainModel(m.clustered(), c).interrupted);
+  bool saved = false;
+  for (const auto& [name, values] : readCheckpointState(ckpt).tensors)
+    if (name == "polish_latents") saved = values.size() == free.latents.size();
+  EXPECT_TRUE(saved);
+  c.resume = true;
+  c.stopAtStep = 0;
+  TrainResult resumed = trainModel(m.clustered(), c);
+  EXPECT_EQ(resumed.resumedFromStep, free.steps - 10);
+  EXPECT_TRUE(sameModel(resumed, free));
+  EXPECT_EQ(resumed.planes.values, free.planes.values);
+  EXPECT_EQ(resumed.rmseTrain, free.rmseTrain);
+  std::filesystem::remove(ckpt);
+}
+
 TEST(TrainPlan, LearningRateGrowsWithTheInputsAStepHolds) {
   TrainConfig c;
   EXPECT_EQ(c.learningRateScaling, "inputs");
@@ -481,7 +555,8 @@ TEST(TrainConfig, ReadsEveryComponent) {
   std::string path = writeTemp("full.json", R"({
     "model": {"latent_dim": 6, "encoder_channels": [4, 8], "decoder_width": 32, "decoder_layers": 3,
               "direction_inputs": "stereographic+half"},
-    "optimizer": {"name": "sgd", "learning_rate": 0.05, "momentum": 0.9},
+    "direction_planes": {"resolution": 12, "features": 2},
+    "optimizer": {"name": "adam", "learning_rate": 0.05, "latent_learning_rate": 0.01, "plane_learning_rate": 0.02},
     "training": {"batch_size": 512, "images_per_input": 16, "epochs": 7, "time_budget_seconds": 60,
                  "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
@@ -494,9 +569,12 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.model.decoderWidth, 32);
   EXPECT_EQ(c.model.decoderLayers, 3);
   EXPECT_EQ(c.model.directionInputs, DirectionEncoding::StereographicHalf);
-  EXPECT_EQ(decoderShape(c.model).inputSize(), 6 + 8);
-  EXPECT_EQ(c.optimizer, "sgd");
-  EXPECT_DOUBLE_EQ(c.momentum, 0.9);
+  EXPECT_EQ(c.model.planeResolution, 12);
+  EXPECT_EQ(c.model.planeFeatures, 2);
+  EXPECT_EQ(decoderShape(c.model).inputSize(), 6 + 8 + 3 * 2);
+  EXPECT_EQ(c.optimizer, "adam");
+  EXPECT_DOUBLE_EQ(c.latentLearningRate, 0.01);
+  EXPECT_DOUBLE_EQ(c.planeLearningRate, 0.02);
   EXPECT_EQ(c.batchSize, 512);
   EXPECT_EQ(c.imagesPerInput, 16);
   EXPECT_EQ(c.epochs, 7);
@@ -544,6 +622,13 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"storage": {"metadata": "gzip"}})", "'storage.metadata' must be \"raw\" or \"zstd\", got \"gzip\""},
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
       {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
+      {R"({"direction_planes": {"features": 9}})", "'direction_planes.features' must be in 0..8"},
+      {R"({"direction_planes": {"features": 2, "resolution": 1}})", "'direction_planes.resolution' must be in 2..64"},
+      {R"({"direction_planes": {"size": 2}})", "'direction_planes.size' unknown key"},
+      {R"({"optimizer": {"latent_learning_rate": -1}})", "'optimizer.latent_learning_rate' must be >= 0"},
+      {R"({"optimizer": {"latent_learning_rate": 0.01}, "training": {"polish_fraction": 0}})",
+       "set training.polish_fraction > 0"},
+      {R"({"optimizer": {"plane_learning_rate": -0.5}})", "'optimizer.plane_learning_rate' must be >= 0"},
   };
   for (const auto& k : cases) {
     std::string path = writeTemp("bad.json", k.json);

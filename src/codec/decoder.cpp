@@ -59,10 +59,27 @@ DecoderIsa parseDecoderIsa(const std::string& text) {
 
 // ---- Direction inputs ---------------------------------------------------------------------
 
-DirectionInput decoderDirectionInput(DirectionEncoding encoding, const Direction& light, const Direction& view) {
+namespace {
+void addPlaneFeatures(const CompressedBtf& material, const std::array<double, 3>& light,
+                      const std::array<double, 3>& view, float* out) {
+  if (material.planes.empty()) return;
+  float points[6];
+  directionPlanePoints(light, view, points);
+  sampleDirectionPlanes(material.planes, points, out + directionInputCount(material.directionEncoding));
+}
+}  // namespace
+
+DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direction& light, const Direction& view) {
   DirectionInput d{};
-  encodeDirections(encoding, light, view, d.data());
+  encodeDirections(material.directionEncoding, light, view, d.data());
+  addPlaneFeatures(material, light.unitVector(), view.unitVector(), d.data());
   return d;
+}
+
+void decoderDirectionInput(const CompressedBtf& material, const std::array<double, 3>& light,
+                           const std::array<double, 3>& view, float* out) {
+  encodeDirections(material.directionEncoding, light, view, out);
+  addPlaneFeatures(material, light, view, out);
 }
 
 std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what) {
@@ -82,7 +99,7 @@ std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std
 }
 
 DirectionInput NbtfDecoder::directionInput(const Direction& light, const Direction& view) const {
-  return decoderDirectionInput(material_.directionEncoding, light, view);
+  return decoderDirectionInput(material_, light, view);
 }
 
 // ---- Construction -------------------------------------------------------------------------
@@ -218,7 +235,7 @@ void runTiles(const detail::PackedDecoder& packed, detail::TileKernel tile, std:
   auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
     float* scratch = threadScratch(packed.scratchFloats());
     std::int32_t rows[detail::kTileRows], texels[detail::kTileRows];
-    float dirs[kMaxDirectionInputs * detail::kTileRows];
+    float dirs[kMaxDecoderDirectionInputs * detail::kTileRows];
     float terms[3 * kMaxModulationTerms * detail::kTileRows];
     for (std::size_t t = tileBegin; t < tileEnd; ++t) {
       std::size_t begin = t * detail::kTileRows;
@@ -376,8 +393,8 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
                const UvQuery& q = queries[begin + i];
                texels[i] = texelOfUv(q.u, q.v);
                rows[i] = latentRowOfTexel(texels[i]);
-               encodeDirections(directionEncoding(), unitQueryVector(q.light, "light"), unitQueryVector(q.view, "view"),
-                                dirs + static_cast<std::size_t>(width) * i);
+               decoderDirectionInput(material_, unitQueryVector(q.light, "light"), unitQueryVector(q.view, "view"),
+                                     dirs + static_cast<std::size_t>(width) * i);
              }
            },
            combinerOf(*this));

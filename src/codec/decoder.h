@@ -64,7 +64,7 @@ struct TexelQuery {
 // v (v grows downwards, with the image rows). Directions are unit vectors in the local
 // frame (z = surface normal); they are normalized here, and z < 0 is an error.
 // The decoder's direction input of one (light, view) pair (directionInputCount values used).
-using DirectionInput = std::array<float, kMaxDirectionInputs>;
+using DirectionInput = std::array<float, kMaxDecoderDirectionInputs>;
 
 struct UvQuery {
   float u = 0, v = 0;
@@ -125,7 +125,7 @@ class NbtfDecoder {
   const std::vector<float>& texelCoefficients() const { return coefficients_; }
   DecoderIsa isa() const { return isa_; }
   DirectionEncoding directionEncoding() const { return material_.directionEncoding; }
-  int directionInputs() const { return directionInputCount(material_.directionEncoding); }
+  int directionInputs() const { return material_.directionInputs(); }
   // FLOPs of one full decoder evaluation (every layer, multiply-add = 2), the unit
   // throughput figures are quoted in. The split first layer actually does less.
   // PCA: 3 dot products of length C per texel (the per-image basis combination not counted).
@@ -190,9 +190,13 @@ class NbtfDecoder {
   int terms_ = 1, channels_ = 1;
 };
 
-// The decoder's direction input for a (light, view) pair in `encoding` (util/directions.h),
-// exactly as training computed it; the first directionInputCount(encoding) values are used.
-DirectionInput decoderDirectionInput(DirectionEncoding encoding, const Direction& light, const Direction& view);
+// The decoder's direction input for a (light, view) pair of `material` (its encoding,
+// util/directions.h, then its direction planes' features), exactly as training computed it;
+// the first material.directionInputs() values are used.
+DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direction& light, const Direction& view);
+// The same for unit vectors (queries by vector), into out.
+void decoderDirectionInput(const CompressedBtf& material, const std::array<double, 3>& light,
+                           const std::array<double, 3>& view, float* out);
 // A query's direction vector normalized; throws when z < 0 or the vector is zero or not
 // finite. `what` names the direction in messages.
 std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what);

@@ -343,7 +343,7 @@ PackedLayer packOutput(const DenseLayer& l, int inPad) {
 PackedDecoder packDecoder(const Mlp& mlp, int latentDim, int dirInputs) {
   if (mlp.layers.empty()) throw Error("decoder has no layers");
   const DenseLayer& first = mlp.layers.front();
-  if (first.in != latentDim + dirInputs || dirInputs < 1 || dirInputs > kMaxDirectionInputs)
+  if (first.in != latentDim + dirInputs || dirInputs < 1 || dirInputs > kMaxDecoderDirectionInputs)
     throw Error("decoder takes " + std::to_string(first.in) + " inputs, expected latent " + std::to_string(latentDim) +
                 " + " + std::to_string(dirInputs) + " direction inputs");
   PackedDecoder p;

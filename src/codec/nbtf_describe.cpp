@@ -78,6 +78,11 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
                                " nearest measured (light, view) pairs");
   } else {
     field("directions", directionEncodingDescription(btf.directionEncoding));
+    if (!btf.planes.empty())
+      field("direction planes", "light, view and half vector, " + std::to_string(btf.planes.resolution) + " x " +
+                                    std::to_string(btf.planes.resolution) + " points x " +
+                                    std::to_string(btf.planes.features) + " features each (+" +
+                                    std::to_string(btf.planes.inputCount()) + " decoder inputs)");
     field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
     std::size_t params = 0;
     for (const auto& l : btf.decoder.layers) params += l.parameterCount();

@@ -45,7 +45,8 @@ constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag
                         kIds = tag("TXID"), kHoldout = tag("HOLD"), kEncoder = tag("ENCD"), kMeta = tag("META"),
                         kPcaMean = tag("PCAM"), kPcaBasis = tag("PCAB"), kPcaCoefficients = tag("PCAC"),
                         kDecoderHalf = tag("DECH"), kLatentsHalf = tag("LATH"), kIdsZstd = tag("TXIZ"),
-                        kModulation = tag("TXSC"), kModulationRgb = tag("TXCH"), kDecoderInt8 = tag("DEC8"), kDirsZstd = tag("DIRZ"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ");
+                        kModulation = tag("TXSC"), kModulationRgb = tag("TXCH"), kDecoderInt8 = tag("DEC8"), kDirsZstd = tag("DIRZ"), kMetaZstd = tag("METZ"), kHoldoutZstd = tag("HOLZ"),
+                        kPlanes = tag("DPLN");
 
 std::string tagText(std::uint32_t t) {
   std::string s;
@@ -83,6 +84,7 @@ std::string sectionLabel(std::uint32_t t) {
                      : t == kModulationRgb ? "per-texel modulation, per channel"
                      : t == kMetaZstd ? "metadata, zstd-coded"
                      : t == kHoldoutZstd ? "hold-out images, zstd-coded"
+                     : t == kPlanes ? "direction planes"
                                      : nullptr;
   return "section '" + tagText(t) + "'" + (what ? std::string(" (") + what + ")" : std::string());
 }
@@ -210,6 +212,9 @@ int int8Code(float w, float scale) {
   return static_cast<int>(std::clamp(std::nearbyint(w / scale), -127.f, 127.f));
 }
 
+// Direction planes follow the decoder's storage: float32 with a float32 decoder, half otherwise.
+bool storagePlanesHalf(const CompressedBtf& b) { return b.storage.decoderHalf || b.storage.decoderInt8; }
+
 }  // namespace
 
 std::string storageDescription(const CompressedBtf& btf) {
@@ -242,6 +247,8 @@ void roundToStorage(CompressedBtf& btf) {
     }
   if (btf.storage.latentsHalf && !btf.isPca())
     for (float& z : btf.latents) z = roundToHalf(z);
+  if (storagePlanesHalf(btf))
+    for (float& v : btf.planes.values) v = roundToHalf(v);
 }
 
 // ---- Names, sizes
@@ -299,10 +306,16 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.modulationBits = btf.modulation.bits;
     s.modulation = codedModulation(btf.modulation, btf.storage.modulationZstd).size();
   }
-  s.total = s.decoder + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
-  // The same model stored the paper's way: float32 decoder and latents, 4-byte ids.
+  if (!btf.planes.empty()) {
+    s.planeResolution = btf.planes.resolution;
+    s.planeFeatures = btf.planes.features;
+    s.planes = btf.planes.valueCount() * (storagePlanesHalf(btf) ? 2 : 4);
+  }
+  s.total = s.decoder + s.planes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
+  // The same model stored the paper's way: float32 decoder, planes and latents, 4-byte ids.
   s.totalPaper = btf.isPca() ? s.total
-                             : s.decoderParameters * 4 + latentValues * 4 + s.idsPaper + s.modulation;
+                             : s.decoderParameters * 4 + btf.planes.valueCount() * 4 + latentValues * 4 + s.idsPaper +
+                                   s.modulation;
   s.rawFloat32 = s.texels * s.images * 3 * 4;
   s.fileBytes = fileBytes;
   s.ratio = s.total ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.total) : 0;
@@ -359,6 +372,12 @@ std::string formatSizeTable(const NbtfSizes& s) {
              withCommas(s.decoderParameters) + " parameters" +
                  (s.decoderBytesPerValue == 1 ? std::string(": 8-bit weights, half scale per row, half biases")
                                               : precision(s.decoderBytesPerValue)));
+  if (s.planes)
+    out += row("planes", s.planes,
+               "3 direction planes x " + std::to_string(s.planeResolution) + " x " + std::to_string(s.planeResolution) +
+                   " points x " + std::to_string(s.planeFeatures) + " features" +
+                   (s.planes == 3ull * s.planeResolution * s.planeResolution * s.planeFeatures * 2 ? " x 2 bytes (half)"
+                                                                                                   : " x 4 bytes (float32)"));
   out += row("latents", s.latents,
              withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
   if (s.idWidth && s.idsZstd) {
@@ -383,7 +402,9 @@ std::string formatSizeTable(const NbtfSizes& s) {
                   s.texels ? 8.0 * s.modulation / s.texels : 0.0);
     out += row("per-texel", s.modulation, note);
   }
-  out += row("total", s.total, s.modulationTerms ? "decoder + latents + id list + per-texel" : "decoder + latents + id list");
+  out += row("total", s.total,
+             std::string(s.planes ? "decoder + planes" : "decoder") + " + latents + id list" +
+                 (s.modulationTerms ? " + per-texel" : ""));
   out += rawAndRatio();
   char ratio[160];
   if (s.idWidth && s.totalPaper != s.total) {
@@ -495,12 +516,13 @@ void CompressedBtf::validateNeural(const std::string& name) const {
     std::string which = "decoder layer " + std::to_string(i);
     if (l.in < 1 || l.out < 1 || l.in > int(kMaxLayerWidth) || l.out > int(kMaxLayerWidth))
       throw fail(which + " has shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
-    const int directionInputs = directionInputCount(directionEncoding);
+    const int directionInputs = this->directionInputs();
     int expectedIn = i == 0 ? latentDim + directionInputs : decoder.layers[i - 1].out;
     if (l.in != expectedIn)
       throw fail(which + " takes " + std::to_string(l.in) + " inputs, expected " + std::to_string(expectedIn) +
                  (i == 0 ? " (latent + " + std::to_string(directionInputs) + " direction inputs, " +
-                              directionEncodingName(directionEncoding) + ")"
+                              directionEncodingName(directionEncoding) +
+                              (planes.empty() ? std::string() : " + direction planes") + ")"
                         : std::string(" (previous layer's outputs)")));
     if (l.weight.size() != static_cast<std::size_t>(l.in) * l.out || l.bias.size() != static_cast<std::size_t>(l.out))
       throw fail(which + " has " + std::to_string(l.weight.size()) + " weights and " + std::to_string(l.bias.size()) +
@@ -514,6 +536,22 @@ void CompressedBtf::validateNeural(const std::string& name) const {
     throw fail("decoder outputs " + std::to_string(decoder.layers.back().out) + " values, expected " +
                (terms == 1 ? std::string("3 (RGB)") : std::to_string(3 * terms) + " (RGB x " + std::to_string(terms) +
                                                           " per-texel modulation terms)"));
+
+  // Direction planes
+  if (!planes.empty()) {
+    if (planes.features < 0 || planes.features > DirectionPlanes::kMaxFeatures || planes.resolution < 2 ||
+        planes.resolution > DirectionPlanes::kMaxResolution)
+      throw fail("direction planes of " + std::to_string(planes.resolution) + " x " + std::to_string(planes.resolution) +
+                 " points x " + std::to_string(planes.features) + " features are out of range (2.." +
+                 std::to_string(DirectionPlanes::kMaxResolution) + " points, 1.." +
+                 std::to_string(DirectionPlanes::kMaxFeatures) + " features)");
+    if (planes.values.size() != planes.valueCount())
+      throw fail("direction planes hold " + std::to_string(planes.values.size()) + " values, expected " +
+                 std::to_string(planes.valueCount()));
+    if (!allFinite(planes.values)) throw fail("direction planes contain non-finite values (NaN or Inf)");
+  } else if (!planes.values.empty()) {
+    throw fail("direction plane values without features");
+  }
 
   // Latents and ids
   if (latentRows < 1) throw fail("no latents");
@@ -560,6 +598,8 @@ void CompressedBtf::validateNeural(const std::string& name) const {
       if (!halfExact(l.weight) || !halfExact(l.bias))
         throw fail("decoder is to be stored in half precision but holds values that half cannot represent "
                    "(round them with roundToStorage first)");
+  if (storagePlanesHalf(*this) && !halfExact(planes.values))
+    throw fail("direction planes are to be stored in half precision but hold values that half cannot represent");
   if (storage.latentsHalf && !halfExact(latents))
     throw fail("latents are to be stored in half precision but hold values that half cannot represent");
 
@@ -633,7 +673,8 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
   file.raw(kNbtfMagic, sizeof kNbtfMagic);
   file.u16(kNbtfFormatMajor);
   // The lowest version that describes the file.
-  file.u16(btf.directionEncoding == DirectionEncoding::StereographicFourier2  ? std::uint16_t(7)
+  file.u16(!btf.planes.empty()                                                 ? std::uint16_t(8)
+           : btf.directionEncoding == DirectionEncoding::StereographicFourier2  ? std::uint16_t(7)
            : btf.directionEncoding == DirectionEncoding::StereographicFourier ? std::uint16_t(6)
            : btf.modulation.channels != 1 ? std::uint16_t(5)
            : btf.storage.metadataZstd || btf.storage.decoderInt8 || btf.storage.directionsZstd ? std::uint16_t(4)
@@ -732,6 +773,18 @@ std::vector<std::uint8_t> serializeNbtf(const CompressedBtf& btf) {
       }
     }
     addSection(file, int8 ? kDecoderInt8 : btf.storage.decoderHalf ? kDecoderHalf : kDecoder, true, w);
+  }
+  if (!btf.planes.empty()) {
+    // u32 resolution R, u32 features F, u8 1 = half values (0 = float32), 3 reserved, then
+    // 3 x R x R x F values: plane (light, view, half vector), row y, column x, feature.
+    ByteWriter w;
+    const bool half = storagePlanesHalf(btf);
+    w.u32(static_cast<std::uint32_t>(btf.planes.resolution));
+    w.u32(static_cast<std::uint32_t>(btf.planes.features));
+    w.u8(half ? 1 : 0);
+    w.zeros(3);
+    writeValues(w, btf.planes.values, half);
+    addSection(file, kPlanes, true, w);
   }
   if (!btf.isPca()) {
     ByteWriter w;
@@ -970,6 +1023,20 @@ std::vector<float> readValues(ByteReader& r, std::uint64_t count, bool half, con
   std::vector<float> v(static_cast<std::size_t>(count));
   for (float& x : v) x = halfToFloat(r.u16());
   return v;
+}
+
+void parsePlanes(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  DirectionPlanes& p = btf.planes;
+  p.resolution = checkedInt(r, r.u32(), DirectionPlanes::kMaxResolution, "plane resolution");
+  p.features = checkedInt(r, r.u32(), DirectionPlanes::kMaxFeatures, "plane features");
+  if (p.resolution < 2 || p.features < 1)
+    throw r.fail("direction planes of " + std::to_string(p.resolution) + " points x " + std::to_string(p.features) +
+                 " features (at least 2 points and 1 feature)");
+  const std::uint8_t half = r.u8();
+  if (half > 1) throw r.fail("unknown plane value type " + std::to_string(half));
+  r.take(3, "reserved");
+  p.values = readValues(r, p.valueCount(), half == 1, "plane values");
 }
 
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -1253,6 +1320,7 @@ CompressedBtf parseNbtf(const std::uint8_t* data, std::size_t size, const std::s
     if (s.tag == kInfo) parseInfo(s, btf, name);
     else if (s.tag == kDirs || s.tag == kDirsZstd) parseDirections(s, btf, name);
     else if (s.tag == kDecoder || s.tag == kDecoderHalf || s.tag == kDecoderInt8) parseDecoder(s, btf, name);
+    else if (s.tag == kPlanes) parsePlanes(s, btf, name);
     else if (s.tag == kLatents || s.tag == kLatentsHalf) parseLatents(s, btf, name);
     else if (s.tag == kIds) parseIds(s, btf, name);
     else if (s.tag == kIdsZstd) parseIdsZstd(s, btf, name);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "util/layout.h"
+#include "util/direction_planes.h"
 #include "util/directions.h"
 #include "codec/mlp.h"
 
@@ -32,7 +33,7 @@ namespace nbtf {
 // before 1.6 refuses the file as having an unknown direction encoding), 1.7 for the two-octave
 // Fourier inputs (encoding 4, the default since commit 9d1460f).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 7;
+constexpr std::uint16_t kNbtfFormatMinor = 8;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -98,7 +99,10 @@ struct CompressedBtf {
   float alpha = 1;                        // decoder output * alpha = linear value
 
   // ---- The representation
-  Mlp decoder;                            // input: latent, then the direction inputs of directionEncoding; output RGB; empty for PCA
+  Mlp decoder;                            // input: latent, the direction inputs of directionEncoding, the planes' features; output RGB; empty for PCA
+  // Learned direction planes (format 1.8; util/direction_planes.h): their 3 F features follow
+  // the fixed direction inputs. Stored as float32 with a float32 decoder, in half otherwise.
+  DirectionPlanes planes;
   int latentDim = 8;                      // PCA: the number of components C
   int latentRows = 0;                     // k (clustered) or texels (per-texel, PCA)
   std::vector<float> latents;             // latentRows x latentDim, row-major; PCA: the coefficients
@@ -120,6 +124,8 @@ struct CompressedBtf {
   std::uint16_t formatMajor = kNbtfFormatMajor, formatMinor = kNbtfFormatMinor;
   std::vector<std::string> skippedSections;
 
+  // The decoder's direction inputs: the encoding's, then the planes'.
+  int directionInputs() const { return directionInputCount(directionEncoding) + planes.inputCount(); }
   int numImages() const { return static_cast<int>(lights.size() * views.size()); }
   int numTexels() const { return width * height; }
   int numClusters() const { return method == CodecMethod::ClusteredNeural ? latentRows : 0; }
@@ -154,7 +160,8 @@ int idWidthForClusters(std::int64_t k);
 // Sizes in bytes as in Table 1 of the paper, as stored: decoder = parameters x 4 (float32)
 // or x 2 (half), latents = rows x latentDim x 4 or 2, ids = texels x id width (the paper used
 // 4-byte ids; we store the smallest width that fits k) or the zstd-coded bytes, modulation =
-// the per-texel factors' stored bytes, total = decoder + latents + ids + modulation (the
+// the per-texel factors' stored bytes, planes = the direction planes' values as stored,
+// total = decoder + planes + latents + ids + modulation (the
 // paper's definition: headers, directions and metadata are not counted; fileBytes is the
 // actual file size), raw = texels x images x 3 x 4 (float32 RGB), ratio = raw / total.
 // PCA: decoder, latents and ids are 0; total = mean + basis + coefficients (float32 each).
@@ -163,6 +170,8 @@ struct NbtfSizes {
   std::uint64_t latentRows = 0, texels = 0, images = 0;
   int latentDim = 0;
   std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
+  std::uint64_t planes = 0;  // direction planes: 3 x R x R x F values x 2 (half) or 4 (float32)
+  int planeResolution = 0, planeFeatures = 0;
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;

@@ -58,6 +58,7 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
   SizeTable t;
   t.rawFloat32 = s.rawFloat32, t.decoder = s.decoder, t.latents = s.latents, t.ids = s.ids, t.total = s.total;
   t.perTexel = s.modulation;
+  t.planes = s.planes;
   t.fileBytes = s.fileBytes;
   t.idsPaper = s.idsPaper, t.totalPaper = s.totalPaper;
   t.pca = s.pca, t.pcaComponents = s.pcaComponents;

@@ -118,6 +118,7 @@ json reportJson(const EvalResult& r) {
       j["bytes"] = {{"raw_float32", r.sizes.rawFloat32}, {"decoder", r.sizes.decoder}, {"latents", r.sizes.latents},
                     {"ids", r.sizes.ids},                 {"per_texel", r.sizes.perTexel}, {"total", r.sizes.total},
                     {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
+    if (r.sizes.planes) j["bytes"]["planes"] = r.sizes.planes;
     j["ratio"] = r.sizes.ratio();
     if (r.sizes.totalPaper && r.sizes.totalPaper != r.sizes.total) {
       j["bytes"]["ids_paper"] = r.sizes.idsPaper;
@@ -343,6 +344,9 @@ Doc reportDoc(const json& j) {
         {"Latents", bytesText(b["latents"]), humanBytes(b["latents"])},
         {"Id list (texel -> cluster)", bytesText(b["ids"]), humanBytes(b["ids"])},
     };
+    if (b.contains("planes"))
+      srows.push_back({"Direction planes (learned features over light, view, half vector)", bytesText(b["planes"]),
+                       humanBytes(b["planes"])});
     if (b.contains("per_texel") && b["per_texel"].get<std::uint64_t>() > 0)
       srows.push_back({"Per-texel factors (modulation codes)", bytesText(b["per_texel"]), humanBytes(b["per_texel"])});
     srows.push_back({"**Total**", bytesText(b["total"]), humanBytes(b["total"])});

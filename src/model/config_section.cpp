@@ -10,7 +10,8 @@ namespace nbtf {
 
 using json = nlohmann::json;
 
-const std::vector<std::string> kTrainConfigSections = {"model", "optimizer", "training", "modulation", "storage"};
+const std::vector<std::string> kTrainConfigSections = {"model",    "direction_planes", "optimizer",
+                                                       "training", "modulation",       "storage"};
 
 namespace {
 

@@ -57,6 +57,23 @@ NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, int D, std::int64_t r0
   }
 }
 
+// The gradient of the last P direction inputs of rows r0 .. r0 + n: row r's dLoss/d(input)
+// = sum_j g[r, j] W_d[j, last P] (wTrail: those P columns of W_d, W x P). Accumulated along
+// the P outputs, so the inner loop vectorizes without reordering a sum.
+NBTF_SIMD_CLONES void layer0InputGradient(int n, int W, int S, int P, const float* __restrict g,
+                                          const float* __restrict wTrail, float* __restrict out) {
+  for (int r = 0; r < n; ++r) {
+    const float* __restrict gr = g + static_cast<std::size_t>(r) * S;
+    float* __restrict o = out + static_cast<std::size_t>(r) * P;
+    for (int p = 0; p < P; ++p) o[p] = 0;
+    for (int j = 0; j < W; ++j) {
+      const float gj = gr[j];
+      const float* __restrict w = wTrail + static_cast<std::size_t>(j) * P;
+      for (int p = 0; p < P; ++p) o[p] += gj * w[p];
+    }
+  }
+}
+
 }  // namespace
 
 DecoderBackprop::DecoderBackprop(Decoder decoder, int latentDim) : decoder_(std::move(decoder)), latentDim_(latentDim) {
@@ -142,6 +159,9 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   }
   // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
   layer0Backward(n, W, S, D, r0, rowsPerTile, sums.firstTile, g, d, sums.tileGrad.data(), sums.dirGrad.data());
+  if (trailingInputs_ > 0)
+    layer0InputGradient(n, W, S, trailingInputs_, g, trailingWeights_.data(),
+                        inputGradient_.data() + static_cast<std::size_t>(r0) * trailingInputs_);
 }
 
 void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile,
@@ -157,6 +177,11 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
   const float* w0p = w0.data_ptr<float>();
   for (int j = 0; j < W; ++j)
     for (int q = 0; q < D; ++q) dirWeightT_[q * W + j] = w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q];
+  trailingWeights_.resize(static_cast<std::size_t>(W) * trailingInputs_);
+  for (int j = 0; j < W; ++j)
+    for (int p = 0; p < trailingInputs_; ++p)
+      trailingWeights_[static_cast<std::size_t>(j) * trailingInputs_ + p] =
+          w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + D - trailingInputs_ + p];
   // The padded weights of layers 1 .. L - 1 (see the header).
   for (int l = 1; l < L; ++l) {
     const auto& lin = decoder_->layers[l];
@@ -204,6 +229,8 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
   torch::Tensor zc = z.contiguous(), y = targets.contiguous();
   TORCH_CHECK(y.size(0) == rows && y.size(1) == outputs_, "decoder: targets must be [rows, outputs]");
   TORCH_CHECK(rows > 0, "decoder: a training step needs at least one row");
+  TORCH_CHECK(trailingInputs_ <= dirWidth_, "decoder: more input gradients asked for than direction inputs");
+  inputGradient_.resize(static_cast<std::size_t>(rows) * trailingInputs_);
   run(zc, dirs.contiguous(), y.data_ptr<float>(), rowsPerTile, nullptr);
 
   // Add the chunks' sums in chunk order (deterministic): the weight gradients on all threads,

@@ -35,6 +35,11 @@ class DecoderBackprop {
   double trainStep(const torch::Tensor& z, const torch::Tensor& dirs, const torch::Tensor& targets, int rowsPerTile,
                    torch::Tensor& dz);
 
+  // From now on trainStep also computes dLoss/d(input) for the last `count` direction inputs
+  // of every row (the learned direction planes' features): inputGradient() [rows, count].
+  void setTrailingInputGradient(int count) { trailingInputs_ = count; }
+  const std::vector<float>& inputGradient() const { return inputGradient_; }
+
  private:
   // One thread's scratch: a chunk's activations and gradients (row stride stride_).
   struct Worker {
@@ -72,6 +77,9 @@ class DecoderBackprop {
   std::vector<float> dirWeightT_;  // direction inputs x width: W_d transposed, refreshed every call
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
   torch::Tensor out_;              // [rows, outputs]
+  int trailingInputs_ = 0;
+  std::vector<float> inputGradient_;  // rows x trailingInputs_
+  std::vector<float> trailingWeights_;  // W x trailingInputs_: the last columns of layer 0's weights
   std::vector<torch::Tensor> weightGrad_, biasGrad_;
 };
 

@@ -90,6 +90,26 @@ DecoderImpl::DecoderImpl(const ModelConfig& model) {
   for (std::size_t l = 0; l < shape.layers.size(); ++l)
     layers.push_back(register_module("linear" + std::to_string(l),
                                      torch::nn::Linear(shape.layers[l].in, shape.layers[l].out)));
+  if (model.planeFeatures > 0) {
+    planeResolution = model.planeResolution;
+    planeFeatures = model.planeFeatures;
+    DirectionPlanes shapeOnly;
+    shapeOnly.resolution = planeResolution, shapeOnly.features = planeFeatures;
+    // Small random values: features that differ from cell to cell from the start, so the
+    // first layer's weights on them get gradients, but small beside the fixed inputs.
+    planes = register_parameter("planes", torch::empty({static_cast<std::int64_t>(shapeOnly.valueCount())})
+                                              .uniform_(-kPlaneInitScale, kPlaneInitScale));
+  }
+}
+
+DirectionPlanes exportPlanes(const Decoder& decoder) {
+  DirectionPlanes p;
+  if (!decoder->planes.defined()) return p;
+  p.resolution = decoder->planeResolution;
+  p.features = decoder->planeFeatures;
+  torch::Tensor v = decoder->planes.detach().to(torch::kCPU).contiguous();
+  p.values.assign(v.data_ptr<float>(), v.data_ptr<float>() + v.numel());
+  return p;
 }
 
 torch::Tensor DecoderImpl::forward(torch::Tensor x) {

@@ -29,16 +29,24 @@ TORCH_MODULE(Encoder);
 
 // Linear layers, ReLU between, linear RGB output. Input [batch, latent + 4]:
 // latent, stereographic light (x, y), stereographic view (x, y).
+constexpr float kPlaneInitScale = 0.1f;  // direction planes start uniform in [-0.1, 0.1]
+
 struct DecoderImpl : torch::nn::Module {
   explicit DecoderImpl(const ModelConfig& model);
   torch::Tensor forward(torch::Tensor x);
 
   std::vector<torch::nn::Linear> layers;
+  // The learned direction planes, flat in DirectionPlanes::values' layout (undefined without).
+  // Their features are inputs of layers[0]; the trainer samples them (TrainingSet).
+  torch::Tensor planes;
+  int planeResolution = 0, planeFeatures = 0;
 };
 TORCH_MODULE(Decoder);
 
 // torch nn::Linear weights are out x in, row-major: the DenseLayer layout, copied as is.
 Mlp exportDecoder(const Decoder& decoder);
+// The planes as they are now (empty without planes).
+DirectionPlanes exportPlanes(const Decoder& decoder);
 void importDecoder(const Mlp& mlp, Decoder& decoder);
 
 }  // namespace nbtf::detail

@@ -84,7 +84,17 @@ std::uint64_t checkpointFingerprint(const TrainConfig& c, const TrainingSet& set
   if (set.texelCoefficientHash()) h = hashCombine(h, set.texelCoefficientHash());  // absent before modulation: old checkpoints still match
   if (c.model.directionInputs != DirectionEncoding::Stereographic)  // absent before: old checkpoints still match
     h = hashCombine(h, static_cast<std::uint64_t>(c.model.directionInputs));
+  if (c.model.planeFeatures > 0)  // absent without planes: old checkpoints still match
+    h = hashCombine(hashCombine(h, c.model.planeResolution), c.model.planeFeatures);
   return h;
+}
+
+void PolishLatents::start(torch::Tensor latents, double learningRate) {
+  values = latents.contiguous();
+  optimizer.reset();
+  if (learningRate > 0)
+    optimizer = std::make_unique<torch::optim::Adam>(std::vector<torch::Tensor>{values},
+                                                     torch::optim::AdamOptions(learningRate));
 }
 
 bool checkpointExists(const std::string& path) {
@@ -93,7 +103,7 @@ bool checkpointExists(const std::string& path) {
 }
 
 void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::nn::Module& encoder,
-                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer) {
+                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, const PolishLatents& polish) {
   torch::serialize::OutputArchive archive, enc, dec, opt;
   archive.write("version", torch::tensor(kCheckpointVersion));
   archive.write("step", torch::tensor(meta.step));
@@ -108,11 +118,18 @@ void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::
   archive.write("encoder", enc);
   archive.write("decoder", dec);
   archive.write("optimizer", opt);
+  if (polish.free()) {
+    torch::serialize::OutputArchive latentOpt;
+    polish.optimizer->save(latentOpt);
+    archive.write("polish_latents", polish.values);
+    archive.write("polish_optimizer", latentOpt);
+  }
   writeArchive(path, archive);
 }
 
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
-                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, bool checkFingerprint) {
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, PolishLatents& polish,
+                              double latentLearningRate, bool checkFingerprint) {
   CheckpointMeta meta;
   try {
     torch::serialize::InputArchive archive, enc, dec, opt;
@@ -145,6 +162,12 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
     encoder.load(enc);
     decoder.load(dec);
     optimizer.load(opt);
+    torch::Tensor latents;
+    if (checkFingerprint && archive.try_read("polish_latents", latents)) {
+      polish.start(latents, latentLearningRate);
+      torch::serialize::InputArchive latentOpt;
+      if (polish.free() && archive.try_read("polish_optimizer", latentOpt)) polish.optimizer->load(latentOpt);
+    }
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -187,6 +210,11 @@ CheckpointState readCheckpointState(const std::string& path) {
       torch::serialize::InputArchive sub;
       archive.read(part, sub);
       collectTensors(sub, std::string(part) + "/", state.tensors);
+    }
+    torch::Tensor latents;
+    if (archive.try_read("polish_latents", latents)) {
+      torch::Tensor d = latents.to(torch::kDouble).contiguous();
+      state.tensors.emplace_back("polish_latents", std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel()));
     }
     // The optimizer's state is keyed by each parameter's address in the process that wrote
     // it: name it by the parameter's position in the param groups instead.

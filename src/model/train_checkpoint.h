@@ -3,12 +3,25 @@
 // one. PRIVATE to src/model/*.cpp (includes torch).
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "model/torch_modules.h"
 #include "model/training_set.h"
 
 namespace nbtf {
+
+// The latents the decoder fits once the encoder is frozen (the polish phase): the encoder's
+// outputs and, with optimizer.latent_learning_rate > 0, free parameters from then on, moved by
+// their own Adam (Zeltner et al. 2024 bootstrap latents with an encoder, then fine-tune them).
+// `values` is undefined before the polish phase.
+struct PolishLatents {
+  torch::Tensor values;                           // [encoder inputs, latent], on the CPU
+  std::unique_ptr<torch::optim::Adam> optimizer;  // null: the latents stay the encoder's
+  // Begins the phase with `latents`; learningRate 0 keeps them fixed.
+  void start(torch::Tensor latents, double learningRate);
+  bool free() const { return optimizer != nullptr; }
+};
 
 struct CheckpointMeta {
   std::int64_t step = 0;
@@ -25,12 +38,15 @@ struct CheckpointMeta {
 std::uint64_t checkpointFingerprint(const TrainConfig& config, const TrainingSet& set);
 
 bool checkpointExists(const std::string& path);
+// Free polish latents (PolishLatents::free) are saved with their optimizer state.
 void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::nn::Module& encoder,
-                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer);
+                    torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, const PolishLatents& polish);
 // Throws nbtf::Error naming the path if the file is unreadable or from another setup.
-// checkFingerprint = false: a warm start across a change of the clusters (TrainConfig::warmStart).
+// checkFingerprint = false: a warm start across a change of the clusters (TrainConfig::warmStart);
+// saved polish latents are then not loaded (they belong to the old clusters). Otherwise saved
+// free latents restart `polish` with latentLearningRate and their optimizer state.
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
-                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer,
-                              bool checkFingerprint = true);
+                              torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, PolishLatents& polish,
+                              double latentLearningRate, bool checkFingerprint = true);
 
 }  // namespace nbtf

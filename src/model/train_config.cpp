@@ -39,11 +39,18 @@ TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& p
   }
   model.rejectUnknown();
 
+  ConfigSection planes(root, "direction_planes", path);
+  planes.read("resolution", c.model.planeResolution);
+  planes.read("features", c.model.planeFeatures);
+  planes.rejectUnknown();
+
   ConfigSection opt(root, "optimizer", path);
   opt.read("name", c.optimizer);
   opt.read("learning_rate", c.learningRate);
   opt.read("learning_rate_scaling", c.learningRateScaling);
   opt.read("momentum", c.momentum);
+  opt.read("latent_learning_rate", c.latentLearningRate);
+  opt.read("plane_learning_rate", c.planeLearningRate);
   opt.rejectUnknown();
 
   ConfigSection tr(root, "training", path);
@@ -96,6 +103,11 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (c.model.decoderWidth < 1 || c.model.decoderWidth > 65536) bad(source, "model.decoder_width", "must be in 1..65536");
   if (c.model.decoderLayers < 2 || c.model.decoderLayers > 64)
     bad(source, "model.decoder_layers", "must be in 2..64 (input and output layers at least)");
+  if (c.model.planeFeatures < 0 || c.model.planeFeatures > DirectionPlanes::kMaxFeatures)
+    bad(source, "direction_planes.features",
+        "must be in 0.." + std::to_string(DirectionPlanes::kMaxFeatures) + " (0: no direction planes)");
+  if (c.model.planeResolution < 2 || c.model.planeResolution > DirectionPlanes::kMaxResolution)
+    bad(source, "direction_planes.resolution", "must be in 2.." + std::to_string(DirectionPlanes::kMaxResolution));
   if (c.optimizer != "sgd" && c.optimizer != "adam")
     bad(source, "optimizer.name", "must be \"sgd\" or \"adam\", got \"" + c.optimizer + "\"");
   if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
@@ -103,6 +115,14 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "optimizer.learning_rate_scaling",
         "must be \"inputs\" or \"none\", got \"" + c.learningRateScaling + "\"");
   if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
+  if (!finite(c.latentLearningRate) || c.latentLearningRate < 0)
+    bad(source, "optimizer.latent_learning_rate", "must be >= 0 (0: the latents stay the encoder's outputs)");
+  if (c.latentLearningRate > 0 && c.polishFraction == 0)
+    bad(source, "optimizer.latent_learning_rate", "frees the latents in the polish phase: set training.polish_fraction > 0");
+  if (c.latentLearningRate > 0 && c.optimizer != "adam")
+    bad(source, "optimizer.latent_learning_rate", "needs optimizer.name \"adam\"");
+  if (!finite(c.planeLearningRate) || c.planeLearningRate < 0)
+    bad(source, "optimizer.plane_learning_rate", "must be >= 0 (0: optimizer.learning_rate)");
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
   if (c.backend != "fused" && c.backend != "torch")
     bad(source, "training.backend", "must be \"fused\" or \"torch\", got \"" + c.backend + "\"");

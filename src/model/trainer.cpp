@@ -34,6 +34,7 @@ namespace {
 using detail::Decoder;
 using detail::DecoderBackprop;
 using detail::Encoder;
+using detail::exportPlanes;
 using Clock = std::chrono::steady_clock;
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
@@ -123,12 +124,21 @@ torch::Device trainingDevice(const TrainConfig& config) {
 // (from the encoder, with its graph, or the frozen polish latents); dirs and targets on the
 // CPU. Gradients are reset to undefined, not zero, so parameters outside the graph (the
 // frozen encoder while polishing) are not moved by the optimizer's momentum.
+// With trailingInputs > 0 it also stores dLoss/d(input) of the last trailingInputs direction
+// inputs of every row in trailingGradient (the direction planes' features).
 double stockTrainStep(Decoder& decoder, const std::vector<torch::Tensor>& params, const torch::Tensor& z,
-                      const torch::Tensor& dirs, const torch::Tensor& targets, int perTile, const torch::Device& device) {
+                      const torch::Tensor& dirs, const torch::Tensor& targets, int perTile, const torch::Device& device,
+                      int trailingInputs, std::vector<float>& trailingGradient) {
   for (const torch::Tensor& p : params) p.mutable_grad() = torch::Tensor();
-  torch::Tensor inputs = torch::cat({z.repeat_interleave(perTile, 0), dirs.to(device)}, 1);
+  torch::Tensor d = dirs.to(device);
+  if (trailingInputs > 0) d = d.detach().requires_grad_(true);
+  torch::Tensor inputs = torch::cat({z.repeat_interleave(perTile, 0), d}, 1);
   torch::Tensor loss = torch::mse_loss(decoder->forward(inputs), targets.to(device));
   loss.backward();
+  if (trailingInputs > 0) {
+    torch::Tensor g = d.grad().narrow(1, d.size(1) - trailingInputs, trailingInputs).to(torch::kCPU).contiguous();
+    trailingGradient.assign(g.data_ptr<float>(), g.data_ptr<float>() + g.numel());
+  }
   return loss.item<double>();
 }
 
@@ -143,15 +153,57 @@ double scheduleFactor(const TrainConfig& c, double p) {
   return f;
 }
 
-void setLearningRate(torch::optim::Optimizer& opt, double lr) {
-  for (auto& group : opt.param_groups()) group.options().set_lr(lr);
+// The free latents' learning-rate factor: a cosine over the polish phase (p from
+// 1 - polishFraction to 1), so they move most while the decoder is still adapting to them.
+double polishScheduleFactor(const TrainConfig& c, double p) {
+  const double q = std::min(1.0, std::max(0.0, (p - (1 - c.polishFraction)) / c.polishFraction));
+  return 0.5 * (1 + std::cos(M_PI * q));
 }
 
-std::unique_ptr<torch::optim::Optimizer> makeOptimizer(const TrainConfig& c, std::vector<torch::Tensor> params) {
-  if (c.optimizer == "sgd")
-    return std::make_unique<torch::optim::SGD>(std::move(params),
-                                               torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
-  return std::make_unique<torch::optim::Adam>(std::move(params), torch::optim::AdamOptions(c.learningRate));
+// One polish step's forward and backward pass over the polish latents of the step's tiles
+// (`decoderStep` returns the loss and, in the fused backend, dL/dz in dz). When the latents are
+// free their gradient is the tiles' dz summed per encoder input (autograd's in the torch backend).
+template <typename DecoderStep>
+double polishStep(PolishLatents& polish, const torch::Tensor& tileGroup, DecoderStep decoderStep, bool stock,
+                  torch::Tensor& dz) {
+  if (!polish.free()) return decoderStep(polish.values.index_select(0, tileGroup));
+  polish.values.mutable_grad() = torch::Tensor();
+  if (stock) {
+    polish.values.requires_grad_(true);
+    const double loss = decoderStep(polish.values.index_select(0, tileGroup));
+    polish.values.requires_grad_(false);
+    return loss;
+  }
+  const double loss = decoderStep(polish.values.index_select(0, tileGroup));
+  polish.values.mutable_grad() = torch::zeros_like(polish.values).index_add_(0, tileGroup, dz);
+  return loss;
+}
+
+// Every group's rate: lr for the network (group 0), lr x `secondFactor` for the second group
+// (the direction planes, when they are there).
+void setLearningRate(torch::optim::Optimizer& opt, double lr, double secondFactor = 1) {
+  auto& groups = opt.param_groups();
+  for (std::size_t g = 0; g < groups.size(); ++g) groups[g].options().set_lr(g == 0 ? lr : lr * secondFactor);
+}
+
+// The network's parameters in one group and, when defined, the direction planes in a second
+// (optimizer.plane_learning_rate gives them a rate of their own).
+std::unique_ptr<torch::optim::Optimizer> makeOptimizer(const TrainConfig& c, std::vector<torch::Tensor> params,
+                                                       const torch::Tensor& planes) {
+  const bool sgd = c.optimizer == "sgd";
+  auto options = [&]() -> std::unique_ptr<torch::optim::OptimizerOptions> {
+    if (sgd) return std::make_unique<torch::optim::SGDOptions>(torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
+    return std::make_unique<torch::optim::AdamOptions>(c.learningRate);
+  };
+  std::vector<torch::optim::OptimizerParamGroup> groups;
+  std::vector<torch::Tensor> network;
+  for (const torch::Tensor& p : params)
+    if (!planes.defined() || !p.is_same(planes)) network.push_back(p);
+  groups.emplace_back(network, options());
+  if (planes.defined()) groups.emplace_back(std::vector<torch::Tensor>{planes}, options());
+  if (sgd)
+    return std::make_unique<torch::optim::SGD>(std::move(groups), torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
+  return std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(c.learningRate));
 }
 
 std::vector<std::uint8_t> serializeModule(torch::nn::Module& module) {
@@ -193,7 +245,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   const int threads = config.threads > 0 ? config.threads : threadCount();
   torch::set_num_threads(threads);
 
-  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs);
+  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs,
+                  config.model.planeFeatures);
   const MatrixXfCol& x = *inputs.encoderInputs;
   const EncoderInputSource inputSource(x);
   const int latentDim = config.model.latentDim;
@@ -207,8 +260,14 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   if (!device.is_cpu()) encoder->to(device), decoder->to(device);
   std::vector<torch::Tensor> params = encoder->parameters();
   for (auto& p : decoder->parameters()) params.push_back(p);
-  auto optimizer = makeOptimizer(config, params);  // its rate is set before every step
+  auto optimizer = makeOptimizer(config, params, decoder->planes);  // its rates are set before every step
+  const double planeRateFactor = config.planeLearningRate > 0 ? config.planeLearningRate / config.learningRate : 1;
   DecoderBackprop backprop(decoder, latentDim);
+  // Learned direction planes: their features are the last direction inputs, sampled anew
+  // after every step that moved them; their gradient comes from the decoder's input gradient.
+  const int planeInputs = set.planeInputs();
+  backprop.setTrailingInputGradient(planeInputs);
+  std::vector<float> stockInputGradient, planeGradient;
   const Mlp decoderMlpShape = decoderShape(config.model);
   const double flopsPerSample = decoderMlpShape.flopsPerSample();
 
@@ -251,12 +310,13 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   std::int64_t step = 0;
   double priorSeconds = 0, emaLoss = -1;
   TrainResult result;
+  PolishLatents polish;
   if (config.warmStart && !checkpointExists(config.checkpointPath))
     throw Error("training: a warm start needs the previous stage's checkpoint, \"" + config.checkpointPath +
                 "\" does not exist");
   if ((config.resume || config.warmStart) && checkpointExists(config.checkpointPath)) {
     CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer,
-                                          !config.warmStart);
+                                          polish, config.latentLearningRate, !config.warmStart);
     if (config.resume && !config.warmStart && saved.totalSteps != totalSteps) {
       auto plan = [](std::int64_t steps) {
         return steps > 0 ? std::to_string(steps) + " steps" : std::string("a time budget only");
@@ -284,7 +344,6 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   const int dirWidth = set.directionWidth();
   torch::Tensor dirs = torch::empty({batch, dirWidth}), targets = torch::empty({batch, outputs}), dz;
   torch::Tensor tileSlot = torch::empty({tiles}, torch::kLong), tileGroup = torch::empty({tiles}, torch::kLong);
-  torch::Tensor polishLatents;  // [groups, latent] once the encoder is frozen
   double withinTrain = 0;
   for (int i : set.trainImages()) withinTrain += set.withinSse(i);
   withinTrain /= static_cast<double>(set.texels()) * trainImages * 3;
@@ -323,7 +382,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     meta.step = step;
     meta.elapsedSeconds = elapsedTotal();
     meta.emaLoss = emaLoss;
-    saveCheckpoint(config.checkpointPath, meta, *encoder, *decoder, *optimizer);
+    saveCheckpoint(config.checkpointPath, meta, *encoder, *decoder, *optimizer, polish);
     lastCheckpoint = Clock::now();
   };
 
@@ -338,8 +397,9 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       break;
     }
     const double p = progressOf(step, elapsed);
-    const bool polish = config.polishFraction > 0 && p >= 1 - config.polishFraction;
-    setLearningRate(*optimizer, config.learningRate * geometry.learningRateScale * scheduleFactor(config, p));
+    const bool polishing = config.polishFraction > 0 && p >= 1 - config.polishFraction;
+    setLearningRate(*optimizer, config.learningRate * geometry.learningRateScale * scheduleFactor(config, p),
+                    planeRateFactor);
 
     // Samples: which groups and images, then their directions and targets.
     auto tPhase = Clock::now();
@@ -349,6 +409,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       tPhase = now;
     };
     planStep(set, config.seed, step, tiles, perTile, plan);
+    if (planeInputs > 0) set.setPlaneFeatures(exportPlanes(decoder));
     // This rank's share of the step's tiles (all of them in one process). The encoder still
     // runs on every distinct input of the step, so its BatchNorm sees the same batch on every
     // rank as in one process; only the decoder's rows (the cost) are split.
@@ -379,13 +440,14 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     double loss;
     TrainResult::Profile& prof = result.profile;
     lap(prof.sampling);
-    if (!polish) {
+    if (!polishing) {
       torch::Tensor in = inputSource.rows(plan.distinctGroups.data(),
                                              static_cast<std::int64_t>(plan.distinctGroups.size()));
       if (stock) {
         // Autograd through encoder and decoder; the whole step is timed as the decoder's.
         torch::Tensor z = encoder->forwardStock(in.to(device)).index_select(0, stepTileSlot.to(device));
-        loss = stockTrainStep(decoder, params, z, stepDirs, stepTargets, perTile, device);
+        loss = stockTrainStep(decoder, params, z, stepDirs, stepTargets, perTile, device, planeInputs,
+                              stockInputGradient);
         lap(prof.decoder);
       } else {
         for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
@@ -397,26 +459,39 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
         lap(prof.encoder);
       }
     } else {
-      if (!polishLatents.defined()) {
-        // Freeze the encoder: from here on the decoder fits the latents that will be stored.
-        polishLatents = encodeAll(encoder, x, stock, device);
+      if (!polish.values.defined()) {
+        // Freeze the encoder: from here on the decoder fits the latents that will be stored
+        // (and, when they are free, they fit the decoder).
+        polish.start(encodeAll(encoder, x, stock, device), config.latentLearningRate);
         for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
       }
       lap(prof.encoder);
-      if (stock)
-        loss = stockTrainStep(decoder, params, polishLatents.index_select(0, stepTileGroup).to(device), stepDirs,
-                              stepTargets, perTile, device);
-      else
-        loss = backprop.trainStep(polishLatents.index_select(0, stepTileGroup), stepDirs, stepTargets, perTile, dz);
+      loss = polishStep(polish, stepTileGroup, [&](const torch::Tensor& z) {
+        return stock ? stockTrainStep(decoder, params, z.to(device), stepDirs, stepTargets, perTile, device, planeInputs,
+                                      stockInputGradient)
+                     : backprop.trainStep(z, stepDirs, stepTargets, perTile, dz);
+      }, stock, dz);
+      if (polish.free())
+        setLearningRate(*polish.optimizer, config.latentLearningRate * polishScheduleFactor(config, p));
+      lap(prof.decoder);
+    }
+    if (planeInputs > 0) {
+      planeGradient.assign(decoder->planes.numel(), 0.0f);
+      set.addPlaneGradient(exportPlanes(decoder), &plan.images[static_cast<std::size_t>(shareBegin) * perTile],
+                           stock ? stockInputGradient.data() : backprop.inputGradient().data(), stepRows,
+                           planeGradient.data());
+      decoder->planes.mutable_grad() = torch::from_blob(planeGradient.data(), decoder->planes.sizes()).clone();
       lap(prof.decoder);
     }
     if (group) {
       // The whole step's gradient and loss: each rank's (a mean over its rows) weighted by its
       // share of the rows, summed over the ranks. Every rank then takes the same step.
       const double weight = static_cast<double>(stepTiles) / tiles;
-      for (const torch::Tensor& p : params)
+      std::vector<torch::Tensor> reduced = params;
+      if (polish.free()) reduced.push_back(polish.values);
+      for (const torch::Tensor& p : reduced)
         if (p.grad().defined()) p.grad().mul_(weight);
-      loss = group->allReduceGradients(params, loss * weight);
+      loss = group->allReduceGradients(reduced, loss * weight);
     }
     if (!std::isfinite(loss))
       throw Error("training diverged at step " + std::to_string(step) +
@@ -428,6 +503,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     } else {
       optimizer->step();
     }
+    if (polishing && polish.free()) detail::fusedAdamStep(*polish.optimizer);
     lap(prof.optimizer);
     ++step;
     emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;
@@ -441,12 +517,12 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       TrainStatus st;
       st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
       st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss * lossToTexelMse + withinTrain), st.samplesPerSecond = sps;
-      st.learningRate = config.learningRate * geometry.learningRateScale * scheduleFactor(config, p), st.polish = polish;
+      st.learningRate = config.learningRate * geometry.learningRateScale * scheduleFactor(config, p), st.polish = polishing;
       config.monitor(st);
     }
     if (since(lastStatus) > 0.5) {
       bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss * lossToTexelMse + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
-                                 step / stepsPerEpoch + 1, totalEpochs, polish));
+                                 step / stepsPerEpoch + 1, totalEpochs, polishing));
       lastStatus = Clock::now();
     }
     if (config.checkpointSeconds > 0 && since(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();
@@ -474,11 +550,15 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
   result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample / 1e9;
   result.holdoutImages = set.holdoutImages();
-  torch::Tensor latents = encodeAll(encoder, x, stock, device);
+  // The polish phase's latents are the ones the decoder was fitted to last (the encoder's
+  // outputs, moved when free); without a polish phase, the encoder's.
+  torch::Tensor latents = polish.values.defined() ? polish.values.detach() : encodeAll(encoder, x, stock, device);
   if (!device.is_cpu()) encoder->to(torch::kCPU), decoder->to(torch::kCPU);  // export and evaluate on the CPU
   result.latentRows = set.groups();
   result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());
   result.decoder = detail::exportDecoder(decoder);
+  result.planes = exportPlanes(decoder);
+  set.setPlaneFeatures(result.planes);  // the final planes, for the evaluation below
   result.encoderState = serializeModule(*encoder);
   if (!config.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
 

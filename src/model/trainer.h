@@ -12,6 +12,7 @@
 #include "codec/mlp.h"
 #include "model/distributed.h"
 #include "preprocess/abrdf_matrix.h"
+#include "util/direction_planes.h"
 #include "util/directions.h"
 
 namespace nbtf {
@@ -32,7 +33,14 @@ struct ModelConfig {
   // coordinates, those plus the half vector and cos(theta_d) (8), or those plus their sines
   // and cosines at 3 octaves (28) or 2 (20, the default: docs/model.md, *Direction inputs*).
   DirectionEncoding directionInputs = DirectionEncoding::StereographicFourier2;
-  int directionInputCount() const { return nbtf::directionInputCount(directionInputs); }
+  // Learned direction planes (util/direction_planes.h; the "direction_planes" object:
+  // "resolution" R, "features" F; F = 0: none): 3 F more decoder inputs after the fixed ones.
+  int planeResolution = 8;
+  int planeFeatures = 0;
+  // The decoder's direction inputs: the fixed encoding's, then the planes'.
+  int directionInputCount() const {
+    return nbtf::directionInputCount(directionInputs) + DirectionPlanes::kPlanes * planeFeatures;
+  }
 };
 
 // Conv blocks actually used for N images: as many of `configured` as keep the pooled
@@ -103,6 +111,13 @@ struct TrainConfig {
   // (measured: docs/BENCHMARKS.md, *Default amount of training*). "none": the rate as given.
   std::string learningRateScaling = "inputs";
   double momentum = 0;             // sgd only
+  // > 0: in the polish phase the stored latents are free parameters, starting from the
+  // encoder's outputs, with their own Adam at this rate (a cosine over the phase); 0: they stay
+  // the encoder's outputs (docs/model.md, *Free latents*).
+  double latentLearningRate = 0;
+  // The direction planes' rate (scaled and scheduled as the network's): 0 = learning_rate.
+  // Higher than the network's: a grid value is touched only by the samples near it.
+  double planeLearningRate = 0.1;
   // ---- training
   int batchSize = 16384;           // decoder samples per step (tiles x imagesPerInput)
   int imagesPerInput = 512;        // images per encoder input in a step (a "tile"); clamped to the training images
@@ -190,7 +205,8 @@ struct TrainInputs {
 };
 
 struct TrainResult {
-  Mlp decoder;                          // input latent + 2 + 2 (stereographic light, view)
+  Mlp decoder;                          // input latent + the direction inputs (ModelConfig::directionInputCount)
+  DirectionPlanes planes;               // the learned direction planes; empty without
   std::vector<float> latents;           // rows x latentDim
   int latentRows = 0;
   std::vector<std::uint8_t> encoderState;  // serialized encoder (for --save-encoder)

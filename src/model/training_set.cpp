@@ -18,7 +18,7 @@ constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
 }  // namespace
 
 TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress,
-                         DirectionEncoding directionInputs)
+                         DirectionEncoding directionInputs, int planeFeatures)
     : stack_(in.stack), alpha_(in.alpha), perTexel_(in.ids.empty()) {
   // ---- Validate: every mismatch here would otherwise be a wrong answer, not a crash.
   if (!in.stack) throw Error("training: no BTF stack given");
@@ -63,11 +63,16 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
   for (int i = 0; i < images_; ++i) (holdout_[i] ? holdoutImages_ : trainImages_).push_back(i);
 
   // ---- Decoder direction inputs (eq. 7-9).
-  directionWidth_ = directionInputCount(directionInputs);
-  directions_.resize(static_cast<std::size_t>(images_) * directionWidth_);
-  for (int i = 0; i < images_; ++i)
-    encodeDirections(directionInputs, stack.lights()[i / stack.numViews()], stack.views()[i % stack.numViews()],
-                          &directions_[static_cast<std::size_t>(i) * directionWidth_]);
+  planeInputs_ = DirectionPlanes::kPlanes * planeFeatures;
+  directionWidth_ = directionInputCount(directionInputs) + planeInputs_;
+  directions_.assign(static_cast<std::size_t>(images_) * directionWidth_, 0.0f);
+  if (planeInputs_ > 0) planePoints_.resize(static_cast<std::size_t>(images_) * 6);
+  for (int i = 0; i < images_; ++i) {
+    const Direction& light = stack.lights()[i / stack.numViews()];
+    const Direction& view = stack.views()[i % stack.numViews()];
+    encodeDirections(directionInputs, light, view, &directions_[static_cast<std::size_t>(i) * directionWidth_]);
+    if (planeInputs_ > 0) directionPlanePoints(light.unitVector(), view.unitVector(), &planePoints_[6 * static_cast<std::size_t>(i)]);
+  }
 
   if (!perTexel_) {
     const float* coefficients = nullptr;
@@ -168,6 +173,21 @@ void planStep(const TrainingSet& set, std::uint64_t seed, std::int64_t step, int
   for (int t = 0; t < tiles; ++t)
     plan.tileSlot[t] = std::lower_bound(plan.distinctGroups.begin(), plan.distinctGroups.end(), plan.tileGroup[t]) -
                        plan.distinctGroups.begin();
+}
+
+void TrainingSet::setPlaneFeatures(const DirectionPlanes& planes) {
+  if (planeInputs_ == 0) return;
+  const int first = directionWidth_ - planeInputs_;
+  for (int i = 0; i < images_; ++i)
+    sampleDirectionPlanes(planes, &planePoints_[6 * static_cast<std::size_t>(i)],
+                          &directions_[static_cast<std::size_t>(i) * directionWidth_ + first]);
+}
+
+void TrainingSet::addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients,
+                                   std::int64_t rows, float* gradient) const {
+  for (std::int64_t r = 0; r < rows; ++r)
+    scatterDirectionPlanesGradient(planes, &planePoints_[6 * static_cast<std::size_t>(images[r])],
+                                   rowGradients + r * planeInputs_, gradient);
 }
 
 }  // namespace nbtf

@@ -17,6 +17,7 @@
 
 #include "model/trainer.h"
 
+#include "util/direction_planes.h"
 #include "util/random.h"
 
 namespace nbtf {
@@ -29,7 +30,7 @@ class TrainingSet {
  public:
   // Validates the inputs (throws nbtf::Error) and precomputes the cluster means in parallel.
   TrainingSet(const TrainInputs& inputs, double holdoutFraction, std::uint64_t seed, bool progress,
-              DirectionEncoding directionInputs = DirectionEncoding::Stereographic);
+              DirectionEncoding directionInputs = DirectionEncoding::Stereographic, int planeFeatures = 0);
 
   bool perTexel() const { return perTexel_; }
   int groups() const { return groups_; }        // encoder inputs (rows of encoderInputs)
@@ -42,9 +43,18 @@ class TrainingSet {
   bool isHoldout(int image) const { return holdout_[image] != 0; }
   // Sum over texels and channels of |y_t - ybar_c|^2 for one image (0 per texel).
   double withinSse(int image) const { return withinSse_.empty() ? 0.0 : withinSse_[image]; }
-  // The decoder's direction input of every image (images x directionWidth(); util/directions.h).
+  // The decoder's direction input of every image (images x directionWidth(); util/directions.h):
+  // the fixed encoding, then the direction planes' features (util/direction_planes.h) as the
+  // last setPlaneFeatures gave them (zero before).
   const std::vector<float>& directions() const { return directions_; }
   int directionWidth() const { return directionWidth_; }
+  int planeInputs() const { return planeInputs_; }
+  // Samples `planes` at every image's directions into the last planeInputs() columns.
+  void setPlaneFeatures(const DirectionPlanes& planes);
+  // Adds to `gradient` (laid out as planes.values) the planes' gradient from rows of
+  // dLoss/d(plane features): row r (planeInputs() floats) belongs to image images[r].
+  void addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients, std::int64_t rows,
+                        float* gradient) const;
   // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.
   std::uint64_t texelCoefficientHash() const { return coefficientHash_; }
 
@@ -69,6 +79,8 @@ class TrainingSet {
   std::vector<double> withinSse_; // images (clustered only)
   std::vector<float> directions_; // images x directionWidth_
   int directionWidth_ = 4;
+  int planeInputs_ = 0;
+  std::vector<float> planePoints_; // images x 6 (util/direction_planes.h), when there are planes
   std::uint64_t coefficientHash_ = 0;
   int terms_ = 1;
 };

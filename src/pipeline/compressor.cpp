@@ -163,6 +163,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   const bool modulated = clusters > 0 && mc.mode != "none";
   CompressedBtf b = compressedFrame(stack, method, alpha);
   b.decoder = std::move(train.decoder);
+  b.planes = std::move(train.planes);
   b.directionEncoding = config.model.directionInputs;
   b.latentDim = config.model.latentDim;
   b.latentRows = train.latentRows;
@@ -250,10 +251,16 @@ std::string trainConfigJson(const TrainConfig& c) {
                 {"decoder_layers", c.model.decoderLayers}};
   // Always recorded: an absent key reads as today's default, not as what ran.
   j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
+  // Only when used: files without planes keep their bytes.
+  if (c.model.planeFeatures > 0)
+    j["direction_planes"] = {{"resolution", c.model.planeResolution}, {"features", c.model.planeFeatures}};
   j["optimizer"] = {{"name", c.optimizer},
                     {"learning_rate", c.learningRate},
                     {"learning_rate_scaling", c.learningRateScaling},
                     {"momentum", c.momentum}};
+  // Only when set: the paper's files keep their bytes (absent: fixed latents, as before).
+  if (c.latentLearningRate > 0) j["optimizer"]["latent_learning_rate"] = c.latentLearningRate;
+  if (c.planeLearningRate > 0) j["optimizer"]["plane_learning_rate"] = c.planeLearningRate;
   j["training"] = {{"batch_size", c.batchSize},
                    {"images_per_input", c.imagesPerInput},
                    {"epochs", c.epochs},
@@ -716,6 +723,7 @@ std::string compressStatsJson(const CompressStats& s) {
     j["bytes"] = {{"decoder", s.sizes.decoder}, {"latents", s.sizes.latents},       {"ids", s.sizes.ids},
                   {"per_texel", s.sizes.modulation},
                   {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
+  if (s.sizes.planes) j["bytes"]["planes"] = s.sizes.planes;
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
                   {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
                   {"total", s.seconds.total()}};

@@ -223,9 +223,9 @@ DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPer
   const int rows = tiles * rowsPerTile;
   torch::Tensor z = torch::randn({tiles, model.latentDim}), y = torch::rand({rows, 3});
   // Direction inputs as training builds them (TrainingSet): the model's encoding of measured
-  // (light, view) pairs, one pair per row.
+  // (light, view) pairs, one pair per row; direction planes' features (if any) stay 0.
   const int width = model.directionInputCount();
-  torch::Tensor dirs = torch::empty({rows, width});
+  torch::Tensor dirs = torch::zeros({rows, width});
   const std::vector<Direction>& measured = hemisphere81();
   SplitMix64 pick(7);
   for (int r = 0; r < rows; ++r) {

@@ -1,0 +1,51 @@
+// Learned feature planes over direction space: three R x R grids of F features each, over the
+// stereographic disk of the light, of the view and of the half vector. The decoder's input
+// gets, after the fixed direction inputs, each plane's bilinear interpolation at the pair's
+// point (3 F values). A grid cell is a free parameter that only nearby directions touch, so the
+// planes learn sharp angular features (highlights, shadowing edges) in far fewer steps than
+// the network's own layers do (the lesson of grid encodings; Neural Biplane, Fan et al. 2023,
+// puts such a plane over the half vector). Shared by training (model/) and the decoder (codec/),
+// so both compute the same values bit for bit.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "util/directions.h"
+
+namespace nbtf {
+
+struct DirectionPlanes {
+  static constexpr int kPlanes = 3;        // light, view, half vector
+  static constexpr int kMaxResolution = 64;
+  static constexpr int kMaxFeatures = 8;
+  int resolution = 0;                      // R: grid points per side, over [-1, 1] (corners included)
+  int features = 0;                        // F per plane; 0 = no planes
+  std::vector<float> values;               // [plane][y][x][feature], kPlanes x R x R x F
+
+  bool empty() const { return features == 0; }
+  int inputCount() const { return kPlanes * features; }  // decoder inputs they add
+  std::size_t valueCount() const {
+    return static_cast<std::size_t>(kPlanes) * resolution * resolution * features;
+  }
+};
+
+// The most direction inputs a decoder takes: the widest fixed encoding and the most plane features.
+constexpr int kMaxDecoderDirectionInputs =
+    kMaxDirectionInputs + DirectionPlanes::kPlanes * DirectionPlanes::kMaxFeatures;
+
+// The points a (light, view) pair samples, in [-1, 1]^2 each: the stereographic projections
+// (x / (1 + z), y / (1 + z); the horizon maps to radius 1) of the unit light, view and half
+// vector h = (l + v) / |l + v| (the normal when l = -v). out: 6 floats.
+void directionPlanePoints(const std::array<double, 3>& light, const std::array<double, 3>& view, float* out);
+
+// The planes' features at `points` (6 floats): out gets inputCount() floats, plane by plane.
+// Points outside [-1, 1] are clamped to the border.
+void sampleDirectionPlanes(const DirectionPlanes& planes, const float* points, float* out);
+
+// The transpose of sampleDirectionPlanes: adds the gradient dOut (inputCount() floats) of
+// the sampled features at `points` to gradient (valueCount() floats, laid out as values).
+void scatterDirectionPlanesGradient(const DirectionPlanes& planes, const float* points, const float* dOut,
+                                    float* gradient);
+
+}  // namespace nbtf
