@@ -309,7 +309,8 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   if (!btf.planes.empty()) {
     s.planeResolution = btf.planes.resolution;
     s.planeFeatures = btf.planes.features;
-    s.planes = btf.planes.valueCount() * (storagePlanesHalf(btf) ? 2 : 4);
+    s.planeBytesPerValue = storagePlanesHalf(btf) ? 2 : 4;
+    s.planes = btf.planes.valueCount() * s.planeBytesPerValue;
   }
   s.total = s.decoder + s.planes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
   // The same model stored the paper's way: float32 decoder, planes and latents, 4-byte ids.
@@ -375,9 +376,7 @@ std::string formatSizeTable(const NbtfSizes& s) {
   if (s.planes)
     out += row("planes", s.planes,
                "3 direction planes x " + std::to_string(s.planeResolution) + " x " + std::to_string(s.planeResolution) +
-                   " points x " + std::to_string(s.planeFeatures) + " features" +
-                   (s.planes == 3ull * s.planeResolution * s.planeResolution * s.planeFeatures * 2 ? " x 2 bytes (half)"
-                                                                                                   : " x 4 bytes (float32)"));
+                   " points x " + std::to_string(s.planeFeatures) + " features" + precision(s.planeBytesPerValue));
   out += row("latents", s.latents,
              withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
   if (s.idWidth && s.idsZstd) {

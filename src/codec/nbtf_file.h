@@ -171,7 +171,7 @@ struct NbtfSizes {
   int latentDim = 0;
   std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
   std::uint64_t planes = 0;  // direction planes: 3 x R x R x F values x 2 (half) or 4 (float32)
-  int planeResolution = 0, planeFeatures = 0;
+  int planeResolution = 0, planeFeatures = 0, planeBytesPerValue = 0;
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;

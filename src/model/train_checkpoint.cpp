@@ -179,14 +179,18 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
 }
 
 namespace {
+std::vector<double> asDoubles(const torch::Tensor& t) {
+  torch::Tensor d = t.to(torch::kCPU).to(torch::kDouble).contiguous();
+  return std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel());
+}
+
 // Every tensor of an archive, depth first, keys joined with '/'.
 void collectTensors(torch::serialize::InputArchive& archive, const std::string& prefix,
                     std::vector<std::pair<std::string, std::vector<double>>>& out) {
   for (const std::string& key : archive.keys()) {
     torch::Tensor t;
     if (archive.try_read(key, t)) {
-      torch::Tensor d = t.to(torch::kCPU).to(torch::kDouble).contiguous();
-      out.emplace_back(prefix + key, std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel()));
+      out.emplace_back(prefix + key, asDoubles(t));
       continue;
     }
     torch::serialize::InputArchive sub;
@@ -212,10 +216,7 @@ CheckpointState readCheckpointState(const std::string& path) {
       collectTensors(sub, std::string(part) + "/", state.tensors);
     }
     torch::Tensor latents;
-    if (archive.try_read("polish_latents", latents)) {
-      torch::Tensor d = latents.to(torch::kDouble).contiguous();
-      state.tensors.emplace_back("polish_latents", std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel()));
-    }
+    if (archive.try_read("polish_latents", latents)) state.tensors.emplace_back("polish_latents", asDoubles(latents));
     // The optimizer's state is keyed by each parameter's address in the process that wrote
     // it: name it by the parameter's position in the param groups instead.
     torch::serialize::InputArchive opt, perParam, groupList;

@@ -267,7 +267,8 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   // after every step that moved them; their gradient comes from the decoder's input gradient.
   const int planeInputs = set.planeInputs();
   backprop.setTrailingInputGradient(planeInputs);
-  std::vector<float> stockInputGradient, planeGradient;
+  std::vector<float> stockInputGradient;
+  DirectionPlanes stepPlanes;  // the planes as this step samples them
   const Mlp decoderMlpShape = decoderShape(config.model);
   const double flopsPerSample = decoderMlpShape.flopsPerSample();
 
@@ -409,7 +410,10 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       tPhase = now;
     };
     planStep(set, config.seed, step, tiles, perTile, plan);
-    if (planeInputs > 0) set.setPlaneFeatures(exportPlanes(decoder));
+    if (planeInputs > 0) {
+      stepPlanes = exportPlanes(decoder);
+      set.setPlaneFeatures(stepPlanes);
+    }
     // This rank's share of the step's tiles (all of them in one process). The encoder still
     // runs on every distinct input of the step, so its BatchNorm sees the same batch on every
     // rank as in one process; only the decoder's rows (the cost) are split.
@@ -476,11 +480,11 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       lap(prof.decoder);
     }
     if (planeInputs > 0) {
-      planeGradient.assign(decoder->planes.numel(), 0.0f);
-      set.addPlaneGradient(exportPlanes(decoder), &plan.images[static_cast<std::size_t>(shareBegin) * perTile],
+      torch::Tensor gradient = torch::zeros_like(decoder->planes);
+      set.addPlaneGradient(stepPlanes, &plan.images[static_cast<std::size_t>(shareBegin) * perTile],
                            stock ? stockInputGradient.data() : backprop.inputGradient().data(), stepRows,
-                           planeGradient.data());
-      decoder->planes.mutable_grad() = torch::from_blob(planeGradient.data(), decoder->planes.sizes()).clone();
+                           gradient.data_ptr<float>());
+      decoder->planes.mutable_grad() = gradient;
       lap(prof.decoder);
     }
     if (group) {
