@@ -7,11 +7,14 @@
 #include <cxxopts.hpp>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <iostream>
 #include <string>
 #include <thread>
 
+#include "codec/decoder.h"
 #include "util/error.h"
+#include "util/layout.h"
 #include "util/path_guard.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -65,6 +68,40 @@ inline void addCommonOptions(cxxopts::Options& options) {
                                 cxxopts::value<int>()->default_value("0"))(
       "q,quiet", "No progress bars (results, summaries, warnings and errors are still printed)")(
       "h,help", "Show this help");
+}
+
+// ---- Option groups: an option several commands take is declared and read here, once.
+
+// --crop and --layout of an input image stack. `defaults` ends the help text, e.g.
+// " (default: the file's)" where the command has a fallback.
+inline void addCropOption(cxxopts::Options& options, const std::string& defaults = "") {
+  options.add_options("Input stack")("crop", "Crop X,Y,W,H applied while loading" + defaults,
+                                     cxxopts::value<std::string>());
+}
+inline void addLayoutOption(cxxopts::Options& options, const std::string& defaults = " (default: detected)") {
+  options.add_options("Input stack")("layout", "Force the layout: ubo2003 or utia" + defaults,
+                                     cxxopts::value<std::string>());
+}
+inline void addStackOptions(cxxopts::Options& options) {
+  addCropOption(options);
+  addLayoutOption(options);
+}
+inline std::optional<Crop> cropOption(const cxxopts::ParseResult& args) {
+  if (!args.count("crop")) return std::nullopt;
+  return parseCrop(args["crop"].as<std::string>());
+}
+inline std::optional<Layout> layoutOption(const cxxopts::ParseResult& args) {
+  if (!args.count("layout")) return std::nullopt;
+  return parseLayout(args["layout"].as<std::string>());
+}
+
+// --isa: the decoder's kernels.
+inline void addDecoderIsaOption(cxxopts::Options& options) {
+  options.add_options("Decoder")("isa", "Decoder kernels: auto, portable, avx2, avx512",
+                                 cxxopts::value<std::string>()->default_value("auto"));
+}
+inline DecoderIsa decoderIsaOption(const cxxopts::ParseResult& args) {
+  return parseDecoderIsa(args["isa"].as<std::string>());
 }
 
 // More threads than cores only slow the work down (each stage splits its work per thread

@@ -17,15 +17,13 @@
 #include "util/atomic_file.h"
 #include "util/memory.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf::cli {
 namespace {
 
 namespace fs = std::filesystem;
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 int clusterStack(const cxxopts::ParseResult& args) {
   const auto start = std::chrono::steady_clock::now();
@@ -62,8 +60,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.threads = threadCount();
   auto step = std::chrono::steady_clock::now();
   LoadOptions load;
-  if (args.count("layout")) load.layout = parseLayout(args["layout"].as<std::string>());
-  if (args.count("crop")) load.crop = parseCrop(args["crop"].as<std::string>());
+  if (auto layout = layoutOption(args)) load.layout = *layout;
+  if (auto crop = cropOption(args)) load.crop = *crop;
   // Refuse before loading what cannot fit (docs/compress.md, *Memory*).
   const std::string limitValue = args.count("memory-limit") ? args["memory-limit"].as<std::string>() : "";
   const std::size_t limit = limitValue.empty() ? defaultMemoryLimit() : parseByteSize(limitValue, "--memory-limit");
@@ -157,14 +155,13 @@ int clusterMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
         "representative", "Cluster representative: median or mean",
         cxxopts::value<std::string>()->default_value("median"))(
-        "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
-        "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
         "memory-limit",
         "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
         "physical memory)",
         cxxopts::value<std::string>())(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
+    addStackOptions(options);
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;

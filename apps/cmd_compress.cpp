@@ -168,8 +168,7 @@ int compressMain(int argc, char** argv) {
         "config",
         "Config JSON: the training recipe and the adaptive clusters (default: built-in, identical to "
         "configs/default.json)",
-        cxxopts::value<std::string>())("crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
-        "layout", "Force the input layout: ubo2003 or utia", cxxopts::value<std::string>())(
+        cxxopts::value<std::string>())(
         "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
         "epochs", "Training epochs (overrides the config)", cxxopts::value<int>())(
         "time-budget", "Training time budget in seconds (alone: train until it is spent)",
@@ -205,6 +204,7 @@ int compressMain(int argc, char** argv) {
         "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
         "physical memory)",
         cxxopts::value<std::string>());
+    addStackOptions(options);
     addCommonOptions(options);
     options.parse_positional({"input"});
     cxxopts::ParseResult args;
@@ -238,8 +238,8 @@ int compressMain(int argc, char** argv) {
     applyAdaptive(args, config.adaptive, o);
     if (dist.enabled() && o.adaptive.enabled)
       throw Error("--adaptive cannot be used with --world-size > 1 (its stages restart from checkpoints)");
-    if (args.count("layout")) o.load.layout = parseLayout(args["layout"].as<std::string>());
-    if (args.count("crop")) o.load.crop = parseCrop(args["crop"].as<std::string>());
+    if (auto layout = layoutOption(args)) o.load.layout = *layout;
+    if (auto crop = cropOption(args)) o.load.crop = *crop;
     if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
     if (args.count("memory-limit")) {
       const std::string limit = args["memory-limit"].as<std::string>();

@@ -37,8 +37,8 @@ int decodeMain(int argc, char** argv) {
                                        cxxopts::value<std::string>())(
         "size", "Output image size WxH; the texture tiles (wraps) to fill it (default: the material's)",
         cxxopts::value<std::string>())("jpeg-quality", "JPEG quality 1..100",
-                                       cxxopts::value<int>()->default_value("95"))(
-        "isa", "Decoder kernels: auto, portable, avx2, avx512", cxxopts::value<std::string>()->default_value("auto"));
+                                       cxxopts::value<int>()->default_value("95"));
+    addDecoderIsaOption(options);
     addCommonOptions(options);
     options.parse_positional({"file"});
     cxxopts::ParseResult args;
@@ -56,7 +56,7 @@ int decodeMain(int argc, char** argv) {
     if (args.count("layout")) o.layout = parseLayout(args["layout"].as<std::string>());
     refuseOverlappingPaths({{"<file.nbtf>", file}}, {{"-o", output, o.layout != Layout::Ubo2014}});
     DecoderOptions decoderOptions;
-    decoderOptions.isa = parseDecoderIsa(args["isa"].as<std::string>());
+    decoderOptions.isa = decoderIsaOption(args);
     NbtfDecoder decoder = NbtfDecoder::open(file, decoderOptions);
 
     if (args.count("format")) o.format = parseImageFormat(args["format"].as<std::string>());

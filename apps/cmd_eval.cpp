@@ -113,8 +113,8 @@ int runEval(const cxxopts::ParseResult& args) {
   // The reference, cut the way the file was made unless told otherwise.
   LoadOptions load;
   load.progress = options.progress;
-  load.crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : btf.crop;
-  load.layout = args.count("layout") ? parseLayout(args["layout"].as<std::string>()) : btf.layout;
+  load.crop = cropOption(args).value_or(btf.crop);
+  load.layout = layoutOption(args).value_or(btf.layout);
   BtfStack reference = loadBtfStack(referencePath, load);
   checkReferenceMatches(btf, reference, file, referencePath);
   const std::string referenceCheck = checkFingerprint(btf, reference, file, referencePath, args.count("force") > 0);
@@ -158,14 +158,14 @@ int evalMain(int argc, char** argv) {
                           cxxopts::value<std::vector<std::string>>())(
         "r,reference", "The measured BTF image stack it was made from", cxxopts::value<std::string>())(
         "o,output", "Report folder (created if missing)", cxxopts::value<std::string>())(
-        "crop", "Crop X,Y,W,H of the reference (default: the file's crop)", cxxopts::value<std::string>())(
-        "layout", "Reference layout: ubo2003 or utia (default: the file's)", cxxopts::value<std::string>())(
         "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
         cxxopts::value<int>()->default_value("8"))(
         "force", "Evaluate even when the reference does not match the file's source fingerprint (the report says so)")(
         "render-compare", "Include a rendered comparison: the folder `nbtf render --compare` wrote",
         cxxopts::value<std::string>())(
         "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plots)");
+    addCropOption(options, " (default: the file's crop)");
+    addLayoutOption(options, " (default: the file's)");
     addCommonOptions(options);
     options.parse_positional({"files"});
     cxxopts::ParseResult args;

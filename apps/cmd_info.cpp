@@ -47,8 +47,8 @@ void printDirections(const std::vector<Direction>& lights, const std::vector<Dir
 
 int infoStack(const std::string& path, const cxxopts::ParseResult& args) {
   LoadOptions options;
-  if (args.count("layout")) options.layout = parseLayout(args["layout"].as<std::string>());
-  if (args.count("crop")) options.crop = parseCrop(args["crop"].as<std::string>());
+  if (auto layout = layoutOption(args)) options.layout = *layout;
+  if (auto crop = cropOption(args)) options.crop = *crop;
   const bool json = args.count("json") > 0;
   if (args.count("directions")) {  // the names alone say the directions: no image is read
     StackListing listing = listBtfStack(path, options.layout);
@@ -102,7 +102,7 @@ int infoStack(const std::string& path, const cxxopts::ParseResult& args) {
 int infoBtf(const std::string& path, const cxxopts::ParseResult& args) {
   if (args.count("layout")) throw Error("--layout applies to image stacks, not to .btf files");
   Ubo2014Btf btf = Ubo2014Btf::read(path);
-  Crop crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : Crop{};
+  Crop crop = cropOption(args).value_or(Crop{});
   if (!crop.empty()) {
     LoadOptions o;
     o.crop = crop;
@@ -232,10 +232,9 @@ int infoMain(int argc, char** argv) {
     cxxopts::Options options("nbtf info", "Describe a BTF image stack folder, a UBO2014 .btf file or a compressed .nbtf file");
     options.positional_help("<path>");
     options.add_options()("path", "BTF stack folder, UBO2014 .btf file or .nbtf file", cxxopts::value<std::string>())(
-        "layout", "Force the layout: ubo2003 or utia", cxxopts::value<std::string>())(
-        "crop", "Crop X,Y,W,H applied while loading", cxxopts::value<std::string>())(
         "json", "Print the description as JSON")(
         "directions", "List the light and view directions with the indices 'decode --lights/--views' take");
+    addStackOptions(options);
     addCommonOptions(options);
     options.parse_positional({"path"});
     cxxopts::ParseResult args;

@@ -36,8 +36,8 @@ int queryMain(int argc, char** argv) {
         "batch", "CSV file of queries x,y,theta_l,phi_l,theta_v,phi_v ('-' = standard input); answers as CSV",
         cxxopts::value<std::string>())("batch-lines", "Lines read before answering (1 = answer every line at once)",
                                        cxxopts::value<std::size_t>()->default_value("8192"))(
-        "normalized", "Print the decoder output (linear / alpha) instead of linear RGB")(
-        "isa", "Decoder kernels: auto, portable, avx2, avx512", cxxopts::value<std::string>()->default_value("auto"));
+        "normalized", "Print the decoder output (linear / alpha) instead of linear RGB");
+    addDecoderIsaOption(options);
     addCommonOptions(options);
     options.parse_positional({"file"});
     cxxopts::ParseResult args;
@@ -57,7 +57,7 @@ int queryMain(int argc, char** argv) {
     }
 
     DecoderOptions decoderOptions;
-    decoderOptions.isa = parseDecoderIsa(args["isa"].as<std::string>());
+    decoderOptions.isa = decoderIsaOption(args);
     NbtfDecoder decoder = NbtfDecoder::open(args["file"].as<std::string>(), decoderOptions);
 
     if (!batch) {

@@ -105,7 +105,7 @@ int renderMain(int argc, char** argv) {
         "sun", "Light strength", cxxopts::value<double>()->default_value("1"))(
         "env", "Constant environment (and background) radiance", cxxopts::value<double>()->default_value("0.25"))(
         "show-refined", "Write the refined pixels (white: 1 ray, grey: 3x3, black: 9x9) to this PNG",
-        cxxopts::value<std::string>())("crop", "X,Y,W,H crop of an image stack", cxxopts::value<std::string>())(
+        cxxopts::value<std::string>())(
         "compare", "Original stack to compare with the .nbtf <material>: writes reference/compressed/error images, "
                    "compare.md and compare.json into the -o folder",
         cxxopts::value<std::string>())("magnify", "--compare: error image magnification",
@@ -113,6 +113,7 @@ int renderMain(int argc, char** argv) {
         "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
         cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
         "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>());
+    addCropOption(options, " (a material given as an image stack)");
     addCommonOptions(options);
     options.parse_positional({"material"});
     cxxopts::ParseResult args;
@@ -158,7 +159,7 @@ int renderMain(int argc, char** argv) {
     CameraSpec cam = scene.camera;
     if (args.count("camera")) cam = parseCamera(args["camera"].as<std::string>(), scene.camera, "--camera");
     const Camera camera(cam, ro.width, ro.height);
-    const Crop crop = args.count("crop") ? parseCrop(args["crop"].as<std::string>()) : Crop{};
+    const Crop crop = cropOption(args).value_or(Crop{});
 
     const std::string exr = args.count("exr") ? args["exr"].as<std::string>() : "";
     const std::string mask = args.count("show-refined") ? args["show-refined"].as<std::string>() : "";

@@ -26,15 +26,13 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace {
 
 constexpr char kMagic[8] = {'N', 'B', 'T', 'F', 'M', 'A', 'T', '1'};
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // ---- The matrix file
 

@@ -28,12 +28,11 @@
 #include "codec/nbtf_file.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace {
 using namespace nbtf;
-using Clock = std::chrono::steady_clock;
 
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 template <class F> double bestOf(int runs, F&& f) {
   double best = 1e300;

@@ -17,13 +17,12 @@
 #include "preprocess/abrdf_matrix.h"
 #include "util/error.h"
 #include "util/parallel.h"
+#include "util/timer.h"
 
 using namespace nbtf;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // A smooth analytic material (diffuse x cos + a glossy lobe, per-texel albedo), for
 // throughput only: the cost of a training step does not depend on the values.
@@ -181,7 +180,7 @@ int main(int argc, char** argv) {
       } else {
         in.encoderInputs = &x;
       }
-      std::printf("throughput_setup_seconds %.2f\n", since(t0));
+      std::printf("throughput_setup_seconds %.2f\n", secondsSince(t0));
       config.epochs = 0;
       config.timeBudgetSeconds = args["seconds"].as<double>();
       TrainResult r = trainModel(in, config);
@@ -196,11 +195,11 @@ int main(int argc, char** argv) {
       if (args.count("crop")) lo.crop = parseCrop(args["crop"].as<std::string>());
       BtfStack stack = loadBtfStack(dir, lo);
       std::printf("converge_texels %d\nconverge_images %d\n", stack.numTexels(), stack.numImages());
-      std::printf("converge_load_seconds %.2f\n", since(t0));
+      std::printf("converge_load_seconds %.2f\n", secondsSince(t0));
       t0 = Clock::now();
       MatrixXfCol x = abrdfMatrix(stack, progress);
       standardizeInPlace(x);
-      std::printf("converge_preprocess_seconds %.2f\n", since(t0));
+      std::printf("converge_preprocess_seconds %.2f\n", secondsSince(t0));
       TrainInputs in;
       in.stack = &stack;
       in.alpha = targetAlpha(stack);
@@ -211,7 +210,7 @@ int main(int argc, char** argv) {
         co.clusters = k;
         co.progress = progress;
         clusters = clusterAbrdfs(x, co);
-        std::printf("converge_cluster_seconds %.2f\n", since(t0));
+        std::printf("converge_cluster_seconds %.2f\n", secondsSince(t0));
         in.ids = clusters.ids;
         in.encoderInputs = &clusters.representatives;
       } else {

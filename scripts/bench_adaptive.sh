@@ -17,7 +17,7 @@
 #   NBTF_BENCH_ARGS="..."                extra compress options for every run (e.g. --threads 2)
 #   NBTF_BENCH_STACKS="fabric=DIR ..."    use these 100 x 100 stacks (any layout) instead of generating
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 work=${1:-$root/build/bench_adaptive}
 presets=${NBTF_BENCH_PRESETS:-"fabric glossy"}
 ks=${NBTF_BENCH_K:-"250 500 1000 2000"}
@@ -26,7 +26,7 @@ read -r -a extra <<< "${NBTF_BENCH_ARGS:-}"
 bin=$root/build/bin
 if [[ ! -x $bin/nbtf || ! -x $bin/nbtf-synth ]]; then
   cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$root/build" -j "$(nproc)" --target nbtf_cli nbtf_synth_cli >/dev/null
+  cmake_build "$root/build" --target nbtf_cli nbtf_synth_cli >/dev/null
 fi
 mkdir -p "$work"
 
@@ -53,10 +53,7 @@ reports=()
 echo "== $(nproc) cores, $(date -u '+%Y-%m-%d %H:%M UTC'), presets: $presets, k: $ks, images: $subset"
 for preset in $presets; do
   full=${given[$preset]:-$work/${preset}_utia}
-  if [[ ! -f $full/synth.json ]]; then
-    echo "== generating $preset (100 x 100, UTIA; cached in $full)"
-    "$bin/nbtf-synth" --preset "$preset" --size 100x100 --layout utia --format png --seed 1 --no-ground-truth -q -o "$full"
-  fi
+  synth_once "$full" --preset "$preset" --size 100x100 --layout utia --format png --seed 1 --no-ground-truth -q
   data=$full
   if [[ $subset == sub9x9 ]]; then
     data=$work/${preset}_sub9x9

@@ -12,14 +12,12 @@
 #
 # Usage: scripts/bench_cluster.sh [WORK_DIR]   (default build/bench_cluster)
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 work=${1:-$root/build/bench_cluster}
 ks=(500 1000 2000)
 repeat=${BENCH_REPEAT:-3}  # runs per stage and tool, the fastest kept (the machine is shared)
 
-"$root/scripts/setup.sh" --with python3-sklearn
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
+nbtf_build --with python3-sklearn
 mkdir -p "$work"
 # scikit-learn is Debian's, which lives in the system python (not a pyenv one on PATH).
 python=/usr/bin/python3

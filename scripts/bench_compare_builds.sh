@@ -5,7 +5,7 @@
 # host affects both alike. For refactors that must not change speed (issue 16).
 #   scripts/bench_compare_builds.sh A_BIN_DIR B_BIN_DIR [ROUNDS=3] [TRAIN_SECONDS=20]
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 a=$1 b=$2 rounds=${3:-3} seconds=${4:-20}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -12,21 +12,18 @@
 # The .nbtf files come from `nbtf compress` on a synthetic fabric (cached in the work folder);
 # --quick: a smoke run (8 lights x 81 views, 200k queries) on random-weight files of the same shapes.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
-"$root/scripts/setup.sh"
-"$root/scripts/build.sh" "$root/build"
-work=${NBTF_BENCH_DATA:-$root/build/bench_data}/decode
+source "$(dirname "$0")/lib.sh"
+nbtf_build
+work=$bench_data/decode
 echo "== $(nproc) cores; work folder $work"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 # The paper's setup, really compressed: a 100 x 100 synthetic fabric with k = 500 and the same
 # material per-texel (cached; decode speed depends on the shapes, not on how long it trained).
-data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric100_ubo2003
+data=$bench_data/fabric100_ubo2003
 files=()
 if [[ " $* " != *" --quick "* ]]; then
-  if [[ ! -f "$data/synth.json" ]]; then
-    "$root/build/bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
-  fi
+  synth_once "$data" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q
   mkdir -p "$work"
   for mode in "clustered_k500|--clusters 500" "per_texel|--clusters 0"; do
     name=${mode%%|*}

@@ -22,7 +22,7 @@
 #   NBTF_BENCH_RUNS="default long"                   which of the two runs (default: both)
 #   NBTF_BENCH_THREADS=1                             --threads of every run (the RMSE does not depend on it)
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 work=${1:-$root/build/bench_defaults}
 grid=${NBTF_BENCH_GRID:-"view1:16:16 view1:32:32 sub9x9:64:500 view1:128:2000 sub9x9:128:16 view1:256:125"}
 runs=${NBTF_BENCH_RUNS:-default long}
@@ -30,7 +30,7 @@ threads=${NBTF_BENCH_THREADS:-1}
 bin=$root/build/bin
 if [[ ! -x $bin/nbtf || ! -x $bin/nbtf-synth ]]; then
   cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$root/build" -j "$(nproc)" --target nbtf_cli nbtf_synth_cli >/dev/null
+  cmake_build "$root/build" --target nbtf_cli nbtf_synth_cli >/dev/null
 fi
 mkdir -p "$work"
 
@@ -39,11 +39,7 @@ source_of() {
   local n=128
   (($1 > 128)) && n=256
   local src=$work/fabric${n}_utia
-  if [[ ! -f $src/synth.json ]]; then
-    echo "== generating the $n x $n UTIA fabric (once; cached in $src)" >&2
-    "$bin/nbtf-synth" --preset fabric --size "${n}x${n}" --layout utia --format png --seed 1 --no-ground-truth -q \
-      -o "$src" >&2
-  fi
+  synth_once "$src" --preset fabric --size "${n}x${n}" --layout utia --format png --seed 1 --no-ground-truth -q
   echo "$src"
 }
 

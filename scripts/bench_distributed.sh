@@ -7,17 +7,12 @@
 # receives 2 (N - 1) / N of the message per step).
 #   scripts/bench_distributed.sh [--epochs E]   (default 2)
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 epochs=2
 [[ ${1:-} == --epochs ]] && epochs=$2
-"$root/scripts/setup.sh"
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
-data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric100_ubo2003
-if [[ ! -f "$data/synth.json" ]]; then
-  echo "== generating the 100 x 100 UBO2003 fabric (once; cached in $data)"
-  "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
-fi
+nbtf_build
+data=$bench_data/fabric100_ubo2003
+synth_once "$data" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cores=$(nproc)

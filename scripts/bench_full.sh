@@ -10,12 +10,10 @@
 # Data: $NBTF_BENCH_DATA (default build/bench_data) for 256 (shared with bench_load.sh);
 # $NBTF_BENCH_BIG (default /work/tmp-bench) for 800, deleted afterwards unless NBTF_KEEP_BIG=1.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 point=${1:-256}
 case "$point" in 256|800|all) ;; *) echo "usage: $0 [256|800|all]" >&2; exit 2;; esac
-"$root/scripts/setup.sh" --with time
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
+nbtf_build --with time
 out=$(mktemp -d /tmp/nbtf_bench_full.XXXXXX)
 trap 'rm -rf "$out"' EXIT
 echo "== $(nproc) cores, $(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo); $(date -u '+%Y-%m-%d %H:%M UTC')"
@@ -60,11 +58,8 @@ PY
 }
 
 if [[ $point == 256 || $point == all ]]; then
-  data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric256_ubo2003
-  if [[ ! -f "$data/synth.json" ]]; then
-    echo "== generating the 256 x 256 UBO2003 stack (once; cached in $data)"
-    "$bin/nbtf-synth" --preset fabric --size 256x256 --layout ubo2003 --seed 1 --no-ground-truth -o "$data"
-  fi
+  data=$bench_data/fabric256_ubo2003
+  synth_once "$data" --preset fabric --size 256x256 --layout ubo2003 --seed 1 --no-ground-truth
   stack=$((6561 * 256 * 256 * 3))
   run full256_cluster "$out/cluster.log" "$bin/nbtf" cluster "$data" --clusters 500 -o "$out/c256"
   check full256_cluster $stack $((1 << 30)) 600

@@ -4,16 +4,11 @@
 # Targets: >= 1.6x faster than the loop on 2 cores; peak memory <= 1.3 x the 8-bit size of
 # the cropped data + 150 MB.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
-"$root/scripts/setup.sh" --with time
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
-data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric256_ubo2003
+source "$(dirname "$0")/lib.sh"
+nbtf_build --with time
+data=$bench_data/fabric256_ubo2003
 crop=78,78,100,100
-if [[ ! -f "$data/synth.json" ]]; then
-  echo "== generating the 256 x 256 UBO2003 stack (once; cached in $data)"
-  "$bin/nbtf-synth" --preset fabric --size 256x256 --layout ubo2003 --seed 1 --no-ground-truth -o "$data"
-fi
+synth_once "$data" --preset fabric --size 256x256 --layout ubo2003 --seed 1 --no-ground-truth
 sync
 echo "== $(nproc) cores; crop $crop of $data"
 measure() {  # prints "seconds peak_kib"

@@ -18,13 +18,13 @@
 # usage: scripts/bench_quality.sh [--presets "fabric wool"] [--epochs E] [--k K]
 #                                 [--config FILE] [--pca "1 2 4"] [-o DIR]
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 presets="fabric wool"
 epochs=20
 k=500
 config=$root/configs/default.json
 pcas="1 2 4"
-out=${NBTF_BENCH_DATA:-$root/build/bench_data}/quality
+out=$bench_data/quality
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --presets) presets=$2; shift;;
@@ -38,15 +38,10 @@ while [[ $# -gt 0 ]]; do
   shift
 done
 # NBTF_BIN_DIR: binaries to measure (default: build them into build/).
-bin=${NBTF_BIN_DIR:-}
-if [[ -z "$bin" ]]; then
-  "$root/scripts/setup.sh"
-  "$root/scripts/build.sh" "$root/build"
-  bin=$root/build/bin
-fi
+nbtf_build
 nbtf=$bin/nbtf
 mkdir -p "$out"
-echo "== $(nproc) cores, $(date -u +%Y-%m-%dT%H:%MZ), commit $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+bench_banner
 # Per-texel epochs with the steps of E clustered epochs at k = 500 (100 x 100 texels).
 per_texel_epochs=$(( (epochs * 500 + 9999) / 10000 ))
 echo "== clustered runs: $epochs epochs; per-texel: $per_texel_epochs (same optimizer steps); work folder $out"
@@ -54,22 +49,14 @@ echo "== clustered runs: $epochs epochs; per-texel: $per_texel_epochs (same opti
 reports=()
 for preset in $presets; do
   data=$out/${preset}100
-  if [[ ! -f "$data/synth.json" ]]; then
-    "$bin/nbtf-synth" --preset "$preset" --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$data"
-  fi
+  synth_once "$data" --preset "$preset" --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q
   runs=("per_texel|--clusters 0 --epochs $per_texel_epochs"
         "paper_k500|--clusters 500 --config $root/configs/paper-clustered.json --epochs $epochs"
         "nbtf_k$k|--clusters $k --config $config --epochs $epochs")
   for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
   for run in "${runs[@]}"; do
-    label=${run%%|*}
     read -r -a opts <<<"${run#*|}"
-    file=$out/$preset-$label.nbtf
-    echo "== $preset: $label"
-    "$nbtf" compress "$data" -o "$file" "${opts[@]}" --holdout 0.1 --seed 1 -q --stats-json "$out/$preset-$label.stats.json" \
-      | grep -E "^  (training|held-out|floor|modulated|total|ratio|file)" || true
-    "$nbtf" eval "$file" --reference "$data" -o "$out/$preset-$label" -q > /dev/null
-    reports+=("$out/$preset-$label/report.json")
+    compress_and_eval "$out" "$preset" "${run%%|*}" "$data" "${opts[@]}"
   done
 done
 
@@ -77,19 +64,14 @@ done
 "$nbtf" eval --summarize -o "$out/summary" "${reports[@]}" > /dev/null
 
 # ---- The table and the targets.
-python3 - "$out" "$k" $presets <<'PY'
-import json, os, sys
-out, k, presets = sys.argv[1], sys.argv[2], sys.argv[3:]
+python3 - "$root/scripts" "$out" "$k" $presets <<'PY'
+import os, sys
+sys.path.insert(0, sys.argv[1])
+from bench_reports import markdown_table, runs_of
+out, k, presets = sys.argv[2], sys.argv[3], sys.argv[4:]
 rows, verdicts = [], []
-def load(p):
-    with open(p) as f: return json.load(f)
 for preset in presets:
-    runs = {}
-    for name in sorted(os.listdir(out)):
-        if name.startswith(preset + "-") and name.endswith(".stats.json"):
-            label = name[len(preset) + 1:-len(".stats.json")]
-            report = os.path.join(out, f"{preset}-{label}", "report.json")
-            if os.path.exists(report): runs[label] = (load(os.path.join(out, name)), load(report))
+    runs = runs_of(out, preset)
     for label, (st, rep) in runs.items():
         b = st["bytes"]
         parts = (f'{b.get("decoder",0)}/{b.get("latents",0)}/{b.get("ids",0)}/{b.get("per_texel",0)}'
@@ -117,9 +99,7 @@ for preset in presets:
                     f'{"PASS" if ratio3 >= 3 else "FAIL"}')
 head = ["preset", "run", "bytes decoder/latents/ids/per-texel (PCA: mean/basis/coef.)", "total B", "file B", "ratio",
         "RMSE", "held-out RMSE", "PSNR dB", "mean-map RMSE", "blur sigma", "k-means floor", "train s"]
-lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-text = "\n".join(lines) + ("\n\nRMSE, held-out RMSE, mean-map RMSE and the floor: linear RGB / alpha (eq. 10), all images "
+text = markdown_table(head, rows) + ("\n\nRMSE, held-out RMSE, mean-map RMSE and the floor: linear RGB / alpha (eq. 10), all images "
                            "(held-out: the 10% kept out of training); PSNR: peak 1 in that space.\n")
 with open(os.path.join(out, "quality.md"), "w") as f: f.write(text + "\n" + "\n".join(verdicts) + "\n")
 print(text)

@@ -12,7 +12,7 @@
 # centre's value, as in the seed), at a threshold of 0.01.
 # Options: --size WxH (default 320x240, the render default), --threads T (default all cores).
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 size=320x240
 threads=0
 while [[ $# -gt 0 ]]; do
@@ -22,19 +22,14 @@ while [[ $# -gt 0 ]]; do
     *) echo "bench_render.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
-if [[ -z "${NBTF_SKIP_BUILD:-}" ]]; then
-  "$root/scripts/setup.sh"
-  "$root/scripts/build.sh" "$root/build"
-fi
-nbtf=$root/build/bin/nbtf
-data=${NBTF_BENCH_DATA:-$root/build/bench_data}
-work=$data/render
+bin=$root/build/bin
+[[ -n "${NBTF_SKIP_BUILD:-}" ]] || nbtf_build
+nbtf=$bin/nbtf
+work=$bench_data/render
 mkdir -p "$work"
 echo "== $(nproc) cores; $(date -u +%Y-%m-%d); work folder $work; image $size"
-material=$data/fabric100_ubo2003
-if [[ ! -f "$material/synth.json" ]]; then
-  "$root/build/bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q -o "$material"
-fi
+material=$bench_data/fabric100_ubo2003
+synth_once "$material" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -q
 nbtf_file=$work/fabric100_k500_60s.nbtf
 if [[ ! -f "$nbtf_file" ]]; then
   echo "== compressing $material (k = 500, 60 s training budget)"

@@ -6,10 +6,8 @@
 # Optional: NBTF_BENCH_SYNTH_256=1 also times wool 256 x 256 (UTIA PNG, no ground truth;
 # target <= 300 s wall: "feasible").
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
-"$root/scripts/setup.sh" --with time
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
+source "$(dirname "$0")/lib.sh"
+nbtf_build --with time
 out=$(mktemp -d "${TMPDIR:-/tmp}/nbtf_bench_synth.XXXXXX")
 trap 'rm -rf "$out"' EXIT
 echo "== $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -11,19 +11,14 @@
 # Targets: training >= 50% of the matmul rate; convergence < 600 s, RMSE within 5% of the 4x run.
 # Usage: scripts/bench_train.sh [--quick]   (--quick: skip the 4x run)
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
-"$root/scripts/setup.sh"
-"$root/scripts/build.sh" "$root/build"
-bin=$root/build/bin
+source "$(dirname "$0")/lib.sh"
+nbtf_build
 config=$root/configs/default.json
 converged=$root/configs/converged.json
 factor=4
 [[ ${1:-} == --quick ]] && factor=0
-data=${NBTF_BENCH_DATA:-$root/build/bench_data}/fabric100_ubo2003
-if [[ ! -f "$data/synth.json" ]]; then
-  echo "== generating the 100 x 100 UBO2003 fabric (once; cached in $data)"
-  "$bin/nbtf-synth" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth -o "$data"
-fi
+data=$bench_data/fabric100_ubo2003
+synth_once "$data" --preset fabric --size 100x100 --layout ubo2003 --seed 1 --no-ground-truth
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 echo "== $(nproc) cores; config $config"

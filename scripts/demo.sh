@@ -6,7 +6,7 @@
 # of the default recipe (deterministic: 12000 steps at k = 500, about 5-8 minutes
 # on 2 cores).
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 out=${1:-$root/demo_out}
 budget=${NBTF_DEMO_BUDGET:-}  # seconds; empty: the default recipe (12000 steps, 5-8 minutes on 2 cores)
 "$root/scripts/setup.sh"

@@ -8,7 +8,7 @@
 #   build-fuzz/nbtf_reader_fuzzer build-fuzz/run/artifacts/crash-...
 # Ends with one line: bench fuzz_nbtf_reader: ... PASS|FAIL. See docs/reliability.md.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 seconds=${1:-600}
 [[ "$seconds" =~ ^[1-9][0-9]*$ ]] || { echo "fuzz.sh: SECONDS must be a positive integer, got '$seconds'" >&2; exit 2; }
 
@@ -16,7 +16,7 @@ seconds=${1:-600}
 "$root/scripts/setup.sh" --with clang-14 --with libclang-rt-14-dev
 build=$root/build-fuzz
 cmake -S "$root/fuzz" -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=None >/dev/null
-cmake --build "$build" -j "$(nproc)" -- --no-print-directory 2>&1 | { grep -vE '^\[ *[0-9]+%\] (Building|Linking)|^Scanning|^Consolidate' || true; }
+cmake_build "$build"
 
 run=$build/run
 rm -rf "$run"

@@ -3,7 +3,7 @@
 # by looking that it reads well. Usage: scripts/screenshot_report.sh <report.html> <out.png> [WIDTH,HEIGHT]
 # Installs Debian's chromium through scripts/setup.sh when it is missing.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 if [[ $# -lt 2 ]]; then
   echo "usage: $0 <report.html> <out.png> [WIDTH,HEIGHT (default 1200,3000)]" >&2
   exit 2

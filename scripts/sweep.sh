@@ -19,7 +19,7 @@
 # Several materials: run once per material, then combine the reports:
 #   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 nbtf=${NBTF_BIN:-$root/build/bin/nbtf}
 
 die() { echo "sweep: $*" >&2; exit 1; }

@@ -3,7 +3,7 @@
 #   scripts/test.sh              the normal run (what CI calls)
 #   scripts/test.sh --sanitize   the same suite built with AddressSanitizer + UBSan
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+source "$(dirname "$0")/lib.sh"
 build=$root/build
 cmake_args=()
 if [[ "${1:-}" == "--sanitize" ]]; then

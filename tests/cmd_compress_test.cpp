@@ -425,9 +425,9 @@ TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--size-budget 1000 bytes is below the decoder alone")) << r.output;
   EXPECT_FALSE(fs::exists(out + ".ckpt"));
-  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 27100 --stages 2 --epochs 2");
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 28400 --stages 2 --epochs 2");
   EXPECT_EQ(r.exitCode, 1);
-  EXPECT_TRUE(contains(r.output, "--size-budget 27100 bytes is below the smallest file")) << r.output;
+  EXPECT_TRUE(contains(r.output, "--size-budget 28400 bytes is below the smallest file")) << r.output;
   EXPECT_FALSE(fs::exists(out + ".ckpt"));
   EXPECT_FALSE(fs::exists(out + ".ckpt.adaptive.json"));
   EXPECT_FALSE(fs::exists(out));

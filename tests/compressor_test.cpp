@@ -39,15 +39,14 @@ CompressOptions quickOptions(int clusters) {
 // user of the file gets, independent of the trainer's bookkeeping.
 double fileRmse(const CompressedBtf& b, const BtfStack& stack, const std::vector<int>& images) {
   double sse = 0;
-  const int dirInputs = directionInputCount(b.directionEncoding);
+  const int dirInputs = b.directionInputs();  // the fixed encoding's and the direction planes'
   RowMatrix in(static_cast<Eigen::Index>(images.size()), b.latentDim + dirInputs);
   for (int t = 0; t < b.numTexels(); ++t) {
     const float* z = b.latentOfTexel(t);
     for (std::size_t j = 0; j < images.size(); ++j) {
       for (int d = 0; d < b.latentDim; ++d) in(j, d) = z[d];
-      float dirs[kMaxDirectionInputs];
-      encodeDirections(b.directionEncoding, b.lights[images[j] / b.views.size()], b.views[images[j] % b.views.size()],
-                       dirs);
+      const DirectionInput dirs =
+          decoderDirectionInput(b, b.lights[images[j] / b.views.size()], b.views[images[j] % b.views.size()]);
       for (int q = 0; q < dirInputs; ++q) in(j, b.latentDim + q) = dirs[q];
     }
     RowMatrix out = mlpForward(b.decoder, in);
@@ -99,9 +98,11 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
   double floor = clusterMeanRmse(m.stack, b.alpha, b.ids, 6), baseline = testing::imageMeanRmse(m);
   EXPECT_LT(floor, 0.6 * baseline);  // k-means found the material's structure
   EXPECT_LT(decoded, floor + 0.15 * (baseline - floor)) << "floor " << floor << ", image-mean " << baseline;
-  // Sizes are the file's: 24,383 decoder parameters and 16 x 106 more for the default's
-  // two-octave Fourier direction inputs, 6 x 8 latents, 64 one-byte ids.
-  EXPECT_EQ(stats.sizes.decoder, (24383u + 16 * 106) * 4);
+  // Sizes are the file's: 24,383 decoder parameters and (16 + 12) x 106 more for the
+  // default's two-octave Fourier direction inputs and direction planes, the planes' 3 x 8 x 8
+  // x 4 values, 6 x 8 latents, 64 one-byte ids.
+  EXPECT_EQ(stats.sizes.decoder, (24383u + 28 * 106) * 4);
+  EXPECT_EQ(stats.sizes.planes, 3u * 8 * 8 * 4 * 4);
   EXPECT_EQ(stats.sizes.latents, 6u * 8 * 4);
   EXPECT_EQ(stats.sizes.ids, 64u);
   EXPECT_EQ(stats.sizes.rawFloat32, 64u * 81 * 12);

@@ -72,14 +72,17 @@ TEST_P(DenseKernels, ProductsMatchADoubleReference) {
     std::vector<float> bv = randomValues(b.size(), rng), hv = randomValues(h.size(), rng);
     std::copy(bv.begin(), bv.end(), b.data());
     std::copy(hv.begin(), hv.end(), h.data());
-    std::vector<double> relu(h.size()), masked(h.size());
+    std::vector<double> plain(h.size()), relu(h.size()), masked(h.size());
     for (int r = 0; r < s.n; ++r)
       for (int j = 0; j < s.cols; ++j) {
         double sum = 0;
         for (int q = 0; q < s.k; ++q) sum += static_cast<double>(x[r * s.ld + q]) * bv[q * s.cols + j];
+        plain[r * s.cols + j] = sum;
         relu[r * s.cols + j] = std::max(0.0, sum);
         masked[r * s.cols + j] = hv[r * s.cols + j] > 0 ? sum : 0.0;
       }
+    product(s.n, s.k, x.data(), s.ld, b.data(), s.cols, y.data());
+    EXPECT_LT(relativeError(y.data(), plain), 1e-6);
     productRelu(s.n, s.k, x.data(), s.ld, b.data(), s.cols, y.data());
     EXPECT_LT(relativeError(y.data(), relu), 1e-6);
     productMasked(s.n, s.k, x.data(), s.ld, b.data(), s.cols, h.data(), y.data());

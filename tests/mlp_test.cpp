@@ -90,8 +90,10 @@ TEST(Mlp, ValidateRejectsBrokenNetworks) {
 TEST(Mlp, PaperDecoderHas24383Parameters) {
   ModelConfig paper;
   paper.directionInputs = DirectionEncoding::Stereographic;
-  // The default's Fourier inputs (2 octaves) add 16 first-layer inputs: 16 x 106 weights.
-  EXPECT_EQ(decoderShape(ModelConfig{}).parameterCount(), 24383u + 16 * 106);
+  paper.planeFeatures = 0;
+  // The default's Fourier inputs (2 octaves) add 16 first-layer inputs and its direction
+  // planes (3 x 4 features) 12 more: 28 x 106 weights.
+  EXPECT_EQ(decoderShape(ModelConfig{}).parameterCount(), 24383u + 28 * 106);
   Mlp decoder = decoderShape(paper);
   ASSERT_EQ(decoder.layers.size(), 4u);
   EXPECT_EQ(decoder.inputSize(), 12);
@@ -107,6 +109,7 @@ TEST(Mlp, PaperDecoderHas24383Parameters) {
 TEST(Mlp, ExportedDecoderEqualsTorchDecoder) {
   ModelConfig model;
   model.directionInputs = DirectionEncoding::Stereographic;  // the paper's 12 inputs
+  model.planeFeatures = 0;
   RowMatrix in(300, 12);
   for (Eigen::Index i = 0; i < in.size(); ++i) in.data()[i] = std::sin(0.37f * i) * 1.5f;
   ReferenceDecoder ref = referenceDecoder(model, 42, in);

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <random>
 
-#include "codec/byte_io.h"
+#include "util/byte_io.h"
 #include "codec/crc32.h"
 #include "codec/texel_modulation.h"
 #include "codec_fixtures.h"

@@ -154,7 +154,9 @@ TEST(Trainer, PerTexelModeLearnsTheMaterial) {
   double baseline = testing::imageMeanRmse(m);
   EXPECT_EQ(r.latentRows, m.stack.numTexels());
   EXPECT_EQ(r.latents.size(), static_cast<std::size_t>(m.stack.numTexels()) * 8);
-  EXPECT_EQ(r.decoder.parameterCount(), 24383u + 16 * 106);  // the paper's + the Fourier inputs' weights
+  // The paper's + the Fourier inputs' and the direction planes' (3 x 4 features) weights.
+  EXPECT_EQ(r.decoder.parameterCount(), 24383u + (16 + 12) * 106);
+  EXPECT_EQ(r.planes.values.size(), 3u * 8 * 8 * 4);
   EXPECT_EQ(r.encoderBlocks, 3);
   EXPECT_FALSE(r.interrupted);
   EXPECT_EQ(r.rmseHoldout, -1);

@@ -271,11 +271,11 @@ TEST(Ubo2014Btf, TruncatedFileSaysWhatIsMissing) {
     std::string e = errorOf(cut);
     EXPECT_EQ(e.rfind(cut + ": ", 0), 0u) << e;
     if (keep > 10) {
-      EXPECT_NE(e.find("truncated UBO BTF file"), std::string::npos) << keep << ": " << e;
+      EXPECT_NE(e.find("truncated while reading"), std::string::npos) << keep << ": " << e;
     }
   }
   writeBytes(cut, std::vector<char>(bytes.begin(), bytes.end() - 1));
-  EXPECT_NE(errorOf(cut).find("channel 2's SxV needs"), std::string::npos) << errorOf(cut);
+  EXPECT_NE(errorOf(cut).find("truncated while reading channel 2's SxV"), std::string::npos) << errorOf(cut);
 
   std::vector<char> longer = bytes;
   longer.push_back(0);
@@ -387,7 +387,7 @@ TEST(Ubo2014Btf, ReadsFmfAsThreeChannels) {
     EXPECT_EQ(Ubo2014Btf::read(dir / "back.btf").meta().signature, "!DFMF08FCR");
     b.resize(b.size() - 3);
     writeBytes(path, b);
-    EXPECT_NE(errorOf(path).find("truncated UBO BTF file: SxV needs"), std::string::npos) << errorOf(path);
+    EXPECT_NE(errorOf(path).find("truncated while reading SxV"), std::string::npos) << errorOf(path);
   }
   const std::string pvf = dir / "p.btf";
   writeBytes(pvf, {'!', 'P', 'V', 'F', '0', '6', 'F', 'C', 'R', 0});

@@ -8,6 +8,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf::synth {
 
@@ -54,7 +55,7 @@ SynthUbo2014Summary writeSynthUbo2014(const SynthOptions& options, const std::st
   btf.write(path);
   summary.images = n * n;
   summary.fileBytes = std::filesystem::file_size(path, ec);
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = secondsSince(start);
   return summary;
 }
 

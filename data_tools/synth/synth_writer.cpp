@@ -27,6 +27,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf::synth {
 namespace fs = std::filesystem;
@@ -357,7 +358,7 @@ SynthSummary writeSynthStack(const SynthOptions& options, const std::string& out
   summary.meanValue = all.sum / static_cast<double>(all.count);
   summary.clippedFraction = static_cast<double>(all.clipped) / static_cast<double>(all.count);
   writeDescription(outDir, options, &summary);
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = secondsSince(start);
   return summary;
 }
 

@@ -7,6 +7,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 
@@ -54,9 +55,6 @@ float selectKth(float* a, int n, int kth) {
   return a[kth];
 }
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 }  // namespace
 
 // ---- Representatives

@@ -17,14 +17,12 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 void checkInput(const MatrixXfCol& points, int k) {
   const Eigen::Index m = points.rows();

@@ -8,12 +8,13 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "codec/byte_io.h"
+#include "util/byte_io.h"
 #include "codec/crc32.h"
 #include "codec/zstd_codec.h"
 #include "util/half.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/printable.h"
 
 namespace nbtf {
 namespace {
@@ -49,18 +50,9 @@ constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDecoder = tag
                         kPlanes = tag("DPLN");
 
 std::string tagText(std::uint32_t t) {
-  std::string s;
-  for (int i = 0; i < 4; ++i) {
-    auto c = static_cast<unsigned char>(t >> (8 * i));
-    if (c >= 0x20 && c < 0x7F) {
-      s += static_cast<char>(c);
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02X", c);
-      s += buf;
-    }
-  }
-  return s;
+  const unsigned char bytes[4] = {static_cast<unsigned char>(t), static_cast<unsigned char>(t >> 8),
+                                  static_cast<unsigned char>(t >> 16), static_cast<unsigned char>(t >> 24)};
+  return printableBytes(bytes, 4);
 }
 
 std::string sectionLabel(std::uint32_t t) {

@@ -67,12 +67,17 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
 }
 
 std::string methodDescription(const CompressedBtf& btf) {
+  const std::string planes =
+      btf.planes.empty() ? ""
+                         : " + direction planes (" + std::to_string(btf.planes.resolution) + " x " +
+                               std::to_string(btf.planes.resolution) + " x " + std::to_string(btf.planes.features) + ")";
   if (btf.method == CodecMethod::ClusteredNeural && !btf.modulation.empty())
     return "clustered neural + per-texel modulation (" + std::to_string(btf.modulation.terms) + " term" +
-           (btf.modulation.terms > 1 ? "s" : "") + (btf.modulation.channels > 1 ? ", per channel" : "") +
-           "), k = " + std::to_string(btf.latentRows);
-  if (btf.method == CodecMethod::ClusteredNeural) return "clustered neural, k = " + std::to_string(btf.latentRows);
-  if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural";
+           (btf.modulation.terms > 1 ? "s" : "") + (btf.modulation.channels > 1 ? ", per channel" : "") + ")" +
+           planes + ", k = " + std::to_string(btf.latentRows);
+  if (btf.method == CodecMethod::ClusteredNeural)
+    return "clustered neural" + planes + ", k = " + std::to_string(btf.latentRows);
+  if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural" + planes;
   if (btf.isPca()) return "PCA, C = " + std::to_string(btf.latentDim);
   return codecMethodName(btf.method);
 }
@@ -88,7 +93,8 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.sizes = sizeTableOf(btf, fileBytes);
   in.method = methodDescription(btf);
   // Modulated files are a curve of their own in sweeps (they are not the paper's model).
-  in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated");
+  in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated") +
+                    (btf.planes.empty() ? "" : "-planes");
   if (btf.method == CodecMethod::ClusteredNeural) {
     in.methodParameter = btf.latentRows;
     in.clusterIds = btf.ids;

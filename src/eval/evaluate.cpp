@@ -13,6 +13,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace {
@@ -235,7 +236,7 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
                         formatDirection(r.views[c.view]);
     c.figure = renderComparison(reference.data(), rec.data(), r.width, r.height, r.alpha, c.magnification, title);
   }
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds = secondsSince(start);
   return r;
 }
 

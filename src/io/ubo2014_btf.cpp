@@ -5,10 +5,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "util/atomic_file.h"
+#include "util/byte_io.h"
 #include "util/error.h"
+#include "util/printable.h"
 #include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -35,102 +38,33 @@ const KnownSignature kSignatures[] = {
     {"!PVF06FC", "PVF: per-view factorization"},
 };
 
-std::string printable(const std::string& bytes) {
-  std::string out;
-  for (unsigned char c : bytes) {
-    if (c >= 32 && c < 127) {
-      out += static_cast<char>(c);
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
+// n scalars of `scalarSize` bytes (2: half, 4: float, 8: double) as floats, read in chunks
+// (the arrays of a whole material are GB).
+std::vector<float> readScalars(ByteReader& r, std::uint64_t n, int scalarSize, const std::string& what) {
+  if (n > std::numeric_limits<std::uint64_t>::max() / 8) r.needItems(n, scalarSize, what);  // a hostile count
+  r.need(n * scalarSize, what);
+  std::vector<float> out(n);
+  constexpr std::uint64_t kChunk = 1 << 20;
+  for (std::uint64_t done = 0; done < n; done += kChunk) {
+    const std::uint64_t m = std::min(kChunk, n - done);
+    const unsigned char* chunk = r.take(m * scalarSize, what.c_str());
+    for (std::uint64_t i = 0; i < m; ++i) {
+      const unsigned char* p = chunk + i * scalarSize;
+      if (scalarSize == 2) {
+        std::uint16_t h;
+        std::memcpy(&h, p, 2);
+        out[done + i] = halfToFloat(h);
+      } else if (scalarSize == 4) {
+        std::memcpy(&out[done + i], p, 4);
+      } else {
+        double d;
+        std::memcpy(&d, p, 8);
+        out[done + i] = static_cast<float>(d);
+      }
     }
   }
   return out;
 }
-
-// Sequential little-endian reader over a file that knows how many bytes are left, so a
-// truncated file is reported with what was being read, instead of garbage or a huge allocation.
-class Reader {
- public:
-  explicit Reader(const std::string& path) : path_(path), in_(path, std::ios::binary) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) throw fileError(path, "no such file");
-    if (!in_) throw fileError(path, "cannot open for reading");
-    size_ = fs::file_size(path, ec);
-    if (ec) throw fileError(path, "cannot read the file size: " + ec.message());
-  }
-  std::uint64_t offset() const { return offset_; }
-  std::uint64_t left() const { return size_ - offset_; }
-  std::uint64_t size() const { return size_; }
-
-  void need(std::uint64_t bytes, const std::string& what) {
-    if (bytes > left()) {
-      std::ostringstream s;
-      s << "truncated UBO BTF file: " << what << " needs " << bytes << " bytes at offset " << offset_ << ", but only "
-        << left() << " are left (file size " << size_ << ")";
-      throw fileError(path_, s.str());
-    }
-  }
-  void bytes(void* out, std::uint64_t n, const std::string& what) {
-    need(n, what);
-    in_.read(static_cast<char*>(out), static_cast<std::streamsize>(n));
-    if (!in_) throw fileError(path_, "read error at offset " + std::to_string(offset_) + " (" + what + ")");
-    offset_ += n;
-  }
-  template <class T>
-  T value(const std::string& what) {
-    T v;
-    bytes(&v, sizeof v, what);
-    return v;
-  }
-  std::string text(std::uint64_t n, const std::string& what) {
-    need(n, what);
-    std::string s(n, '\0');
-    bytes(s.data(), n, what);
-    return s;
-  }
-  // n scalars of `scalarSize` bytes (2: half, 4: float, 8: double) as floats.
-  std::vector<float> scalars(std::uint64_t n, int scalarSize, const std::string& what) {
-    need(n * scalarSize, what);
-    std::vector<float> out(n);
-    constexpr std::uint64_t kChunk = 1 << 20;
-    std::vector<unsigned char> buf;
-    for (std::uint64_t done = 0; done < n; done += kChunk) {
-      std::uint64_t m = std::min(kChunk, n - done);
-      buf.resize(m * scalarSize);
-      bytes(buf.data(), buf.size(), what);
-      for (std::uint64_t i = 0; i < m; ++i) {
-        const unsigned char* p = buf.data() + i * scalarSize;
-        if (scalarSize == 2) {
-          std::uint16_t h;
-          std::memcpy(&h, p, 2);
-          out[done + i] = halfToFloat(h);
-        } else if (scalarSize == 4) {
-          std::memcpy(&out[done + i], p, 4);
-        } else {
-          double d;
-          std::memcpy(&d, p, 8);
-          out[done + i] = static_cast<float>(d);
-        }
-      }
-    }
-    return out;
-  }
-  void seek(std::uint64_t position) {
-    in_.clear();
-    in_.seekg(static_cast<std::streamoff>(position));
-    offset_ = position;
-  }
-  [[noreturn]] void fail(const std::string& message) const {
-    throw fileError(path_, message + " (at offset " + std::to_string(offset_) + ")");
-  }
-
- private:
-  std::string path_;
-  std::ifstream in_;
-  std::uint64_t size_ = 0, offset_ = 0;
-};
 
 // Stored angles are (polar, azimuth) in radians; nbtf keeps degrees with phi in [0, 360),
 // rounded to 1/1000 degree so that a float32 11 degrees reads as 11.
@@ -473,10 +407,10 @@ namespace {
 // FMF (read_ubo_fmf.m): one factorization of all channels; U's rows are channel fastest, then
 // light, then view (or channel, then texel), SxV is shared. Presented as three DFMF channels
 // (U split by channel, SxV copied) in RGB, or log RGB when the dynamic range was reduced.
-Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint64_t texels, const std::string& path) {
+Ubo2014Btf readFmfBody(ByteReader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint64_t texels, const std::string& path) {
   std::uint8_t headerVersion = 0;
   if (m.signature == "!FMF12FCER") headerVersion = r.value<std::uint8_t>("the FMF header version");
-  if (headerVersion >= 3) r.fail("unknown FMF header version " + std::to_string(headerVersion));
+  if (headerVersion >= 3) throw r.fail("unknown FMF header version " + std::to_string(headerVersion));
   std::uint32_t drr = 0;
   if (headerVersion >= 1) drr = r.value<std::uint32_t>("the dynamic range reduction method");
   if (headerVersion >= 2) {  // a height map (half floats); nbtf does not use it
@@ -488,7 +422,7 @@ Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint6
   m.maxComponents = r.value<std::uint32_t>("the component count");
   const int scalarSize = r.value<std::uint8_t>("the scalar size");
   if (scalarSize != 2 && scalarSize != 4 && scalarSize != 8)
-    r.fail("unknown scalar size " + std::to_string(scalarSize) + " (2, 4 or 8 bytes)");
+    throw r.fail("unknown scalar size " + std::to_string(scalarSize) + " (2, 4 or 8 bytes)");
   const std::uint32_t k = r.value<std::uint32_t>("the component count");
   const std::uint32_t rows = r.value<std::uint32_t>("the row count"), cols = r.value<std::uint32_t>("the column count");
   const bool inU = rows == 3 * pairs && cols == texels, inSxV = rows == 3 * texels && cols == pairs;
@@ -496,19 +430,19 @@ Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint6
     std::ostringstream s;
     s << "the matrix is " << rows << " x " << cols << ", expected 3 x " << pairs << " (channels x lights x views) by "
       << texels << " (texels), or 3 x " << texels << " by " << pairs;
-    r.fail(s.str());
+    throw r.fail(s.str());
   }
   if (k == 0 || k > std::min(rows, cols))
-    r.fail(std::to_string(k) + " components for a " + std::to_string(rows) + " x " + std::to_string(cols) + " matrix");
-  std::vector<float> sv = r.scalars(k, scalarSize, "the singular values");
-  std::vector<float> u = r.scalars(static_cast<std::uint64_t>(rows) * k, scalarSize, "U");
-  std::vector<float> sxv = r.scalars(static_cast<std::uint64_t>(cols) * k, scalarSize, "SxV");
+    throw r.fail(std::to_string(k) + " components for a " + std::to_string(rows) + " x " + std::to_string(cols) + " matrix");
+  std::vector<float> sv = readScalars(r, k, scalarSize, "the singular values");
+  std::vector<float> u = readScalars(r, static_cast<std::uint64_t>(rows) * k, scalarSize, "U");
+  std::vector<float> sxv = readScalars(r, static_cast<std::uint64_t>(cols) * k, scalarSize, "SxV");
   for (float f : sv)
-    if (!std::isfinite(f)) r.fail("a singular value is not finite (NaN or infinity)");
+    if (!std::isfinite(f)) throw r.fail("a singular value is not finite (NaN or infinity)");
   for (const std::vector<float>* part : {&u, &sxv})
     for (float f : *part)
-      if (!std::isfinite(f)) r.fail("a factor is not finite (NaN or infinity)");
-  if (r.left() != 0) r.fail(std::to_string(r.left()) + " unexpected bytes after SxV (an FMF file ends there)");
+      if (!std::isfinite(f)) throw r.fail("a factor is not finite (NaN or infinity)");
+  if (r.remaining() != 0) throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after SxV (an FMF file ends there)");
   m.colorModel = drr ? 12 : 0;  // restore_dynamic_range.m: exp(x) - eps, which is colour model 12
   std::vector<Ubo2014Channel> channels(3);
   const std::size_t perChannel = rows / 3;
@@ -529,12 +463,12 @@ Ubo2014Btf readFmfBody(Reader& r, Ubo2014Meta m, std::uint64_t pairs, std::uint6
 }  // namespace
 
 Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
-  Reader r(path);
+  ByteReader r = ByteReader::openFile(path, "UBO BTF file");
   // Signature (ubo_btf_signatures.m; read_ubo_dfmf.m seeks past it).
-  std::string head = r.text(std::min<std::uint64_t>(10, r.left()), "the signature");
+  std::string head = r.text(std::min<std::uint64_t>(10, r.remaining()), "the signature");
   const std::string known = knownUboSignature(head);
   if (known.empty())
-    throw fileError(path, "not a UBO BTF file: it starts with '" + printable(head) + "', expected the signature '" +
+    throw fileError(path, "not a UBO BTF file: it starts with '" + printableBytes(head.data(), head.size()) + "', expected the signature '" +
                               kDfmfSignature + "' (Bonn's UBO2014 format)");
   const bool fmf = known.rfind("!FMF", 0) == 0;
   if (known != kDfmfSignature && !fmf) {
@@ -549,13 +483,13 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   r.seek(known.size());  // the header follows the signature (read_ubo_dfmf.m, read_ubo_fmf.m: fseek past it)
 
   // Meta data (read_meta_data.m): its size counts the size field itself.
-  const std::uint64_t metaStart = r.offset();
+  const std::uint64_t metaStart = r.position();
   const std::uint32_t metaSize = r.value<std::uint32_t>("the meta data size");
   m.metaVersion = r.value<std::uint32_t>("the meta data version");
   // Versions 1 to 4 are known (read_meta_data.m); a later one may add fields this reader
   // would take for directions.
   if (m.metaVersion < 1 || m.metaVersion > 4)
-    r.fail("unknown meta data version " + std::to_string(m.metaVersion) + " (nbtf reads versions 1 to 4)");
+    throw r.fail("unknown meta data version " + std::to_string(m.metaVersion) + " (nbtf reads versions 1 to 4)");
   auto fixed = [&](const char* what) {
     std::string s = r.text(80, what);
     return s.substr(0, s.find('\0'));
@@ -573,30 +507,30 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   if (m.metaVersion > 3) {
     std::uint32_t channels = r.value<std::uint32_t>("the channel count");
     if (channels != 3)
-      r.fail(std::to_string(channels) + " channels: nbtf reads three-channel (colour) files only");
+      throw r.fail(std::to_string(channels) + " channels: nbtf reads three-channel (colour) files only");
     m.channelNames.clear();
     for (std::uint32_t c = 0; c < channels; ++c) {
       std::uint32_t n = r.value<std::uint32_t>("a channel name length");
       m.channelNames.push_back(r.text(n, "a channel name"));
     }
   }
-  if (r.offset() - metaStart != metaSize) {
+  if (r.position() - metaStart != metaSize) {
     std::ostringstream s;
     s << "meta data block says " << metaSize << " bytes, but its fields (version " << m.metaVersion << ") take "
-      << r.offset() - metaStart;
-    r.fail(s.str());
+      << r.position() - metaStart;
+    throw r.fail(s.str());
   }
 
   // Directions (read_bidir_sampling.m): per view its (polar, azimuth) and the light list.
   const std::uint32_t views = r.value<std::uint32_t>("the view count");
-  if (views == 0 || views > 100000) r.fail("implausible view count " + std::to_string(views));
+  if (views == 0 || views > 100000) throw r.fail("implausible view count " + std::to_string(views));
   std::uint32_t lights = 0;
   for (std::uint32_t v = 0; v < views; ++v) {
     float theta = r.value<float>("a view direction"), phi = r.value<float>("a view direction");
     m.views.push_back(directionFromRadians(theta, phi));
     std::uint32_t n = r.value<std::uint32_t>("a light count");
     if (v == 0) {
-      if (n == 0 || n > 100000) r.fail("implausible light count " + std::to_string(n));
+      if (n == 0 || n > 100000) throw r.fail("implausible light count " + std::to_string(n));
       lights = n;
       for (std::uint32_t l = 0; l < n; ++l) {
         float lt = r.value<float>("a light direction"), lp = r.value<float>("a light direction");
@@ -604,21 +538,21 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
       }
     } else {
       if (n != lights)
-        r.fail("view " + std::to_string(v) + " has " + std::to_string(n) + " lights, view 0 has " +
+        throw r.fail("view " + std::to_string(v) + " has " + std::to_string(n) + " lights, view 0 has " +
                std::to_string(lights) + " (the light set must be the same for every view)");
       r.need(8ull * n, "a view's light directions");
       r.text(8ull * n, "a view's light directions");
     }
   }
   if (static_cast<std::uint64_t>(lights) * views > (1u << 26))
-    r.fail("implausible direction counts: " + std::to_string(lights) + " lights x " + std::to_string(views) + " views");
+    throw r.fail("implausible direction counts: " + std::to_string(lights) + " lights x " + std::to_string(views) + " views");
   for (const Direction& d : m.lights) checkHemisphere(d, path + ": light");
   for (const Direction& d : m.views) checkHemisphere(d, path + ": view");
 
   // Size and rotations (read_common_header.m): rotations only when the signature ends in 'R'.
   const std::uint32_t w = r.value<std::uint32_t>("the width"), h = r.value<std::uint32_t>("the height");
   if (w == 0 || h == 0 || w > 65536 || h > 65536 || static_cast<std::uint64_t>(w) * h > (1u << 30))
-    r.fail("implausible texture size " + std::to_string(w) + " x " + std::to_string(h));
+    throw r.fail("implausible texture size " + std::to_string(w) + " x " + std::to_string(h));
   m.width = static_cast<int>(w), m.height = static_cast<int>(h);
   if (known.back() == 'R') {
     std::uint32_t n = r.value<std::uint32_t>("the rotation count");
@@ -645,7 +579,7 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
     const std::string which = "channel " + std::to_string(c);
     ch.scalarSize = r.value<std::uint8_t>(which + "'s scalar size");
     if (ch.scalarSize != 2 && ch.scalarSize != 4 && ch.scalarSize != 8)
-      r.fail(which + ": unknown scalar size " + std::to_string(ch.scalarSize) + " (2, 4 or 8 bytes)");
+      throw r.fail(which + ": unknown scalar size " + std::to_string(ch.scalarSize) + " (2, 4 or 8 bytes)");
     const std::uint32_t k = r.value<std::uint32_t>(which + "'s component count");
     const std::uint32_t rows = r.value<std::uint32_t>(which + "'s row count");
     const std::uint32_t cols = r.value<std::uint32_t>(which + "'s column count");
@@ -653,23 +587,23 @@ Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
       std::ostringstream s;
       s << which << ": the matrix is " << rows << " x " << cols << ", expected " << pairs << " (lights x views = "
         << lights << " x " << views << ") by " << texels << " (texels = " << w << " x " << h << ") in either order";
-      r.fail(s.str());
+      throw r.fail(s.str());
     }
-    if (k == 0 || k > std::min(rows, cols)) r.fail(which + ": " + std::to_string(k) + " components for a " +
+    if (k == 0 || k > std::min(rows, cols)) throw r.fail(which + ": " + std::to_string(k) + " components for a " +
                                                    std::to_string(rows) + " x " + std::to_string(cols) + " matrix");
     ch.components = static_cast<int>(k);
     ch.uRows = static_cast<int>(rows), ch.sxvRows = static_cast<int>(cols);
-    ch.s = r.scalars(k, ch.scalarSize, which + "'s singular values");
-    ch.u = r.scalars(static_cast<std::uint64_t>(rows) * k, ch.scalarSize, which + "'s U");
-    ch.sxv = r.scalars(static_cast<std::uint64_t>(cols) * k, ch.scalarSize, which + "'s SxV");
+    ch.s = readScalars(r, k, ch.scalarSize, which + "'s singular values");
+    ch.u = readScalars(r, static_cast<std::uint64_t>(rows) * k, ch.scalarSize, which + "'s U");
+    ch.sxv = readScalars(r, static_cast<std::uint64_t>(cols) * k, ch.scalarSize, which + "'s SxV");
     for (float f : ch.s)
-      if (!std::isfinite(f)) r.fail(which + ": a singular value is not finite (NaN or infinity)");
+      if (!std::isfinite(f)) throw r.fail(which + ": a singular value is not finite (NaN or infinity)");
     for (const std::vector<float>* part : {&ch.u, &ch.sxv})
       for (float f : *part)
-        if (!std::isfinite(f)) r.fail(which + ": a factor is not finite (NaN or infinity)");
+        if (!std::isfinite(f)) throw r.fail(which + ": a factor is not finite (NaN or infinity)");
   }
-  if (r.left() != 0)
-    r.fail(std::to_string(r.left()) + " unexpected bytes after the last channel (a DFMF file ends there)");
+  if (r.remaining() != 0)
+    throw r.fail(std::to_string(r.remaining()) + " unexpected bytes after the last channel (a DFMF file ends there)");
   return Ubo2014Btf(std::move(m), std::move(channels), path);
 }
 

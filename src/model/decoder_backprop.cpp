@@ -14,63 +14,26 @@ namespace {
 // and gradients stay in a core's L2 through the whole forward and backward pass.
 constexpr int kChunkRows = 512;
 
-// ---- Layer 0 (element-wise, cloned per instruction set). Rows have stride S >= W + 1.
+// ---- Layer 0. Its direction part is a register-blocked product like the other layers':
+// the chunk's direction inputs with a 1 column appended, times W_d^T with the tile's
+// W_z z + b as its last row (set per tile: rows of one tile are contiguous).
 
-// h[r] = relu(tile[r / rowsPerTile] + W_d d[r]) for rows r0 .. r0 + n (D direction inputs
-// per row), then the constant-1 column at W and zeros up to S. The first 4 inputs (the
-// paper's) go in one unrolled sum; wider encodings add the rest one input at a time.
-NBTF_SIMD_CLONES void layer0Forward(int n, int W, int S, int D, std::int64_t r0, int rowsPerTile,
-                                    const float* __restrict tiles, const float* __restrict d,
-                                    const float* __restrict w0T, float* __restrict h) {
+// The chunk's direction inputs, each row followed by the constant 1 (row stride D + 1).
+void appendOneColumn(int n, int D, const float* __restrict d, float* __restrict x) {
   for (int r = 0; r < n; ++r) {
-    const float* __restrict a = tiles + ((r0 + r) / rowsPerTile) * W;
-    const float* dr = d + static_cast<std::size_t>(D) * r;
-    float* __restrict hr = h + static_cast<std::size_t>(r) * S;
-    const float d0 = dr[0], d1 = dr[1], d2 = dr[2], d3 = dr[3];
-    for (int j = 0; j < W; ++j) hr[j] = a[j] + d0 * w0T[j] + d1 * w0T[W + j] + d2 * w0T[2 * W + j] + d3 * w0T[3 * W + j];
-    for (int q = 4; q < D; ++q) {
-      const float dq = dr[q];
-      const float* __restrict wq = w0T + static_cast<std::size_t>(q) * W;
-      for (int j = 0; j < W; ++j) hr[j] += dq * wq[j];
-    }
-    for (int j = 0; j < W; ++j) hr[j] = hr[j] > 0 ? hr[j] : 0;
-    hr[W] = 1.0f;
-    for (int j = W + 1; j < S; ++j) hr[j] = 0.0f;
+    std::copy_n(d + static_cast<std::size_t>(D) * r, D, x + static_cast<std::size_t>(D + 1) * r);
+    x[static_cast<std::size_t>(D + 1) * r + D] = 1.0f;
   }
 }
 
-// Layer 0's gradient: per tile (sum of its rows; tileGrad starts at tile firstTile) and per
-// direction input (transposed). One stream per loop and restrict-qualified pointers, so every
-// loop vectorizes.
-NBTF_SIMD_CLONES void layer0Backward(int n, int W, int S, int D, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
-                                     const float* __restrict g, const float* __restrict d,
-                                     float* __restrict tileGrad, float* __restrict dirGradT) {
+// Per tile of rows r0 .. r0 + n: the sum of its rows' gradients (tileGrad starts at tile
+// firstTile). One stream per loop, so it vectorizes.
+NBTF_SIMD_CLONES void sumTileGradients(int n, int W, int S, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
+                                       const float* __restrict g, float* __restrict tileGrad) {
   for (int r = 0; r < n; ++r) {
     const float* __restrict gr = g + static_cast<std::size_t>(r) * S;
     float* __restrict t = tileGrad + ((r0 + r) / rowsPerTile - firstTile) * W;
     for (int j = 0; j < W; ++j) t[j] += gr[j];
-    for (int q = 0; q < D; ++q) {
-      const float dq = d[static_cast<std::size_t>(D) * r + q];
-      float* __restrict dg = dirGradT + q * W;
-      for (int j = 0; j < W; ++j) dg[j] += dq * gr[j];
-    }
-  }
-}
-
-// The gradient of the last P direction inputs of rows r0 .. r0 + n: row r's dLoss/d(input)
-// = sum_j g[r, j] W_d[j, last P] (wTrail: those P columns of W_d, W x P). Accumulated along
-// the P outputs, so the inner loop vectorizes without reordering a sum.
-NBTF_SIMD_CLONES void layer0InputGradient(int n, int W, int S, int P, const float* __restrict g,
-                                          const float* __restrict wTrail, float* __restrict out) {
-  for (int r = 0; r < n; ++r) {
-    const float* __restrict gr = g + static_cast<std::size_t>(r) * S;
-    float* __restrict o = out + static_cast<std::size_t>(r) * P;
-    for (int p = 0; p < P; ++p) o[p] = 0;
-    for (int j = 0; j < W; ++j) {
-      const float gj = gr[j];
-      const float* __restrict w = wTrail + static_cast<std::size_t>(j) * P;
-      for (int p = 0; p < P; ++p) o[p] += gj * w[p];
-    }
   }
 }
 
@@ -122,8 +85,20 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   const int D = dirWidth_;
   const float* d = dirs + r0 * D;
 
-  // ---- Forward. Layer 0: relu(W_d d + (W_z z + b)) with the bracket precomputed per tile.
-  layer0Forward(n, W, S, D, r0, rowsPerTile, tileBase, d, dirWeightT_.data(), hidden(0));
+  // ---- Forward. Layer 0: relu(W_d d + (W_z z + b)) with the bracket precomputed per tile;
+  // its 1 column (column W of the tile row) gives the next layer's bias input.
+  k.inputs.resize(static_cast<std::size_t>(kChunkRows) * (D + 1));
+  appendOneColumn(n, D, d, k.inputs.data());
+  k.layer0.assign(layer0_.begin(), layer0_.end());
+  float* tileRow = k.layer0.data() + static_cast<std::size_t>(D) * S;
+  for (int rs = 0; rs < n;) {
+    const std::int64_t tile = (r0 + rs) / rowsPerTile;
+    const int re = static_cast<int>(std::min<std::int64_t>(n, (tile + 1) * rowsPerTile - r0));
+    std::copy_n(tileBase + tile * W, W, tileRow);
+    productRelu(re - rs, D + 1, k.inputs.data() + static_cast<std::size_t>(rs) * (D + 1), D + 1, k.layer0.data(), S,
+                hidden(0) + static_cast<std::size_t>(rs) * S);
+    rs = re;
+  }
   for (int l = 1; l + 1 < L; ++l) productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
   float* o = train ? k.out.data() : outRows + r0 * O;
   rowDots(n, O, hidden(L - 2), S, forward_[L - 1].data(), o);
@@ -132,7 +107,7 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   // This chunk's sums, zeroed here, on the thread that fills them.
   ChunkSums& sums = chunkSums_[c];
   sums.weightGrad.assign(gradOffset_.back(), 0.0f);
-  sums.dirGrad.assign(static_cast<std::size_t>(D) * W, 0.0f);
+  sums.dirGrad.assign(static_cast<std::size_t>(D) * S, 0.0f);
   sums.firstTile = r0 / rowsPerTile;
   sums.tileGrad.assign(static_cast<std::size_t>((r0 + n - 1) / rowsPerTile - sums.firstTile + 1) * W, 0.0f);
 
@@ -158,10 +133,16 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
     std::swap(g, g2);
   }
   // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
-  layer0Backward(n, W, S, D, r0, rowsPerTile, sums.firstTile, g, d, sums.tileGrad.data(), sums.dirGrad.data());
-  if (trailingInputs_ > 0)
-    layer0InputGradient(n, W, S, trailingInputs_, g, trailingWeights_.data(),
-                        inputGradient_.data() + static_cast<std::size_t>(r0) * trailingInputs_);
+  sumTileGradients(n, W, S, r0, rowsPerTile, sums.firstTile, g, sums.tileGrad.data());
+  accumulateOuter(n, D, k.inputs.data(), D + 1, g, S, sums.dirGrad.data());
+  if (trailingInputs_ > 0) {
+    // dLoss/d(input) of the last P inputs: g [n x W] times those P columns of W_d.
+    const int P = trailingInputs_, padded = paddedWidth(P);
+    k.inputGrad.resize(static_cast<std::size_t>(kChunkRows) * padded);
+    product(n, W, g, S, trailingWeights_.data(), padded, k.inputGrad.data());
+    float* out = inputGradient_.data() + static_cast<std::size_t>(r0) * P;
+    for (int r = 0; r < n; ++r) std::copy_n(k.inputGrad.data() + static_cast<std::size_t>(r) * padded, P, out + r * P);
+  }
 }
 
 void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, const float* targets, int rowsPerTile,
@@ -173,15 +154,19 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
   const torch::Tensor& w0 = decoder_->layers[0]->weight;
   // Per-tile part of layer 0 and the direction weights, transposed for row-wise use.
   perTile_ = torch::addmm(decoder_->layers[0]->bias, z, w0.narrow(1, 0, latentDim_).t()).contiguous();
-  dirWeightT_.resize(static_cast<std::size_t>(D) * W);
+  // Layer 0's right-hand side: W_d^T padded to the stride, and a last row (the tile's
+  // W_z z + b, set per chunk) whose column W is 1.
+  layer0_.assign(static_cast<std::size_t>(D + 1) * S, 0.0f);
   const float* w0p = w0.data_ptr<float>();
-  for (int j = 0; j < W; ++j)
-    for (int q = 0; q < D; ++q) dirWeightT_[q * W + j] = w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q];
-  trailingWeights_.resize(static_cast<std::size_t>(W) * trailingInputs_);
+  const auto w0At = [&](int j, int q) { return w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q]; };
+  for (int q = 0; q < D; ++q)
+    for (int j = 0; j < W; ++j) layer0_[static_cast<std::size_t>(q) * S + j] = w0At(j, q);
+  layer0_[static_cast<std::size_t>(D) * S + W] = 1.0f;
+  const int padded = paddedWidth(std::max(trailingInputs_, 1));
+  trailingWeights_.assign(static_cast<std::size_t>(W) * padded, 0.0f);
   for (int j = 0; j < W; ++j)
     for (int p = 0; p < trailingInputs_; ++p)
-      trailingWeights_[static_cast<std::size_t>(j) * trailingInputs_ + p] =
-          w0p[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + D - trailingInputs_ + p];
+      trailingWeights_[static_cast<std::size_t>(j) * padded + p] = w0At(j, D - trailingInputs_ + p);
   // The padded weights of layers 1 .. L - 1 (see the header).
   for (int l = 1; l < L; ++l) {
     const auto& lin = decoder_->layers[l];
@@ -244,7 +229,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
       for (std::int64_t i = begin; i < end; ++i) sumW[i] += w[i];
     }
   });
-  std::vector<float> dirGrad(static_cast<std::size_t>(D) * W, 0.0f), tileGradSum(static_cast<std::size_t>(tiles) * W, 0.0f);
+  std::vector<float> dirGrad(static_cast<std::size_t>(D) * S, 0.0f), tileGradSum(static_cast<std::size_t>(tiles) * W, 0.0f);
   double loss = 0;
   for (const ChunkSums& sums : chunkSums_) {
     for (std::size_t i = 0; i < dirGrad.size(); ++i) dirGrad[i] += sums.dirGrad[i];
@@ -265,7 +250,7 @@ double DecoderBackprop::trainStep(const torch::Tensor& z, const torch::Tensor& d
   torch::Tensor tileGrad = torch::from_blob(tileGradSum.data(), {tiles, W});
   float* g0 = weightGrad_[0].data_ptr<float>();
   for (int j = 0; j < W; ++j)
-    for (int q = 0; q < D; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q] = dirGrad[q * W + j];
+    for (int q = 0; q < D; ++q) g0[static_cast<std::size_t>(j) * (latentDim_ + D) + latentDim_ + q] = dirGrad[q * S + j];
   weightGrad_[0].narrow(1, 0, latentDim_).copy_(torch::mm(tileGrad.t(), zc));
   torch::sum_out(biasGrad_[0], tileGrad, {0});
   dz = torch::mm(tileGrad, decoder_->layers[0]->weight.narrow(1, 0, latentDim_));

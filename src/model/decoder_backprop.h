@@ -10,7 +10,7 @@
 // hidden units, so each layer's bias is one more row of its (transposed, padded) weight
 // matrix and its gradient one more column of the weight gradient. Rows come in tiles that
 // share one latent, so the first layer splits into W_z z (once per tile) + W_d d (per
-// row): no product with K = 12 and no gradient for the direction inputs. Each chunk keeps
+// row): the latent part is one product per tile, not per row. Each chunk keeps
 // its own gradient sums, added in chunk order afterwards, so results are bit-identical run
 // to run whichever thread ran which chunk.
 #pragma once
@@ -46,12 +46,15 @@ class DecoderBackprop {
     AlignedFloats hidden;          // (layers - 1) x chunk x stride, post-ReLU, column width_ = 1
     AlignedFloats grad, grad2;     // chunk x stride
     std::vector<float> out;        // chunk x outputs
+    AlignedFloats inputs;          // chunk x (direction inputs + 1): layer 0's left-hand side
+    AlignedFloats layer0;          // (direction inputs + 1) x stride: layer0_ with the current tile's row
+    AlignedFloats inputGrad;       // chunk x padded trailing inputs
   };
   // One chunk's gradient sums. Threads take the next chunk as they free up (a thread slowed
   // by the host does not hold the other up), and the sums are added in chunk order.
   struct ChunkSums {
     AlignedFloats weightGrad;      // layers 1 .. layers - 1: [out x stride], bias in column width_
-    std::vector<float> dirGrad;    // direction inputs x width: dLoss/dW_d, transposed
+    AlignedFloats dirGrad;         // direction inputs x stride: dLoss/dW_d, transposed and padded
     std::vector<float> tileGrad;   // the chunk's tiles (from firstTile) x width: dLoss/d(W_z z + b)
     std::int64_t firstTile = 0;
     double loss = 0;
@@ -74,12 +77,14 @@ class DecoderBackprop {
   std::vector<AlignedFloats> forward_, backward_;
   std::vector<Worker> workers_;
   std::vector<ChunkSums> chunkSums_;
-  std::vector<float> dirWeightT_;  // direction inputs x width: W_d transposed, refreshed every call
+  // (direction inputs + 1) x stride, refreshed every call: W_d transposed and padded, then the
+  // row each chunk fills with its tile's W_z z + b (column width_ = 1: the next layer's 1 column).
+  AlignedFloats layer0_;
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
   torch::Tensor out_;              // [rows, outputs]
   int trailingInputs_ = 0;
   std::vector<float> inputGradient_;  // rows x trailingInputs_
-  std::vector<float> trailingWeights_;  // W x trailingInputs_: the last columns of layer 0's weights
+  AlignedFloats trailingWeights_;  // W x padded trailingInputs_: the last columns of layer 0's weights
   std::vector<torch::Tensor> weightGrad_, biasGrad_;
 };
 

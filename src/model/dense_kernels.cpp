@@ -50,7 +50,7 @@ constexpr int blockRows() {
   return V == 4 ? 6 : V == 3 ? 8 : V == 2 ? 12 : 16;
 }
 
-enum class Epilogue { Relu, Mask };
+enum class Epilogue { None, Relu, Mask };
 
 // R rows x V vectors of y (+)= x[:, q0:q1] b[q0:q1, :]: the first slice of the sum starts
 // from zero, later ones from y; the last applies the epilogue.
@@ -75,7 +75,7 @@ inline __attribute__((always_inline)) void productBlock(int q0, int q1, bool fir
   for (int r = 0; r < R; ++r)
     for (int v = 0; v < V; ++v) {
       float* out = y + static_cast<std::size_t>(r) * cols + L * v;
-      if (!last) {
+      if (!last || E == Epilogue::None) {
         store(out, acc[r][v]);
       } else if constexpr (E == Epilogue::Relu) {
         store(out, acc[r][v] > zero ? acc[r][v] : zero);
@@ -114,7 +114,7 @@ inline __attribute__((always_inline)) void productPanel(int n, int k, const floa
 }
 
 template <Epilogue E, Tier T>
-inline __attribute__((always_inline)) void product(int n, int k, const float* x, int ldx, const float* b, int cols,
+inline __attribute__((always_inline)) void productOf(int n, int k, const float* x, int ldx, const float* b, int cols,
                                                    float* y, const float* h) {
   // Column panels: b, y and h are addressed from the panel's first column, strides unchanged.
   constexpr int panel = panelVectors<T>(), L = kLanes<T>;
@@ -184,25 +184,34 @@ inline __attribute__((always_inline)) void outer(int n, int m, const float* g, i
 
 // ---- The three builds of each kernel.
 NBTF_AVX512 void productReluWide(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu, Tier::Wide>(n, k, x, ldx, b, cols, y, nullptr);
+  productOf<Epilogue::Relu, Tier::Wide>(n, k, x, ldx, b, cols, y, nullptr);
 }
 NBTF_AVX2_FMA void productReluMid(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu, Tier::Mid>(n, k, x, ldx, b, cols, y, nullptr);
+  productOf<Epilogue::Relu, Tier::Mid>(n, k, x, ldx, b, cols, y, nullptr);
 }
 NBTF_SIMD_CLONES void productReluNarrow(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
-  product<Epilogue::Relu, Tier::Narrow>(n, k, x, ldx, b, cols, y, nullptr);
+  productOf<Epilogue::Relu, Tier::Narrow>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_AVX512 void productPlainWide(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  productOf<Epilogue::None, Tier::Wide>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_AVX2_FMA void productPlainMid(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  productOf<Epilogue::None, Tier::Mid>(n, k, x, ldx, b, cols, y, nullptr);
+}
+NBTF_SIMD_CLONES void productPlainNarrow(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  productOf<Epilogue::None, Tier::Narrow>(n, k, x, ldx, b, cols, y, nullptr);
 }
 NBTF_AVX512 void productMaskedWide(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
                                    float* y) {
-  product<Epilogue::Mask, Tier::Wide>(n, k, x, ldx, b, cols, y, h);
+  productOf<Epilogue::Mask, Tier::Wide>(n, k, x, ldx, b, cols, y, h);
 }
 NBTF_AVX2_FMA void productMaskedMid(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h,
                                     float* y) {
-  product<Epilogue::Mask, Tier::Mid>(n, k, x, ldx, b, cols, y, h);
+  productOf<Epilogue::Mask, Tier::Mid>(n, k, x, ldx, b, cols, y, h);
 }
 NBTF_SIMD_CLONES void productMaskedNarrow(int n, int k, const float* x, int ldx, const float* b, int cols,
                                           const float* h, float* y) {
-  product<Epilogue::Mask, Tier::Narrow>(n, k, x, ldx, b, cols, y, h);
+  productOf<Epilogue::Mask, Tier::Narrow>(n, k, x, ldx, b, cols, y, h);
 }
 NBTF_AVX512 void outerWide(int n, int m, const float* g, int ldg, const float* h, int cols, float* w) {
   outer<Tier::Wide>(n, m, g, ldg, h, cols, w);
@@ -245,6 +254,14 @@ void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols
     case Tier::Wide: return productReluWide(n, k, x, ldx, b, cols, y);
     case Tier::Mid: return productReluMid(n, k, x, ldx, b, cols, y);
     default: return productReluNarrow(n, k, x, ldx, b, cols, y);
+  }
+}
+
+void product(int n, int k, const float* x, int ldx, const float* b, int cols, float* y) {
+  switch (tier()) {
+    case Tier::Wide: return productPlainWide(n, k, x, ldx, b, cols, y);
+    case Tier::Mid: return productPlainMid(n, k, x, ldx, b, cols, y);
+    default: return productPlainNarrow(n, k, x, ldx, b, cols, y);
   }
 }
 

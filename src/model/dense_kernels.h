@@ -25,6 +25,9 @@ inline int paddedWidth(int width) { return (width + kDenseLanes - 1) / kDenseLan
 // y[r][j] = max(0, sum_{q<k} x[r * ldx + q] b[q][j]) for r < n, j < cols.
 void productRelu(int n, int k, const float* x, int ldx, const float* b, int cols, float* y);
 
+// y[r][j] = sum_{q<k} x[r * ldx + q] b[q][j] for r < n, j < cols (no epilogue).
+void product(int n, int k, const float* x, int ldx, const float* b, int cols, float* y);
+
 // y[r][j] = h[r][j] > 0 ? sum_{q<k} x[r * ldx + q] b[q][j] : 0 (the ReLU's backward, h its output).
 void productMasked(int n, int k, const float* x, int ldx, const float* b, int cols, const float* h, float* y);
 

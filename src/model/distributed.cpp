@@ -17,6 +17,7 @@
 #include "model/torch_logging.h"
 #include "model/rendezvous_store.h"
 #include "util/error.h"
+#include "util/timer.h"
 
 namespace nbtf {
 
@@ -322,11 +323,11 @@ void DistributedGroup::allReduceSum(torch::Tensor& values) {
   } catch (const std::exception& e) {
     throw Error("distributed training (rank " + std::to_string(config_.rank) + " of " +
                 std::to_string(config_.worldSize) + "): a collective failed after " +
-                std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) +
+                std::to_string(secondsSince(start)) +
                 " s (a peer stopped or is unreachable; timeout " +
                 std::to_string(static_cast<int>(config_.timeoutSeconds)) + " s): " + oneLine(e));
   }
-  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  seconds_ += secondsSince(start);
 }
 
 double DistributedGroup::allReduceGradients(const std::vector<torch::Tensor>& params, double value) {

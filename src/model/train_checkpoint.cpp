@@ -4,7 +4,7 @@
 #include <cstring>
 #include <filesystem>
 
-#include "codec/byte_io.h"
+#include "util/byte_io.h"
 #include "codec/crc32.h"
 
 #include "util/atomic_file.h"

@@ -5,6 +5,8 @@
 #include <climits>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <type_traits>
+#include <variant>
 
 #include "model/config_section.h"
 #include "model/trainer.h"
@@ -23,76 +25,128 @@ TrainConfig loadTrainConfig(const std::string& path) {
   return trainConfigFromJson(readConfigFile(path, kTrainConfigSections), path);
 }
 
+namespace {
+
+// One entry per config key: where it lives in TrainConfig, and when a file's recorded recipe
+// (trainConfigJson) carries it. The reader and the writer both walk this table, so a key is
+// added in one place.
+using FieldValue = std::variant<int*, std::uint64_t*, double*, bool*, std::string*, std::vector<int>*, DirectionEncoding*>;
+
+struct ConfigField {
+  const char* section;
+  const char* key;
+  FieldValue (*value)(TrainConfig&);
+  // Whether the recorded recipe carries the key: null = always. Keys added after format 1.0
+  // are recorded only when they differ from what older files imply, so those files keep their
+  // bytes; run settings (checkpoints, progress) do not change the result and are never recorded.
+  bool (*recorded)(const TrainConfig&);
+};
+
+bool never(const TrainConfig&) { return false; }
+bool withPlanes(const TrainConfig& c) { return c.model.planeFeatures > 0; }
+bool withModulation(const TrainConfig& c) { return c.modulation.mode != "none"; }
+
+#define NBTF_CONFIG_FIELD(section, key, member, recorded) \
+  ConfigField { section, key, [](TrainConfig& c) -> FieldValue { return &c.member; }, recorded }
+
+const ConfigField kConfigFields[] = {
+    NBTF_CONFIG_FIELD("model", "latent_dim", model.latentDim, nullptr),
+    NBTF_CONFIG_FIELD("model", "encoder_channels", model.encoderChannels, nullptr),
+    NBTF_CONFIG_FIELD("model", "decoder_width", model.decoderWidth, nullptr),
+    NBTF_CONFIG_FIELD("model", "decoder_layers", model.decoderLayers, nullptr),
+    // Always recorded: an absent key reads as today's default, not as what ran.
+    NBTF_CONFIG_FIELD("model", "direction_inputs", model.directionInputs, nullptr),
+    NBTF_CONFIG_FIELD("direction_planes", "resolution", model.planeResolution, withPlanes),
+    NBTF_CONFIG_FIELD("direction_planes", "features", model.planeFeatures, withPlanes),
+    NBTF_CONFIG_FIELD("optimizer", "name", optimizer, nullptr),
+    NBTF_CONFIG_FIELD("optimizer", "learning_rate", learningRate, nullptr),
+    NBTF_CONFIG_FIELD("optimizer", "learning_rate_scaling", learningRateScaling, nullptr),
+    NBTF_CONFIG_FIELD("optimizer", "momentum", momentum, nullptr),
+    NBTF_CONFIG_FIELD("optimizer", "latent_learning_rate", latentLearningRate,
+                      [](const TrainConfig& c) { return c.latentLearningRate > 0; }),
+    NBTF_CONFIG_FIELD("optimizer", "plane_learning_rate", planeLearningRate, withPlanes),
+    NBTF_CONFIG_FIELD("training", "batch_size", batchSize, nullptr),
+    NBTF_CONFIG_FIELD("training", "images_per_input", imagesPerInput, nullptr),
+    NBTF_CONFIG_FIELD("training", "epochs", epochs, nullptr),
+    NBTF_CONFIG_FIELD("training", "min_steps", minSteps, nullptr),
+    NBTF_CONFIG_FIELD("training", "min_steps_per_input", minStepsPerInput, nullptr),
+    NBTF_CONFIG_FIELD("training", "max_steps", maxSteps, nullptr),
+    NBTF_CONFIG_FIELD("training", "time_budget_seconds", timeBudgetSeconds, nullptr),
+    NBTF_CONFIG_FIELD("training", "schedule", schedule, nullptr),
+    NBTF_CONFIG_FIELD("training", "warmup_fraction", warmupFraction, nullptr),
+    NBTF_CONFIG_FIELD("training", "polish_fraction", polishFraction, nullptr),
+    NBTF_CONFIG_FIELD("training", "holdout_fraction", holdoutFraction, nullptr),
+    NBTF_CONFIG_FIELD("training", "seed", seed, nullptr),
+    NBTF_CONFIG_FIELD("training", "threads", threads, nullptr),
+    NBTF_CONFIG_FIELD("training", "checkpoint_seconds", checkpointSeconds, never),
+    NBTF_CONFIG_FIELD("training", "checkpoint_path", checkpointPath, never),
+    NBTF_CONFIG_FIELD("training", "resume", resume, never),
+    NBTF_CONFIG_FIELD("training", "progress", progress, never),
+    // The backends' numerics differ in the last bits: recorded when not the default.
+    NBTF_CONFIG_FIELD("training", "backend", backend, [](const TrainConfig& c) { return c.backend != "fused"; }),
+    NBTF_CONFIG_FIELD("training", "device", device, [](const TrainConfig& c) { return c.device != "cpu"; }),
+    NBTF_CONFIG_FIELD("modulation", "mode", modulation.mode, nullptr),
+    NBTF_CONFIG_FIELD("modulation", "terms", modulation.terms, nullptr),
+    NBTF_CONFIG_FIELD("modulation", "bits", modulation.bits, nullptr),
+    NBTF_CONFIG_FIELD("modulation", "channels", modulation.channels, withModulation),
+    NBTF_CONFIG_FIELD("modulation", "mean_weight", modulation.meanWeight, withModulation),
+    NBTF_CONFIG_FIELD("storage", "decoder", storage.decoder, nullptr),
+    NBTF_CONFIG_FIELD("storage", "latents", storage.latents, nullptr),
+    NBTF_CONFIG_FIELD("storage", "ids", storage.ids, nullptr),
+    NBTF_CONFIG_FIELD("storage", "directions", storage.directions, nullptr),
+    NBTF_CONFIG_FIELD("storage", "metadata", storage.metadata, nullptr),
+};
+
+#undef NBTF_CONFIG_FIELD
+
+void readField(ConfigSection& section, const ConfigField& field, TrainConfig& c, const std::string& path) {
+  std::visit(
+      [&](auto* out) {
+        using T = std::remove_pointer_t<decltype(out)>;
+        if constexpr (std::is_same_v<T, DirectionEncoding>) {
+          std::string name = directionEncodingName(*out);
+          section.read(field.key, name);
+          try {
+            *out = parseDirectionEncoding(name);
+          } catch (const Error& e) {
+            bad(path, std::string(field.section) + "." + field.key, std::string("is not valid: ") + e.what());
+          }
+        } else {
+          section.read(field.key, *out);
+        }
+      },
+      field.value(c));
+}
+
+}  // namespace
+
 TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& path) {
   TrainConfig c;
-  ConfigSection model(root, "model", path);
-  model.read("latent_dim", c.model.latentDim);
-  model.read("encoder_channels", c.model.encoderChannels);
-  model.read("decoder_width", c.model.decoderWidth);
-  model.read("decoder_layers", c.model.decoderLayers);
-  std::string directionInputs = directionEncodingName(c.model.directionInputs);
-  model.read("direction_inputs", directionInputs);
-  try {
-    c.model.directionInputs = parseDirectionEncoding(directionInputs);
-  } catch (const Error& e) {
-    bad(path, "model.direction_inputs", std::string("is not valid: ") + e.what());
+  for (const std::string& name : kTrainConfigSections) {
+    ConfigSection section(root, name, path);
+    for (const ConfigField& field : kConfigFields)
+      if (name == field.section) readField(section, field, c, path);
+    section.rejectUnknown();
   }
-  model.rejectUnknown();
-
-  ConfigSection planes(root, "direction_planes", path);
-  planes.read("resolution", c.model.planeResolution);
-  planes.read("features", c.model.planeFeatures);
-  planes.rejectUnknown();
-
-  ConfigSection opt(root, "optimizer", path);
-  opt.read("name", c.optimizer);
-  opt.read("learning_rate", c.learningRate);
-  opt.read("learning_rate_scaling", c.learningRateScaling);
-  opt.read("momentum", c.momentum);
-  opt.read("latent_learning_rate", c.latentLearningRate);
-  opt.read("plane_learning_rate", c.planeLearningRate);
-  opt.rejectUnknown();
-
-  ConfigSection tr(root, "training", path);
-  tr.read("batch_size", c.batchSize);
-  tr.read("images_per_input", c.imagesPerInput);
-  tr.read("epochs", c.epochs);
-  tr.read("min_steps", c.minSteps);
-  tr.read("min_steps_per_input", c.minStepsPerInput);
-  tr.read("max_steps", c.maxSteps);
-  tr.read("time_budget_seconds", c.timeBudgetSeconds);
-  tr.read("schedule", c.schedule);
-  tr.read("warmup_fraction", c.warmupFraction);
-  tr.read("polish_fraction", c.polishFraction);
-  tr.read("holdout_fraction", c.holdoutFraction);
-  tr.read("seed", c.seed);
-  tr.read("threads", c.threads);
-  tr.read("checkpoint_seconds", c.checkpointSeconds);
-  tr.read("checkpoint_path", c.checkpointPath);
-  tr.read("resume", c.resume);
-  tr.read("progress", c.progress);
-  tr.read("backend", c.backend);
-  tr.read("device", c.device);
-  tr.rejectUnknown();
-
-  ConfigSection mod(root, "modulation", path);
-  mod.read("mode", c.modulation.mode);
-  mod.read("terms", c.modulation.terms);
-  mod.read("bits", c.modulation.bits);
-  mod.read("channels", c.modulation.channels);
-  mod.read("mean_weight", c.modulation.meanWeight);
-  mod.rejectUnknown();
-
-  ConfigSection st(root, "storage", path);
-  st.read("decoder", c.storage.decoder);
-  st.read("latents", c.storage.latents);
-  st.read("ids", c.storage.ids);
-  st.read("directions", c.storage.directions);
-  st.read("metadata", c.storage.metadata);
-  st.rejectUnknown();
-
   validateTrainConfig(c, path);
   return c;
+}
+
+std::string trainConfigJson(const TrainConfig& config) {
+  TrainConfig c = config;  // the table's accessors take a mutable config
+  nlohmann::json j;
+  for (const ConfigField& field : kConfigFields) {
+    if (field.recorded && !field.recorded(c)) continue;
+    std::visit(
+        [&](auto* value) {
+          if constexpr (std::is_same_v<std::remove_pointer_t<decltype(value)>, DirectionEncoding>)
+            j[field.section][field.key] = directionEncodingName(*value);
+          else
+            j[field.section][field.key] = *value;
+        },
+        field.value(c));
+  }
+  return j.dump();
 }
 
 void validateTrainConfig(const TrainConfig& c, const std::string& source) {

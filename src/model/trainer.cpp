@@ -27,6 +27,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace {
@@ -35,9 +36,7 @@ using detail::Decoder;
 using detail::DecoderBackprop;
 using detail::Encoder;
 using detail::exportPlanes;
-using Clock = std::chrono::steady_clock;
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Encoder input tensor [rows.size(), 3, N] from the standardized matrix, whose row r holds
 // column 3 * image + channel (interleaved): element [j, c, i] = X(rows[j], 3 i + c).
@@ -364,10 +363,10 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   // The time budget covers the whole call: the set-up above, the loop (over resumed runs too)
   // and the final exact evaluation, whose cost is estimated from the measured step rate
   // (a forward pass over every group x image costs about a third of a training sample).
-  auto elapsedTotal = [&] { return priorSeconds + since(callStart); };
+  auto elapsedTotal = [&] { return priorSeconds + secondsSince(callStart); };
   const double evalSamples = static_cast<double>(set.groups()) * set.images();
   auto finalEvalSeconds = [&] {
-    const double loopSeconds = since(loopStart);
+    const double loopSeconds = secondsSince(loopStart);
     if (step == firstStep || loopSeconds < 0.5) return 0.0;
     const double sps = (step - firstStep) * static_cast<double>(batch) / loopSeconds;
     return evalSamples / (3 * sps);
@@ -516,7 +515,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     const double now = elapsedTotal();
     const std::size_t done = barInSeconds ? static_cast<std::size_t>(now) : static_cast<std::size_t>(step);
     if (done > shown) bar.advance(done - shown), shown = done;
-    const double sps = (step - firstStep) * static_cast<double>(batch) / std::max(1e-9, since(loopStart));
+    const double sps = (step - firstStep) * static_cast<double>(batch) / std::max(1e-9, secondsSince(loopStart));
     if (config.monitor) {
       TrainStatus st;
       st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
@@ -524,14 +523,14 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
       st.learningRate = config.learningRate * geometry.learningRateScale * scheduleFactor(config, p), st.polish = polishing;
       config.monitor(st);
     }
-    if (since(lastStatus) > 0.5) {
+    if (secondsSince(lastStatus) > 0.5) {
       bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss * lossToTexelMse + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
                                  step / stepsPerEpoch + 1, totalEpochs, polishing));
       lastStatus = Clock::now();
     }
-    if (config.checkpointSeconds > 0 && since(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();
+    if (config.checkpointSeconds > 0 && secondsSince(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();
   }
-  result.trainSeconds = since(loopStart);
+  result.trainSeconds = secondsSince(loopStart);
   bar.finish();
   if (group && group->calls() > 0) {
     result.allReduceBytesPerStep = group->bytesReduced() / group->calls();
@@ -547,7 +546,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     // Rank 0 exports, evaluates and writes; this rank's part is done.
     result.worker = true;
     result.rmseTrain = result.rmseHoldout = -1;
-    result.seconds = since(callStart);
+    result.seconds = secondsSince(callStart);
     return result;
   }
 
@@ -575,7 +574,7 @@ TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
     result.rmseHoldout = rmse.holdout;
     if (!set.perTexel()) result.rmseFloor = std::sqrt(withinTrain);
   }
-  result.seconds = since(callStart);
+  result.seconds = secondsSince(callStart);
   return result;
 }
 

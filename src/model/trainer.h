@@ -36,7 +36,7 @@ struct ModelConfig {
   // Learned direction planes (util/direction_planes.h; the "direction_planes" object:
   // "resolution" R, "features" F; F = 0: none): 3 F more decoder inputs after the fixed ones.
   int planeResolution = 8;
-  int planeFeatures = 0;
+  int planeFeatures = 4;
   // The decoder's direction inputs: the fixed encoding's, then the planes'.
   int directionInputCount() const {
     return nbtf::directionInputCount(directionInputs) + DirectionPlanes::kPlanes * planeFeatures;
@@ -170,6 +170,9 @@ struct TrainConfig {
 TrainConfig loadTrainConfig(const std::string& path);
 // Throws nbtf::Error naming `source` and the key when a value is out of range.
 void validateTrainConfig(const TrainConfig& config, const std::string& source);
+// The recipe as a JSON object in the config-file format (reloadable by loadTrainConfig), as
+// a file records it: without run-control and path keys, which do not change the result.
+std::string trainConfigJson(const TrainConfig& config);
 
 // The step geometry of a run: decoder samples per step and per epoch, steps per epoch, and
 // the planned optimizer steps: epochs x steps per epoch, at least max(min_steps,

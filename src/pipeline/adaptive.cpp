@@ -22,6 +22,7 @@
 #include "util/parallel.h"
 #include "util/progress.h"
 #include "util/random.h"
+#include "util/timer.h"
 
 #if defined(__unix__)
 #include <unistd.h>
@@ -31,11 +32,9 @@ namespace nbtf {
 namespace {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
 constexpr std::uint64_t kSplitStream = 0x73706c6974ull;  // "split"
 
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Per texel: sum over the training images and channels of y^2 (linear / alpha). Images in
 // order, texels in parallel: each texel's sum runs in image order on any thread count.

@@ -25,16 +25,15 @@
 #include "util/error.h"
 #include "util/memory.h"
 #include "util/parallel.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
 constexpr int kDefaultPcaComponents = 32;
 
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 bool stopRequested(const CompressOptions& o) { return o.stopFlag && o.stopFlag->load(); }
 
@@ -241,49 +240,6 @@ std::string sourceMetadataJson(const BtfStack& stack) {
   // What `nbtf eval` checks its reference against (io/source_fingerprint.h).
   source["fingerprint"] = json::parse(sourceFingerprintJson(sourceFingerprint(stack)));
   return source.dump();
-}
-
-std::string trainConfigJson(const TrainConfig& c) {
-  json j;
-  j["model"] = {{"latent_dim", c.model.latentDim},
-                {"encoder_channels", c.model.encoderChannels},
-                {"decoder_width", c.model.decoderWidth},
-                {"decoder_layers", c.model.decoderLayers}};
-  // Always recorded: an absent key reads as today's default, not as what ran.
-  j["model"]["direction_inputs"] = directionEncodingName(c.model.directionInputs);
-  // Only when used: files without planes keep their bytes.
-  if (c.model.planeFeatures > 0)
-    j["direction_planes"] = {{"resolution", c.model.planeResolution}, {"features", c.model.planeFeatures}};
-  j["optimizer"] = {{"name", c.optimizer},
-                    {"learning_rate", c.learningRate},
-                    {"learning_rate_scaling", c.learningRateScaling},
-                    {"momentum", c.momentum}};
-  // Only when set: the paper's files keep their bytes (absent: fixed latents, as before).
-  if (c.latentLearningRate > 0) j["optimizer"]["latent_learning_rate"] = c.latentLearningRate;
-  if (c.planeLearningRate > 0) j["optimizer"]["plane_learning_rate"] = c.planeLearningRate;
-  j["training"] = {{"batch_size", c.batchSize},
-                   {"images_per_input", c.imagesPerInput},
-                   {"epochs", c.epochs},
-                   {"min_steps", c.minSteps},
-                   {"min_steps_per_input", c.minStepsPerInput},
-                   {"max_steps", c.maxSteps},
-                   {"time_budget_seconds", c.timeBudgetSeconds},
-                   {"schedule", c.schedule},
-                   {"warmup_fraction", c.warmupFraction},
-                   {"polish_fraction", c.polishFraction},
-                   {"holdout_fraction", c.holdoutFraction},
-                   {"seed", c.seed},
-                   {"threads", c.threads}};
-  j["modulation"] = {{"mode", c.modulation.mode}, {"terms", c.modulation.terms}, {"bits", c.modulation.bits}};
-  // Recorded whenever modulation applies (an absent key reads as today's default, which is
-  // not what every file ran with); without it, as before, so the paper's files keep their bytes.
-  if (c.modulation.mode != "none") {
-    j["modulation"]["channels"] = c.modulation.channels;
-    j["modulation"]["mean_weight"] = c.modulation.meanWeight;
-  }
-  j["storage"] = {{"decoder", c.storage.decoder}, {"latents", c.storage.latents}, {"ids", c.storage.ids},
-                  {"directions", c.storage.directions}, {"metadata", c.storage.metadata}};
-  return j.dump();
 }
 
 namespace {

@@ -129,10 +129,6 @@ void refuseOverlappingCompressPaths(const std::string& input, const std::string&
 // "<output>.ckpt": where training checkpoints go unless configured otherwise.
 std::string defaultCheckpointPath(const std::string& output);
 
-// The config as a JSON object in the config-file format (reloadable by loadTrainConfig),
-// without run-control and path keys, which do not change the result.
-std::string trainConfigJson(const TrainConfig& config);
-
 // The final summary table (sizes, ratio, RMSE and its space, time per stage).
 std::string formatCompressSummary(const CompressStats& stats);
 // The same as JSON: rmse_train, rmse_holdout (null when none), ratio,

@@ -26,6 +26,7 @@
 #include "util/memory.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace fs = std::filesystem;
@@ -594,7 +595,7 @@ DecodeUbo2014Result writeDecodedUbo2014(const NbtfDecoder& decoder, const std::s
   r.lights = stack.numLights(), r.views = stack.numViews(), r.images = stack.numImages();
   r.width = stack.width(), r.height = stack.height();
   r.fileBytes = fs::file_size(path, ec);
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds = secondsSince(start);
   return r;
 }
 

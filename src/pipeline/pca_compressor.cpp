@@ -14,14 +14,13 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 namespace {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // The neural methods' hold-out choice (model/training_set.cpp), reused rather than copied:
 // a per-texel TrainingSet over the same stack, fraction and seed picks the same images.

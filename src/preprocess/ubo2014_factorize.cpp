@@ -13,6 +13,7 @@
 #include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 
@@ -155,7 +156,7 @@ Ubo2014Btf factorizeUbo2014(const std::vector<Direction>& lights, const std::vec
     report->rmseLinear = std::sqrt(sum / n);
     report->maxAbsError = maxErr;
     report->inputMean = sumIn / n;
-    report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    report->seconds = secondsSince(start);
   }
   return btf;
 }

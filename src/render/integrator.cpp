@@ -9,6 +9,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/timer.h"
 
 namespace nbtf {
 
@@ -406,7 +407,7 @@ RenderResult renderImage(const Scene& scene, const Camera& camera, const Materia
     s.refinedPixels += r > 0;
     s.refinedTwice += r > 1;
   }
-  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  s.seconds = secondsSince(start);
   return result;
 }
 
@@ -433,7 +434,7 @@ RayCost measureRayCost(const Scene& scene, const Camera& camera, const MaterialS
       LocalStats st;
       const auto t0 = std::chrono::steady_clock::now();
       traceWave(tracer, camera, material, tasks, 0, tasks.size(), [&](const Task&) { return dual; }, records, queries, rgb, st);
-      best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      best = std::min(best, secondsSince(t0));
     }
     return best;
   };

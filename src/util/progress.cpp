@@ -1,4 +1,5 @@
 #include "util/progress.h"
+#include "util/timer.h"
 
 #include <unistd.h>
 
@@ -23,7 +24,7 @@ Progress::Progress(std::string label, std::size_t total, bool enabled)
 Progress::~Progress() { finish(); }
 
 double Progress::elapsedSeconds() const {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return secondsSince(start_);
 }
 
 void Progress::advance(std::size_t count) {
