@@ -104,6 +104,19 @@ inline DecoderIsa decoderIsaOption(const cxxopts::ParseResult& args) {
   return parseDecoderIsa(args["isa"].as<std::string>());
 }
 
+inline void applyCommonOptions(const cxxopts::ParseResult& result, const std::string& program);
+
+// The end of every command's option set-up: the common options, the positional argument,
+// parsing, and the common options applied. False: --help was printed (exit 0).
+inline bool parseCommand(cxxopts::Options& options, const std::string& positional, int argc, char** argv,
+                         cxxopts::ParseResult& args) {
+  addCommonOptions(options);
+  options.parse_positional({positional});
+  if (!parseOptions(options, argc, argv, args)) return false;
+  applyCommonOptions(args, options.program());
+  return true;
+}
+
 // More threads than cores only slow the work down (each stage splits its work per thread
 // and waits for the slowest): cap with a warning. One rule wherever a thread count comes from:
 // `--threads` (what = "--threads") or a config file's training.threads (what names the key and

@@ -162,11 +162,8 @@ int clusterMain(int argc, char** argv) {
         cxxopts::value<std::string>())(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
     addStackOptions(options);
-    addCommonOptions(options);
-    options.parse_positional({"input"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "input", argc, argv, args)) return 0;
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf cluster --help')");
     if (!args.count("clusters")) throw Error("missing --clusters K (see 'nbtf cluster --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf cluster --help')");

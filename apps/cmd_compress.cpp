@@ -205,11 +205,8 @@ int compressMain(int argc, char** argv) {
         "physical memory)",
         cxxopts::value<std::string>());
     addStackOptions(options);
-    addCommonOptions(options);
-    options.parse_positional({"input"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "input", argc, argv, args)) return 0;
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
     if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
     const std::string input = args["input"].as<std::string>();

@@ -39,11 +39,8 @@ int decodeMain(int argc, char** argv) {
         cxxopts::value<std::string>())("jpeg-quality", "JPEG quality 1..100",
                                        cxxopts::value<int>()->default_value("95"));
     addDecoderIsaOption(options);
-    addCommonOptions(options);
-    options.parse_positional({"file"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "file", argc, argv, args)) return 0;
     const bool quiet = cli::quiet(args);
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf decode --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf decode --help')");

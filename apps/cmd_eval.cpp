@@ -166,11 +166,8 @@ int evalMain(int argc, char** argv) {
         "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plots)");
     addCropOption(options, " (default: the file's crop)");
     addLayoutOption(options, " (default: the file's)");
-    addCommonOptions(options);
-    options.parse_positional({"files"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "files", argc, argv, args)) return 0;
     return runEval(args);
   });
 }

@@ -235,11 +235,8 @@ int infoMain(int argc, char** argv) {
         "json", "Print the description as JSON")(
         "directions", "List the light and view directions with the indices 'decode --lights/--views' take");
     addStackOptions(options);
-    addCommonOptions(options);
-    options.parse_positional({"path"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "path", argc, argv, args)) return 0;
     if (!args.count("path")) throw Error("missing <path> (see 'nbtf info --help')");
     std::string path = args["path"].as<std::string>();
     if (looksLikeNbtf(path)) return infoNbtf(path, args);

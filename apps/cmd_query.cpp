@@ -38,11 +38,8 @@ int queryMain(int argc, char** argv) {
                                        cxxopts::value<std::size_t>()->default_value("8192"))(
         "normalized", "Print the decoder output (linear / alpha) instead of linear RGB");
     addDecoderIsaOption(options);
-    addCommonOptions(options);
-    options.parse_positional({"file"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "file", argc, argv, args)) return 0;
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf query --help')");
     const OutputScale scale = args.count("normalized") ? OutputScale::Normalized : OutputScale::Linear;
     const bool batch = args.count("batch") > 0;

@@ -114,11 +114,8 @@ int renderMain(int argc, char** argv) {
         cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
         "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>());
     addCropOption(options, " (a material given as an image stack)");
-    addCommonOptions(options);
-    options.parse_positional({"material"});
     cxxopts::ParseResult args;
-    if (!parseOptions(options, argc, argv, args)) return 0;
-    applyCommonOptions(args, options.program());
+    if (!parseCommand(options, "material", argc, argv, args)) return 0;
     const bool quiet = args.count("quiet") > 0;
     if (quiet) Progress::setQuiet(true);
     if (!args.count("material")) throw Error("missing <material> (a .nbtf file or an image stack folder; see 'nbtf render --help')");
