@@ -55,6 +55,19 @@ TEST(CompressConfig, ShippedAdaptiveConfigIsTheDefaultRecipePlusAdaptive) {
   EXPECT_FALSE(loadCompressConfig(dir + "default.json").adaptive.enabled);
 }
 
+// configs/compact.json is the default recipe with a width-64 decoder and one modulation
+// coefficient per texel: the small end of the rate-distortion curve, nothing else changed.
+TEST(CompressConfig, ShippedCompactConfigIsTheDefaultWithASmallerDecoderAndModulation) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  TrainConfig compact = loadTrainConfig(dir + "compact.json");
+  EXPECT_EQ(compact.model.decoderWidth, 64);
+  EXPECT_EQ(compact.modulation.channels, 1);
+  TrainConfig expected = loadTrainConfig(dir + "default.json");
+  expected.model.decoderWidth = 64;
+  expected.modulation.channels = 1;
+  EXPECT_EQ(trainConfigJson(compact), trainConfigJson(expected));
+}
+
 TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
   test::TempDir dir;
   const std::vector<std::pair<std::string, std::string>> cases = {
