@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "cli_common.h"
+#include "model/config_section.h"
 #include "pipeline/compress_config.h"
 #include "commands.h"
 #include "util/atomic_file.h"
@@ -166,8 +167,8 @@ int compressMain(int argc, char** argv) {
         "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
         cxxopts::value<int>()->default_value("500"))(
         "config",
-        "Config JSON: the training recipe and the adaptive clusters (default: built-in, identical to "
-        "configs/default.json)",
+        "Config JSON: the training recipe and the adaptive clusters; a file, or the name of a config of configs/, "
+        "compiled in (" + builtInConfigList() + ") (default: identical to configs/default.json)",
         cxxopts::value<std::string>())(
         "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
         "epochs", "Training epochs (overrides the config)", cxxopts::value<int>())(
@@ -212,10 +213,11 @@ int compressMain(int argc, char** argv) {
     const std::string input = args["input"].as<std::string>();
     const std::string output = args["output"].as<std::string>();
 
-    const CompressConfig config =
-        args.count("config") ? loadCompressConfig(args["config"].as<std::string>()) : CompressConfig{};
+    const std::string configPath = args.count("config") ? args["config"].as<std::string>() : "";
+    const CompressConfig config = configPath.empty() ? CompressConfig{} : loadCompressConfig(configPath);
     CompressOptions o;
     o.train = buildTrainConfig(config.train, args, output, options.program());
+    if (isBuiltInConfig(configPath)) o.train.builtInConfig = configPath;
     if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
     o.clusters = args["clusters"].as<int>();
     if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
@@ -245,7 +247,7 @@ int compressMain(int argc, char** argv) {
     }
     std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
     // Before anything is created or read: no output may be an input or another output.
-    refuseOverlappingCompressPaths(input, output, o, args.count("config") ? args["config"].as<std::string>() : "",
+    refuseOverlappingCompressPaths(input, output, o, o.train.builtInConfig.empty() ? configPath : "",
                                    {{"--stats-json", statsPath}});
     // Every command creates the missing folders above its outputs.
     for (const std::string& out : {output, statsPath, o.saveEncoderPath})

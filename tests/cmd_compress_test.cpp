@@ -219,6 +219,28 @@ TEST_F(CmdCompress, ConfigThreadsAreCappedLikeTheOption) {
   EXPECT_EQ(nlohmann::json::parse(readNbtf(out).metadataJson)["threads"].get<int>(), 1);
 }
 
+// `--config NAME` reads a config of configs/ compiled in, and the file records its name; a name
+// that is neither a file nor a built-in config says which names there are.
+TEST_F(CmdCompress, BuiltInConfigsAreNamedAndRecorded) {
+  std::string stack = writeStack();
+  std::string out = path("c.nbtf");
+  RunResult r = run("compress " + stack + " -o " + out + " --clusters 4 --epochs 1 -q --config compact");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  nlohmann::json meta = nlohmann::json::parse(readNbtf(out).metadataJson);
+  EXPECT_EQ(meta["config_name"], "compact");
+  EXPECT_EQ(meta["config"]["model"]["decoder_width"], 64);
+  EXPECT_EQ(meta["config"]["modulation"]["channels"], 1);
+  r = run("compress " + stack + " -o " + path("d.nbtf") + " --clusters 4 --epochs 1 -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_FALSE(nlohmann::json::parse(readNbtf(path("d.nbtf")).metadataJson).contains("config_name"));
+  r = run("compress " + stack + " -o " + path("e.nbtf") + " --clusters 4 -q --config compactt");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, compact, "
+                                 "converged, default, paper, paper-clustered)"))
+      << r.output;
+  EXPECT_FALSE(fs::exists(path("e.nbtf")));
+}
+
 // Issue 15's command-line rough edges, each as a new user met it.
 TEST_F(CmdCompress, CommandLineRoughEdges) {
   std::string stack = writeStack();  // 8 x 8 texels, 9 x 9 directions

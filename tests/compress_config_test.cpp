@@ -1,9 +1,14 @@
 #include "pipeline/compress_config.h"
 
 #include <gtest/gtest.h>
+#include <iterator>
+#include <fstream>
+#include <filesystem>
+#include <algorithm>
 
 #include <nlohmann/json.hpp>
 
+#include "model/config_section.h"
 #include "test_util.h"
 #include "util/atomic_file.h"
 
@@ -53,6 +58,26 @@ TEST(CompressConfig, ShippedAdaptiveConfigIsTheDefaultRecipePlusAdaptive) {
   EXPECT_EQ(adaptiveConfigJson(c.adaptive), adaptiveConfigJson(expected));
   EXPECT_EQ(trainConfigJson(c.train), trainConfigJson(loadTrainConfig(dir + "default.json")));
   EXPECT_FALSE(loadCompressConfig(dir + "default.json").adaptive.enabled);
+}
+
+// Every config of configs/ is compiled in, as it is in the file.
+TEST(CompressConfig, BuiltInConfigsAreTheShippedFiles) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  const std::vector<std::string> names = builtInConfigNames();
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().extension() == ".json") files.push_back(e.path().stem().string());
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(names, files);
+  for (const std::string& name : names) {
+    SCOPED_TRACE(name);
+    std::ifstream in(dir + name + ".json");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(std::string(builtInConfigText(name)), text);
+    EXPECT_TRUE(isBuiltInConfig(name));
+  }
+  EXPECT_EQ(builtInConfigText("no-such-config"), nullptr);
+  EXPECT_EQ(trainConfigJson(loadTrainConfig("compact")), trainConfigJson(loadTrainConfig(dir + "compact.json")));
 }
 
 // configs/compact.json is the default recipe with a width-64 decoder and one modulation

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <filesystem>
 #include <fstream>
 
 #include "util/error.h"
@@ -29,12 +30,21 @@ std::string joined(const std::vector<std::string>& names) {
 
 }  // namespace
 
+bool isBuiltInConfig(const std::string& pathOrName) {
+  std::error_code ec;
+  return !std::filesystem::exists(pathOrName, ec) && builtInConfigText(pathOrName) != nullptr;
+}
+
 json readConfigFile(const std::string& path, const std::vector<std::string>& sections) {
-  std::ifstream in(path);
-  if (!in) throw fileError(path, "cannot open config file");
   json root;
   try {
-    root = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+    if (isBuiltInConfig(path)) {
+      root = json::parse(builtInConfigText(path), nullptr, true, /*ignore_comments=*/true);
+    } else {
+      std::ifstream in(path);
+      if (!in) throw fileError(path, "cannot open config file (nor is it a built-in config: " + builtInConfigList() + ")");
+      root = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+    }
   } catch (const json::parse_error& e) {
     throw fileError(path, std::string("not valid JSON: ") + e.what());
   }

@@ -16,7 +16,17 @@ struct TrainConfig;
 // The components loadTrainConfig reads.
 extern const std::vector<std::string> kTrainConfigSections;
 
+// The configs shipped in configs/, compiled in: "compact" -> the text of configs/compact.json
+// (nullptr: no such built-in config), and their names, sorted.
+const char* builtInConfigText(const std::string& name);
+std::vector<std::string> builtInConfigNames();
+std::string builtInConfigList();  // "adaptive, compact, ...": for help texts and errors
+// True when `pathOrName` is not a file and names a built-in config ("compact"): what
+// `--config` reads then.
+bool isBuiltInConfig(const std::string& pathOrName);
+
 // Parses a config file (comments allowed): a JSON object whose keys are all in `sections`.
+// A name that is not a file but a built-in config's ("compact") reads that config.
 nlohmann::json readConfigFile(const std::string& path, const std::vector<std::string>& sections);
 
 // The training recipe from a parsed config file's model, optimizer, training, modulation and

@@ -159,6 +159,9 @@ struct TrainConfig {
   // ---- data-parallel training over processes (not in config files: `nbtf compress
   // --world-size N --rank R --master HOST:PORT`; model/distributed.h)
   DistributedConfig distributed;
+  // The built-in config the recipe came from (`--config compact`; "" = a file or the compiled-in
+  // default): the file's metadata records it as "config_name".
+  std::string builtInConfig;
   // ---- run control (not in config files)
   std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
   std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done

@@ -87,6 +87,7 @@ std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
                          const CompressStats& stats, const std::string& adaptiveJson) {
   json meta;
   meta["config"] = json::parse(trainConfigJson(config));
+  if (!config.builtInConfig.empty()) meta["config_name"] = config.builtInConfig;
   meta["seed"] = config.seed;
   meta["threads"] = config.threads > 0 ? config.threads : threadCount();
   meta["source"] = json::parse(sourceMetadataJson(stack));
