@@ -72,10 +72,7 @@ for preset in $presets; do
     runs+=("nbtf_k${k}_compact|--clusters $k --config $root/configs/compact.json --time-budget $budget")
   done
   for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
-  for run in "${runs[@]}"; do
-    read -r -a opts <<<"${run#*|}"
-    compress_and_eval "$out" "$preset" "${run%%|*}" "$data" "${opts[@]}"
-  done
+  run_rows "$out" "$preset" "$data" "${runs[@]}"
 done
 
 # ---- Rate-distortion plots and sweep tables from the same reports.

@@ -54,10 +54,7 @@ for preset in $presets; do
         "paper_k500|--clusters 500 --config $root/configs/paper-clustered.json --epochs $epochs"
         "nbtf_k$k|--clusters $k --config $config --epochs $epochs")
   for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
-  for run in "${runs[@]}"; do
-    read -r -a opts <<<"${run#*|}"
-    compress_and_eval "$out" "$preset" "${run%%|*}" "$data" "${opts[@]}"
-  done
+  run_rows "$out" "$preset" "$data" "${runs[@]}"
 done
 
 # ---- Rate-distortion plot and sweep tables from the same reports.

@@ -59,3 +59,14 @@ compress_and_eval() {
   "$bin/nbtf" eval "$file" --reference "$data" -o "$out/$preset-$label" -q > /dev/null
   reports+=("$out/$preset-$label/report.json")
 }
+
+# run_rows OUT PRESET DATA ROW...: compress_and_eval for each ROW, "label|compress options".
+run_rows() {
+  local out=$1 preset=$2 data=$3 row
+  local -a opts
+  shift 3
+  for row in "$@"; do
+    read -r -a opts <<<"${row#*|}"
+    compress_and_eval "$out" "$preset" "${row%%|*}" "$data" "${opts[@]}"
+  done
+}
