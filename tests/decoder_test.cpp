@@ -318,6 +318,15 @@ TEST(Decoder, CommittedFormat17FileDecodesAsBefore) {
   expectCommittedFourierFile("compact_v1_7", 7, DirectionEncoding::StereographicFourier2, 20);
 }
 
+// Format 1.8 (learned direction planes, DPLN, the default since commit b4d986d), written by
+// commit d3471ee's `nbtf compress` of the same satin with the same options and the default config.
+TEST(Decoder, CommittedFormat18FileDecodesAsBefore) {
+  expectCommittedFourierFile("compact_v1_8", 8, DirectionEncoding::StereographicFourier2, 20 + 12);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_8.nbtf");
+  EXPECT_EQ(b.planes.resolution, 8);
+  EXPECT_EQ(b.planes.features, 4);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);

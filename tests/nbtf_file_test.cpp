@@ -742,6 +742,26 @@ TEST(NbtfFile, CommittedFormat10FileStillReads) {
   EXPECT_EQ(serializeNbtf(b), readFileBytes(path));
 }
 
+// Every committed file, of every format version (tests/data, and the fuzz corpus's valid
+// seeds), reads and re-serializes to the same bytes: the writer derives each file's version
+// from its sections, and writes each section as the version that introduced it did.
+TEST(NbtfFile, EveryCommittedFileReserializesToItsBytes) {
+  std::vector<std::string> paths;
+  for (const char* dir : {"/tests/data", "/fuzz/corpus"})
+    for (const auto& entry : std::filesystem::directory_iterator(std::string(NBTF_SOURCE_DIR) + dir))
+      if (entry.path().extension() == ".nbtf") paths.push_back(entry.path().string());
+  std::sort(paths.begin(), paths.end());
+  std::vector<int> minors;
+  for (const std::string& path : paths) {
+    const CompressedBtf b = readNbtf(path);
+    EXPECT_EQ(serializeNbtf(b), readFileBytes(path)) << path;
+    minors.push_back(b.formatMinor);
+  }
+  std::sort(minors.begin(), minors.end());
+  minors.erase(std::unique(minors.begin(), minors.end()), minors.end());
+  EXPECT_EQ(minors, (std::vector<int>{0, 1, 2, 4, 5, 6, 7, 8}));
+}
+
 TEST(NbtfFile, CompactContentIsCheckedByName) {
   {
     CompressedBtf b = makeCompactBtf();

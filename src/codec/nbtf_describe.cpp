@@ -79,7 +79,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   } else {
     field("directions", directionEncodingDescription(btf.directionEncoding));
     if (!btf.planes.empty())
-      field("direction planes", "light, view and half vector, " + std::to_string(btf.planes.resolution) + " x " +
+      field("planes", "direction planes over light, view and half vector, " + std::to_string(btf.planes.resolution) + " x " +
                                     std::to_string(btf.planes.resolution) + " points x " +
                                     std::to_string(btf.planes.features) + " features each (+" +
                                     std::to_string(btf.planes.inputCount()) + " decoder inputs)");

@@ -1,7 +1,7 @@
 // The compressed material, `.nbtf`: one self-describing, checksummed binary file holding
 // everything decoding needs (decoder MLP, latents, texel -> latent id list, directions,
-// geometry, alpha; or, for the PCA baseline, mean, basis and coefficients) plus provenance (hold-out images, metadata JSON, optionally the
-// encoder). Byte layout and versioning rules: docs/file_format.md.
+// geometry, alpha; or, for the PCA baseline, mean, basis and coefficients) plus provenance
+// (hold-out images, metadata JSON, optionally the encoder). Byte layout and versioning rules: docs/file_format.md.
 //
 // The reader treats the file as untrusted input: parseNbtf() validates every size and
 // offset before use, never allocates more than the bytes present justify, and reports
@@ -22,16 +22,10 @@
 namespace nbtf {
 
 // Format version read by this build. A reader accepts any minor version of its major
-// (minor versions only add optional sections, append fields, or add methods whose files
-// carry required sections an older reader refuses); a newer major is refused. The writer
-// writes the lowest version that describes the file: 1.0 for the neural methods stored as in
-// 1.0 (float32 parts, raw ids), 1.1 for the PCA baseline (method 3, added in 1.1), 1.2 for
-// files with per-texel modulation or compact parts (half floats, zstd-coded ids), 1.3 for
-// decoders with a direction encoding other than the paper's stereographic pair, 1.4 for 8-bit
-// decoders (DEC8) or zstd-coded metadata and hold-out lists (METZ, HOLZ), 1.5 for per-channel
-// modulation coefficients (TXCH), 1.6 for the Fourier direction inputs (encoding 3: a reader
-// before 1.6 refuses the file as having an unknown direction encoding), 1.7 for the two-octave
-// Fourier inputs (encoding 4, the default since commit 9d1460f).
+// (minor versions only add optional sections, append fields, or add content whose files carry
+// required sections or codes an older reader refuses by name); a newer major is refused. The
+// writer writes the lowest version that describes the file: the highest version among the
+// sections it writes (the section table, codec/nbtf_sections.h; docs/file_format.md).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
 constexpr std::uint16_t kNbtfFormatMinor = 8;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline

@@ -1,0 +1,114 @@
+#include "codec/nbtf_format.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "codec/zstd_codec.h"
+#include "util/half.h"
+
+namespace nbtf {
+namespace format {
+
+std::vector<std::uint8_t> bytePlanesOf(const std::vector<std::uint8_t>& records, int width) {
+  const std::size_t n = records.size() / width;
+  std::vector<std::uint8_t> planes(records.size());
+  for (int b = 0; b < width; ++b)
+    for (std::size_t i = 0; i < n; ++i) planes[b * n + i] = records[i * width + b];
+  return planes;
+}
+std::vector<std::uint8_t> bytesFromPlanes(const std::vector<std::uint8_t>& planes, int width) {
+  const std::size_t n = planes.size() / width;
+  std::vector<std::uint8_t> records(planes.size());
+  for (int b = 0; b < width; ++b)
+    for (std::size_t i = 0; i < n; ++i) records[i * width + b] = planes[b * n + i];
+  return records;
+}
+
+std::vector<std::uint8_t> toBytePlanes(const std::vector<std::uint32_t>& values, int width) {
+  std::vector<std::uint8_t> records(values.size() * width);
+  for (std::size_t i = 0; i < values.size(); ++i)
+    for (int b = 0; b < width; ++b) records[i * width + b] = static_cast<std::uint8_t>(values[i] >> (8 * b));
+  return bytePlanesOf(records, width);
+}
+std::vector<std::uint32_t> fromBytePlanes(const std::vector<std::uint8_t>& planes, std::size_t n, int width) {
+  const std::vector<std::uint8_t> records = bytesFromPlanes(planes, width);
+  std::vector<std::uint32_t> values(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int b = 0; b < width; ++b) values[i] |= static_cast<std::uint32_t>(records[i * width + b]) << (8 * b);
+  return values;
+}
+
+int modulationCodeBytes(int bits) { return bits <= 8 ? 1 : 2; }
+
+std::vector<std::uint8_t> codedIds(const CompressedBtf& btf) {
+  auto planes = toBytePlanes(std::vector<std::uint32_t>(btf.ids.begin(), btf.ids.end()), idWidthForClusters(btf.latentRows));
+  return zstdCompress(planes.data(), planes.size());
+}
+
+std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
+  const int columns = std::max(m.columns(), 1);
+  const std::size_t texels = m.codes.size() / columns;
+  std::vector<std::uint32_t> byTerm(m.codes.size());
+  for (int r = 0; r < columns; ++r)
+    for (std::size_t t = 0; t < texels; ++t) byTerm[r * texels + t] = m.codes[t * columns + r];
+  auto planes = toBytePlanes(byTerm, modulationCodeBytes(m.bits));
+  return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
+}
+
+// ---- 8-bit decoder weights (DEC8)
+
+float int8RowScale(const float* w, int n) {
+  float m = 0;
+  for (int i = 0; i < n; ++i) m = std::max(m, std::fabs(w[i]));
+  float s = std::max(roundToHalf(m / 127.f), kMinInt8Scale);
+  if (m / s > 127.f) s = halfToFloat(static_cast<std::uint16_t>(floatToHalf(s) + 1));  // next half up
+  return s;
+}
+int int8Code(float w, float scale) {
+  return static_cast<int>(std::clamp(std::nearbyint(w / scale), -127.f, 127.f));
+}
+
+bool storagePlanesHalf(const CompressedBtf& b) { return b.storage.decoderHalf || b.storage.decoderInt8; }
+
+}  // namespace format
+
+using format::int8Code;
+using format::int8RowScale;
+using format::storagePlanesHalf;
+
+std::string storageDescription(const CompressedBtf& btf) {
+  if (btf.isPca())
+    return std::string("float32 parts, directions ") + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
+           (btf.storage.metadataZstd ? "zstd" : "raw");
+  return std::string("decoder ") + (btf.storage.decoderInt8 ? "int8" : btf.storage.decoderHalf ? "half" : "float32") +
+         ", latents " + (btf.storage.latentsHalf ? "half" : "float32") +
+         (btf.method == CodecMethod::ClusteredNeural ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
+                                                     : std::string()) +
+         ", directions " + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
+         (btf.storage.metadataZstd ? "zstd" : "raw");
+}
+
+void roundToStorage(CompressedBtf& btf) {
+  if (btf.storage.decoderInt8)
+    for (DenseLayer& l : btf.decoder.layers) {
+      for (int o = 0; o < l.out; ++o) {
+        float* row = l.weight.data() + static_cast<std::size_t>(o) * l.in;
+        const float scale = int8RowScale(row, l.in);
+        if (!std::isfinite(scale)) continue;  // weights beyond 127 x 65504: the writer refuses them by name
+        for (int i = 0; i < l.in; ++i) row[i] = static_cast<float>(int8Code(row[i], scale)) * scale;
+      }
+      for (float& b : l.bias) b = roundToHalf(b);
+    }
+  else if (btf.storage.decoderHalf)
+    for (DenseLayer& l : btf.decoder.layers) {
+      for (float& w : l.weight) w = roundToHalf(w);
+      for (float& b : l.bias) b = roundToHalf(b);
+    }
+  if (btf.storage.latentsHalf && !btf.isPca())
+    for (float& z : btf.latents) z = roundToHalf(z);
+  if (storagePlanesHalf(btf))
+    for (float& v : btf.planes.values) v = roundToHalf(v);
+}
+
+}  // namespace nbtf
