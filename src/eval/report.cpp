@@ -262,10 +262,8 @@ std::string integerText(const json& v) { return std::to_string(v.get<long long>(
 const char* kLinear = "linear RGB / alpha";
 const char* kSrgb = "sRGB 8-bit codes (0-255)";
 
-}  // namespace
-
-Doc reportDoc(const json& j) {
-  Doc doc;
+// Title, material, the compressed file's settings.
+void addIntro(Doc& doc, const json& j) {
   doc.title = "BTF evaluation: " + j["method"].get<std::string>();
   const json& m = j["material"];
   std::string intro = "Reference `" + j["reference"].get<std::string>() + "`: " + integerText(m["width"]) + " x " +
@@ -280,8 +278,10 @@ Doc reportDoc(const json& j) {
     for (const auto& [k, v] : j["details"].items()) rows.push_back({k, v.get<std::string>()});
     doc.table({"Setting", "Value"}, rows, "From the compressed file");
   }
+}
 
-  // ---- Summary
+// Summary.
+void addSummary(Doc& doc, const json& j) {
   doc.heading("Summary");
   const bool holdout = !j["rmse_holdout"].is_null();
   std::vector<std::vector<std::string>> rows;
@@ -314,8 +314,10 @@ Doc reportDoc(const json& j) {
   if (!holdout)
     doc.note("No held-out images are recorded: every image was used in training, so this report has no "
              "interpolation error (RMSE on unseen directions).");
+}
 
-  // ---- Sizes
+// Sizes.
+void addSizes(Doc& doc, const json& j) {
   doc.heading("Size (the paper's Table 1)");
   if (j["bytes"].is_null()) {
     doc.note("No size table: this reconstruction does not come from a compressed file.");
@@ -364,8 +366,10 @@ Doc reportDoc(const json& j) {
               "bytes.",
               {false, true, true});
   }
+}
 
-  // ---- Graininess
+// Graininess.
+void addGraininess(Doc& doc, const json& j) {
   doc.heading("Mean brightness (graininess)");
   doc.paragraph("Each texel's value averaged over all images, for the reference and the reconstruction. A model with "
                 "one latent per cluster gives every texel of a cluster the same values, so its map shows the "
@@ -376,8 +380,10 @@ Doc reportDoc(const json& j) {
                  fmt("%g", j["mean_brightness_error_magnification"].get<double>()) + " (both maps shown brightened x " +
                  fmt("%.3g", j["mean_brightness_display_gain"].get<double>()) + ").",
              "Mean brightness maps");
+}
 
-  // ---- Cluster map
+// Cluster map.
+void addClusterMap(Doc& doc, const json& j) {
   if (j["figures"].contains("cluster_map")) {
     const json& perGen = j["clusters_per_generation"];
     doc.heading("Cluster map");
@@ -395,8 +401,11 @@ Doc reportDoc(const json& j) {
     doc.paragraph(text);
     doc.figure(j["figures"]["cluster_map"].get<std::string>(), "Cluster map (label image).", "Cluster map");
   }
+}
 
-  // ---- Error by direction
+// Error by direction.
+void addErrorByDirection(Doc& doc, const json& j) {
+  const json& w = j["worst_pair"];
   doc.heading("Error by direction");
   doc.figure(j["figures"]["heat_map"].get<std::string>(),
              "RMSE of every image (linear RGB / alpha): lights as rows, views as columns, both grouped into elevation "
@@ -417,8 +426,10 @@ Doc reportDoc(const json& j) {
                "RMSE (linear RGB / alpha)", "RMSE (sRGB 8-bit)"},
               erows, light ? "By light elevation" : "By view elevation", {true, true, true, true, true});
   }
+}
 
-  // ---- Comparisons
+// Comparisons.
+void addComparisons(Doc& doc, const json& j) {
   doc.heading("Image comparisons");
   doc.paragraph("Each strip shows the reference, the reconstruction (both as 8-bit sRGB of their linear values, the "
                 "way the source images are stored) and the per-texel error magnified by the factor in its label "
@@ -456,8 +467,10 @@ Doc reportDoc(const json& j) {
                    blurSigmaText(c["blur"]) + " texels.",
                c["name"].get<std::string>());
   }
+}
 
-  // ---- Blur
+// Blur.
+void addBlur(Doc& doc, const json& j) {
   doc.heading("Effective blur");
   doc.paragraph("Neural BTF reconstructions look blurred. For each image below, sigma is the standard deviation (in "
                 "texels) of the Gaussian filter that, applied to the reference, best matches the reconstruction "
@@ -482,8 +495,10 @@ Doc reportDoc(const json& j) {
                "16 texels): those reconstructions keep no detail the reference has at any scale the estimate can see.");
       break;
     }
+}
 
-  // ---- Rendered comparison (nbtf render --compare)
+// Rendered comparison (nbtf render --compare).
+void addRenderedComparison(Doc& doc, const json& j) {
   if (!j["render_comparison"].is_null()) {
     const json& rc = j["render_comparison"];
     doc.heading("Rendered comparison");
@@ -505,8 +520,10 @@ Doc reportDoc(const json& j) {
                "Absolute difference, magnified x " + fmt("%g", rc["error_magnification"].get<double>()) + ".",
                "rendered error");
   }
+}
 
-  // ---- Definitions
+// Definitions.
+void addDefinitions(Doc& doc, const json& j) {
   doc.heading("How these numbers are computed");
   doc.paragraph("**RMSE (linear RGB / alpha)** is eq. (10) of the paper: the square root of the mean squared "
                 "difference over every texel, image and colour channel (" + integerText(j["values"]) +
@@ -518,6 +535,23 @@ Doc reportDoc(const json& j) {
                 "RMSE of the codes. **PSNR** = 20 log10(peak / RMSE) with peak 1 (linear / alpha) or 255 (sRGB 8-bit).");
   doc.paragraph("**Compression ratio** = raw float32 size / total compressed size. All of this is also in "
                 "`report.json`, unrounded, under stable keys (docs/evaluation.md).");
+}
+
+}  // namespace
+
+// The report as a document: one function per section, in reading order.
+Doc reportDoc(const json& j) {
+  Doc doc;
+  addIntro(doc, j);
+  addSummary(doc, j);
+  addSizes(doc, j);
+  addGraininess(doc, j);
+  addClusterMap(doc, j);
+  addErrorByDirection(doc, j);
+  addComparisons(doc, j);
+  addBlur(doc, j);
+  addRenderedComparison(doc, j);
+  addDefinitions(doc, j);
   return doc;
 }
 

@@ -228,354 +228,467 @@ std::string formatStatus(double loss, double rmse, double samplesPerSecond, doub
   return buf;
 }
 
-}  // namespace
+// One training run (trainModel): the data, the model, its optimizer and the run's clock,
+// stepped until the plan or the budget ends. Set-up in the constructor; resume() picks up a
+// checkpoint; step() is one optimizer step (sample, forward and backward, reduce over ranks,
+// update, report); finish() exports the model and measures its exact RMSE.
+class TrainingRun {
+ public:
+  TrainingRun(const TrainInputs& inputs, const TrainConfig& config, Clock::time_point callStart)
+      : config_(config),
+        callStart_(callStart),
+        set_(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs,
+             config.model.planeFeatures),
+        x_(*inputs.encoderInputs),
+        inputSource_(x_),
+        encoder_(nullptr),
+        decoder_(nullptr) {
+    buildModel();
+    geometry_ = planTraining(config_, set_.groups(), static_cast<int>(set_.trainImages().size()));
+    tileShare_ = {0, geometry_.tiles};
+    if (config_.distributed.enabled()) joinGroup();
+  }
 
-TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
-  detail::quietTorchLogging();
-  validateTrainConfig(config, "training config");
-#if defined(__GLIBC__)
-  // A step allocates and frees the same few-megabyte activation tensors every time. glibc
-  // serves blocks that large with mmap and unmaps them on free, so every step paid fresh
-  // page faults (a few percent of its time); from the heap, the pages are reused.
-  mallopt(M_MMAP_THRESHOLD, 64 << 20);
-  mallopt(M_TRIM_THRESHOLD, 128 << 20);
-#endif
-  const auto callStart = Clock::now();
-  const int threads = config.threads > 0 ? config.threads : threadCount();
-  torch::set_num_threads(threads);
+  void resume();
+  // Checks the targets against the decoder, allocates the step's buffers, starts the clock
+  // and the progress bar.
+  void startLoop();
+  // False once the plan is done, the budget spent, or a stop was asked for (then checkpointed).
+  bool wantsStep();
+  void step();
+  TrainResult finish();
 
-  TrainingSet set(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs,
-                  config.model.planeFeatures);
-  const MatrixXfCol& x = *inputs.encoderInputs;
-  const EncoderInputSource inputSource(x);
-  const int latentDim = config.model.latentDim;
+ private:
+  void buildModel();
+  void joinGroup();
+  void sampleStep();
+  double forwardBackward(bool polishing, double p);
+  void addPlaneGradient();
+  double reduceOverRanks(double loss);
+  void optimizerStep(bool polishing);
+  void report(bool polishing, double p);
+  void writeCheckpointNow();
+  // Adds the time since the last lap to one slot of the profile.
+  void lap(double TrainResult::Profile::*slot) {
+    const auto now = Clock::now();
+    result_.profile.*slot += std::chrono::duration<double>(now - phaseStart_).count();
+    phaseStart_ = now;
+  }
 
-  // ---- Model and optimizer, initialized from the seed.
-  torch::manual_seed(config.seed);
-  Encoder encoder(set.images(), config.model);
-  Decoder decoder(config.model);
-  const bool stock = config.backend == "torch";
-  const torch::Device device = trainingDevice(config);
-  if (!device.is_cpu()) encoder->to(device), decoder->to(device);
-  std::vector<torch::Tensor> params = encoder->parameters();
-  for (auto& p : decoder->parameters()) params.push_back(p);
-  auto optimizer = makeOptimizer(config, params, decoder->planes);  // its rates are set before every step
-  const double planeRateFactor = config.planeLearningRate > 0 ? config.planeLearningRate / config.learningRate : 1;
-  DecoderBackprop backprop(decoder, latentDim);
+  double elapsedTotal() const { return priorSeconds_ + secondsSince(callStart_); }
+  // The time budget covers the whole call: the set-up, the loop (over resumed runs too) and
+  // the final exact evaluation, whose cost is estimated from the measured step rate (a
+  // forward pass over every group x image costs about a third of a training sample).
+  double finalEvalSeconds() const {
+    const double loopSeconds = secondsSince(loopStart_);
+    if (step_ == firstStep_ || loopSeconds < 0.5) return 0.0;
+    const double evalSamples = static_cast<double>(set_.groups()) * set_.images();
+    return evalSamples / (3 * samplesPerSecond(loopSeconds));
+  }
+  double samplesPerSecond(double seconds) const {
+    return (step_ - firstStep_) * static_cast<double>(geometry_.batch) / seconds;
+  }
+  double progressOf(std::int64_t s, double elapsed) const {
+    double p = 0;
+    if (geometry_.totalSteps > 0) p = static_cast<double>(s) / geometry_.totalSteps;
+    if (config_.timeBudgetSeconds > 0) p = std::max(p, (elapsed + finalEvalSeconds()) / config_.timeBudgetSeconds);
+    return std::min(1.0, p);
+  }
+  bool worker() const { return group_ && group_->rank() != 0; }
+  int stepTiles() const { return tileShare_.second - tileShare_.first; }
+
+  const TrainConfig& config_;
+  const Clock::time_point callStart_;
+  TrainingSet set_;
+  const MatrixXfCol& x_;
+  const EncoderInputSource inputSource_;
+
+  // ---- The model
+  Encoder encoder_;
+  Decoder decoder_;
+  bool stock_ = false;  // the torch backend: stock modules and autograd
+  torch::Device device_ = torch::kCPU;
+  std::vector<torch::Tensor> params_;
+  std::unique_ptr<torch::optim::Optimizer> optimizer_;
+  double planeRateFactor_ = 1;
+  std::unique_ptr<DecoderBackprop> backprop_;
+  int planeInputs_ = 0;
+  std::vector<float> stockInputGradient_;
+  DirectionPlanes stepPlanes_;  // the planes as this step samples them
+  double flopsPerSample_ = 0;
+  PolishLatents polish_;
+
+  // ---- The plan, and this rank's share of every step's tiles (all of them in one process)
+  TrainPlan geometry_;
+  std::unique_ptr<detail::DistributedGroup> group_;
+  std::pair<int, int> tileShare_;
+
+  // ---- Where the run stands
+  CheckpointMeta meta_;
+  std::int64_t step_ = 0, firstStep_ = 0;
+  double priorSeconds_ = 0, emaLoss_ = -1;
+  double elapsedAtCheck_ = 0;  // the clock as wantsStep() read it, for this step's schedule
+  TrainResult result_;
+
+  // ---- Per-step buffers and the loop's bookkeeping
+  StepPlan plan_;
+  int outputs_ = 0, dirWidth_ = 0;
+  double lossToTexelMse_ = 1, withinTrain_ = 0;
+  torch::Tensor dirs_, targets_, dz_, tileSlot_, tileGroup_;
+  torch::Tensor stepDirs_, stepTargets_, stepTileSlot_, stepTileGroup_;
+  std::unique_ptr<Progress> bar_;
+  bool barInSeconds_ = false;
+  std::int64_t totalEpochs_ = 0;
+  std::size_t shown_ = 0;
+  Clock::time_point loopStart_, lastCheckpoint_, lastStatus_, phaseStart_;
+};
+
+// Model and optimizer, initialized from the seed.
+void TrainingRun::buildModel() {
+  torch::manual_seed(config_.seed);
+  encoder_ = Encoder(set_.images(), config_.model);
+  decoder_ = Decoder(config_.model);
+  stock_ = config_.backend == "torch";
+  device_ = trainingDevice(config_);
+  if (!device_.is_cpu()) encoder_->to(device_), decoder_->to(device_);
+  params_ = encoder_->parameters();
+  for (auto& p : decoder_->parameters()) params_.push_back(p);
+  optimizer_ = makeOptimizer(config_, params_, decoder_->planes);  // its rates are set before every step
+  planeRateFactor_ = config_.planeLearningRate > 0 ? config_.planeLearningRate / config_.learningRate : 1;
+  backprop_ = std::make_unique<DecoderBackprop>(decoder_, config_.model.latentDim);
   // Learned direction planes: their features are the last direction inputs, sampled anew
   // after every step that moved them; their gradient comes from the decoder's input gradient.
-  const int planeInputs = set.planeInputs();
-  backprop.setTrailingInputGradient(planeInputs);
-  std::vector<float> stockInputGradient;
-  DirectionPlanes stepPlanes;  // the planes as this step samples them
-  const Mlp decoderMlpShape = decoderShape(config.model);
-  const double flopsPerSample = decoderMlpShape.flopsPerSample();
+  planeInputs_ = set_.planeInputs();
+  backprop_->setTrailingInputGradient(planeInputs_);
+  flopsPerSample_ = decoderShape(config_.model).flopsPerSample();
+}
 
-  // ---- Step geometry: `tiles` encoder inputs x `perTile` images = one decoder batch.
-  const int trainImages = static_cast<int>(set.trainImages().size());
-  const TrainPlan geometry = planTraining(config, set.groups(), trainImages);
-  const int perTile = geometry.perTile, tiles = geometry.tiles;
-  const std::int64_t batch = geometry.batch, stepsPerEpoch = geometry.stepsPerEpoch;
-  const std::int64_t totalSteps = geometry.totalSteps;  // 0: time budget only
+// Data-parallel: the rendezvous, and this rank's share of every step's tiles.
+void TrainingRun::joinGroup() {
+  const int tiles = geometry_.tiles;
+  if (config_.timeBudgetSeconds > 0)
+    throw Error("--time-budget cannot be used with --world-size > 1 (ranks must run the same steps); use --epochs");
+  if (config_.resume) throw Error("--resume cannot be used with --world-size > 1");
+  if (tiles < config_.distributed.worldSize)
+    throw Error("--world-size " + std::to_string(config_.distributed.worldSize) + " exceeds the " +
+                std::to_string(tiles) + " encoder inputs of a step: every rank needs at least one");
+  tileShare(tiles, config_.distributed.rank, config_.distributed.worldSize, tileShare_.first, tileShare_.second);
+  // The training set follows from the settings the pipeline listed, but it is what the
+  // collectives' buffer sizes come from: checked too, so no rank reaches Gloo with others.
+  DistributedConfig dist = config_.distributed;
+  std::string holdout;
+  for (int i : set_.holdoutImages()) holdout += (holdout.empty() ? "" : ",") + std::to_string(i);
+  dist.mustAgree.push_back({"training set: encoder inputs", std::to_string(set_.groups())});
+  dist.mustAgree.push_back({"training set: images", std::to_string(set_.images())});
+  dist.mustAgree.push_back({"training set: texels", std::to_string(set_.texels())});
+  dist.mustAgree.push_back({"training set: held-out images", holdout.empty() ? "none" : holdout});
+  dist.mustAgree.push_back({"training set: per-texel modulation (checksum)", std::to_string(set_.texelCoefficientHash())});
+  group_ = std::make_unique<detail::DistributedGroup>(dist);
+}
 
-  // ---- Data-parallel: rendezvous, and this rank's share of every step's tiles.
-  std::unique_ptr<detail::DistributedGroup> group;
-  int shareBegin = 0, shareEnd = tiles;
-  if (config.distributed.enabled()) {
-    if (config.timeBudgetSeconds > 0)
-      throw Error("--time-budget cannot be used with --world-size > 1 (ranks must run the same steps); use --epochs");
-    if (config.resume) throw Error("--resume cannot be used with --world-size > 1");
-    if (tiles < config.distributed.worldSize)
-      throw Error("--world-size " + std::to_string(config.distributed.worldSize) + " exceeds the " +
-                  std::to_string(tiles) + " encoder inputs of a step: every rank needs at least one");
-    tileShare(tiles, config.distributed.rank, config.distributed.worldSize, shareBegin, shareEnd);
-    // The training set follows from the settings the pipeline listed, but it is what the
-    // collectives' buffer sizes come from: checked too, so no rank reaches Gloo with others.
-    DistributedConfig dist = config.distributed;
-    std::string holdout;
-    for (int i : set.holdoutImages()) holdout += (holdout.empty() ? "" : ",") + std::to_string(i);
-    dist.mustAgree.push_back({"training set: encoder inputs", std::to_string(set.groups())});
-    dist.mustAgree.push_back({"training set: images", std::to_string(set.images())});
-    dist.mustAgree.push_back({"training set: texels", std::to_string(set.texels())});
-    dist.mustAgree.push_back({"training set: held-out images", holdout.empty() ? "none" : holdout});
-    dist.mustAgree.push_back({"training set: per-texel modulation (checksum)", std::to_string(set.texelCoefficientHash())});
-    group = std::make_unique<detail::DistributedGroup>(dist);
-  }
-  const bool worker = group && group->rank() != 0;
-
-  // ---- Resume.
-  CheckpointMeta meta;
-  meta.fingerprint = checkpointFingerprint(config, set);
-  meta.totalSteps = totalSteps;
-  std::int64_t step = 0;
-  double priorSeconds = 0, emaLoss = -1;
-  TrainResult result;
-  PolishLatents polish;
-  if (config.warmStart && !checkpointExists(config.checkpointPath))
-    throw Error("training: a warm start needs the previous stage's checkpoint, \"" + config.checkpointPath +
+void TrainingRun::resume() {
+  meta_.fingerprint = checkpointFingerprint(config_, set_);
+  meta_.totalSteps = geometry_.totalSteps;
+  if (config_.warmStart && !checkpointExists(config_.checkpointPath))
+    throw Error("training: a warm start needs the previous stage's checkpoint, \"" + config_.checkpointPath +
                 "\" does not exist");
-  if ((config.resume || config.warmStart) && checkpointExists(config.checkpointPath)) {
-    CheckpointMeta saved = loadCheckpoint(config.checkpointPath, meta.fingerprint, *encoder, *decoder, *optimizer,
-                                          polish, config.latentLearningRate, !config.warmStart);
-    if (config.resume && !config.warmStart && saved.totalSteps != totalSteps) {
-      auto plan = [](std::int64_t steps) {
-        return steps > 0 ? std::to_string(steps) + " steps" : std::string("a time budget only");
-      };
-      throw fileError(config.checkpointPath,
-                      "checkpoint of a run planned for " + plan(saved.totalSteps) + ", this run plans " +
-                          plan(totalSteps) + " (--epochs or the config's step bounds changed); the learning-rate "
-                          "schedule spans the whole run, so resume with the options of the interrupted run, or "
-                          "start over without --resume");
-    }
-    step = saved.step;
-    priorSeconds = saved.elapsedSeconds;
-    emaLoss = saved.emaLoss;
-    result.resumedFromStep = step;
+  if (!(config_.resume || config_.warmStart) || !checkpointExists(config_.checkpointPath)) return;
+  CheckpointMeta saved = loadCheckpoint(config_.checkpointPath, meta_.fingerprint, *encoder_, *decoder_, *optimizer_,
+                                        polish_, config_.latentLearningRate, !config_.warmStart);
+  if (config_.resume && !config_.warmStart && saved.totalSteps != geometry_.totalSteps) {
+    auto plan = [](std::int64_t steps) {
+      return steps > 0 ? std::to_string(steps) + " steps" : std::string("a time budget only");
+    };
+    throw fileError(config_.checkpointPath,
+                    "checkpoint of a run planned for " + plan(saved.totalSteps) + ", this run plans " +
+                        plan(geometry_.totalSteps) + " (--epochs or the config's step bounds changed); the "
+                        "learning-rate schedule spans the whole run, so resume with the options of the interrupted "
+                        "run, or start over without --resume");
   }
+  step_ = saved.step;
+  priorSeconds_ = saved.elapsedSeconds;
+  emaLoss_ = saved.emaLoss;
+  result_.resumedFromStep = step_;
+}
 
-  // ---- Per-step buffers.
-  StepPlan plan;
-  if (3 * config.model.outputTerms != set.outputs())
-    throw Error("training: the decoder gives " + std::to_string(3 * config.model.outputTerms) + " outputs but the " +
-                "targets have " + std::to_string(set.outputs()) + " (model.outputTerms must equal the modulation terms)");
-  const int outputs = set.outputs();
+void TrainingRun::startLoop() {
+  if (3 * config_.model.outputTerms != set_.outputs())
+    throw Error("training: the decoder gives " + std::to_string(3 * config_.model.outputTerms) + " outputs but the " +
+                "targets have " + std::to_string(set_.outputs()) + " (model.outputTerms must equal the modulation terms)");
+  outputs_ = set_.outputs();
   // The loss is a mean over the decoder's outputs; per texel and channel it counts terms times.
-  const double lossToTexelMse = outputs / 3.0;
-  const int dirWidth = set.directionWidth();
-  torch::Tensor dirs = torch::empty({batch, dirWidth}), targets = torch::empty({batch, outputs}), dz;
-  torch::Tensor tileSlot = torch::empty({tiles}, torch::kLong), tileGroup = torch::empty({tiles}, torch::kLong);
-  double withinTrain = 0;
-  for (int i : set.trainImages()) withinTrain += set.withinSse(i);
-  withinTrain /= static_cast<double>(set.texels()) * trainImages * 3;
+  lossToTexelMse_ = outputs_ / 3.0;
+  dirWidth_ = set_.directionWidth();
+  const std::int64_t batch = geometry_.batch;
+  dirs_ = torch::empty({batch, dirWidth_});
+  targets_ = torch::empty({batch, outputs_});
+  tileSlot_ = torch::empty({geometry_.tiles}, torch::kLong);
+  tileGroup_ = torch::empty({geometry_.tiles}, torch::kLong);
+  const int trainImages = static_cast<int>(set_.trainImages().size());
+  for (int i : set_.trainImages()) withinTrain_ += set_.withinSse(i);
+  withinTrain_ /= static_cast<double>(set_.texels()) * trainImages * 3;
 
   // The bar counts optimizer steps, or whole seconds of the budget when only a budget bounds
   // the run: units a user can compare with the summary.
-  const bool barInSeconds = totalSteps == 0;
-  const std::int64_t totalEpochs = totalSteps > 0 ? (totalSteps + stepsPerEpoch - 1) / stepsPerEpoch : 0;
-  Progress bar(barInSeconds ? "train (s)" : "train (steps)",
-               static_cast<std::size_t>(barInSeconds ? std::ceil(config.timeBudgetSeconds) : totalSteps),
-               config.progress);
-  std::size_t shown = barInSeconds ? static_cast<std::size_t>(priorSeconds) : static_cast<std::size_t>(step);
-  bar.advance(shown);
-  const auto loopStart = Clock::now();
-  auto lastCheckpoint = loopStart, lastStatus = loopStart;
-  const std::int64_t firstStep = step;
-  // The time budget covers the whole call: the set-up above, the loop (over resumed runs too)
-  // and the final exact evaluation, whose cost is estimated from the measured step rate
-  // (a forward pass over every group x image costs about a third of a training sample).
-  auto elapsedTotal = [&] { return priorSeconds + secondsSince(callStart); };
-  const double evalSamples = static_cast<double>(set.groups()) * set.images();
-  auto finalEvalSeconds = [&] {
-    const double loopSeconds = secondsSince(loopStart);
-    if (step == firstStep || loopSeconds < 0.5) return 0.0;
-    const double sps = (step - firstStep) * static_cast<double>(batch) / loopSeconds;
-    return evalSamples / (3 * sps);
-  };
-  auto progressOf = [&](std::int64_t s, double elapsed) {
-    double p = 0;
-    if (totalSteps > 0) p = static_cast<double>(s) / totalSteps;
-    if (config.timeBudgetSeconds > 0) p = std::max(p, (elapsed + finalEvalSeconds()) / config.timeBudgetSeconds);
-    return std::min(1.0, p);
-  };
-  auto writeCheckpointNow = [&] {
-    if (config.checkpointPath.empty() || worker) return;  // rank 0 checkpoints for all
-    meta.step = step;
-    meta.elapsedSeconds = elapsedTotal();
-    meta.emaLoss = emaLoss;
-    saveCheckpoint(config.checkpointPath, meta, *encoder, *decoder, *optimizer, polish);
-    lastCheckpoint = Clock::now();
-  };
+  const std::int64_t totalSteps = geometry_.totalSteps;
+  barInSeconds_ = totalSteps == 0;
+  totalEpochs_ = totalSteps > 0 ? (totalSteps + geometry_.stepsPerEpoch - 1) / geometry_.stepsPerEpoch : 0;
+  bar_ = std::make_unique<Progress>(
+      barInSeconds_ ? "train (s)" : "train (steps)",
+      static_cast<std::size_t>(barInSeconds_ ? std::ceil(config_.timeBudgetSeconds) : totalSteps), config_.progress);
+  shown_ = barInSeconds_ ? static_cast<std::size_t>(priorSeconds_) : static_cast<std::size_t>(step_);
+  bar_->advance(shown_);
+  loopStart_ = Clock::now();
+  lastCheckpoint_ = lastStatus_ = loopStart_;
+  firstStep_ = step_;
+  encoder_->train();
+}
 
-  encoder->train();
-  while (true) {
-    const double elapsed = elapsedTotal();
-    if (totalSteps > 0 && step >= totalSteps) break;
-    if (config.timeBudgetSeconds > 0 && elapsed + finalEvalSeconds() >= config.timeBudgetSeconds) break;
-    if ((config.stopFlag && config.stopFlag->load()) || (config.stopAtStep > 0 && step >= config.stopAtStep)) {
-      result.interrupted = true;
-      writeCheckpointNow();
-      break;
-    }
-    const double p = progressOf(step, elapsed);
-    const bool polishing = config.polishFraction > 0 && p >= 1 - config.polishFraction;
-    setLearningRate(*optimizer, config.learningRate * geometry.learningRateScale * scheduleFactor(config, p),
-                    planeRateFactor);
-
-    // Samples: which groups and images, then their directions and targets.
-    auto tPhase = Clock::now();
-    auto lap = [&](double& slot) {
-      auto now = Clock::now();
-      slot += std::chrono::duration<double>(now - tPhase).count();
-      tPhase = now;
-    };
-    planStep(set, config.seed, step, tiles, perTile, plan);
-    if (planeInputs > 0) {
-      stepPlanes = exportPlanes(decoder);
-      set.setPlaneFeatures(stepPlanes);
-    }
-    // This rank's share of the step's tiles (all of them in one process). The encoder still
-    // runs on every distinct input of the step, so its BatchNorm sees the same batch on every
-    // rank as in one process; only the decoder's rows (the cost) are split.
-    const int stepTiles = shareEnd - shareBegin;
-    {
-      float* d = dirs.data_ptr<float>();
-      float* y = targets.data_ptr<float>();
-      const std::vector<float>& allDirs = set.directions();
-      at::parallel_for(0, stepTiles, 1, [&](std::int64_t begin, std::int64_t end) {
-        for (std::int64_t t = begin; t < end; ++t) {
-          const int* img = &plan.images[(shareBegin + t) * perTile];
-          set.targets(plan.tileGroup[shareBegin + t], img, perTile, y + t * perTile * outputs);
-          for (int s = 0; s < perTile; ++s)
-            std::memcpy(d + (t * perTile + s) * dirWidth, &allDirs[static_cast<std::size_t>(img[s]) * dirWidth],
-                        dirWidth * sizeof(float));
-        }
-      });
-    }
-    for (int t = 0; t < stepTiles; ++t) {
-      tileSlot.data_ptr<std::int64_t>()[t] = plan.tileSlot[shareBegin + t];
-      tileGroup.data_ptr<std::int64_t>()[t] = plan.tileGroup[shareBegin + t];
-    }
-    // Views of the step's rows (all of them unless this rank trains a share).
-    const std::int64_t stepRows = static_cast<std::int64_t>(stepTiles) * perTile;
-    const torch::Tensor stepDirs = dirs.narrow(0, 0, stepRows), stepTargets = targets.narrow(0, 0, stepRows);
-    const torch::Tensor stepTileSlot = tileSlot.narrow(0, 0, stepTiles), stepTileGroup = tileGroup.narrow(0, 0, stepTiles);
-
-    double loss;
-    TrainResult::Profile& prof = result.profile;
-    lap(prof.sampling);
-    if (!polishing) {
-      torch::Tensor in = inputSource.rows(plan.distinctGroups.data(),
-                                             static_cast<std::int64_t>(plan.distinctGroups.size()));
-      if (stock) {
-        // Autograd through encoder and decoder; the whole step is timed as the decoder's.
-        torch::Tensor z = encoder->forwardStock(in.to(device)).index_select(0, stepTileSlot.to(device));
-        loss = stockTrainStep(decoder, params, z, stepDirs, stepTargets, perTile, device, planeInputs,
-                              stockInputGradient);
-        lap(prof.decoder);
-      } else {
-        for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
-        torch::Tensor z = encoder->forward(in).index_select(0, stepTileSlot);
-        lap(prof.encoder);
-        loss = backprop.trainStep(z.detach(), stepDirs, stepTargets, perTile, dz);
-        lap(prof.decoder);
-        z.backward(dz);
-        lap(prof.encoder);
-      }
-    } else {
-      if (!polish.values.defined()) {
-        // Freeze the encoder: from here on the decoder fits the latents that will be stored
-        // (and, when they are free, they fit the decoder).
-        polish.start(encodeAll(encoder, x, stock, device), config.latentLearningRate);
-        for (auto& p : encoder->parameters()) p.mutable_grad() = torch::Tensor();
-      }
-      lap(prof.encoder);
-      loss = polishStep(polish, stepTileGroup, [&](const torch::Tensor& z) {
-        return stock ? stockTrainStep(decoder, params, z.to(device), stepDirs, stepTargets, perTile, device, planeInputs,
-                                      stockInputGradient)
-                     : backprop.trainStep(z, stepDirs, stepTargets, perTile, dz);
-      }, stock, dz);
-      if (polish.free())
-        setLearningRate(*polish.optimizer, config.latentLearningRate * polishScheduleFactor(config, p));
-      lap(prof.decoder);
-    }
-    if (planeInputs > 0) {
-      torch::Tensor gradient = torch::zeros_like(decoder->planes);
-      set.addPlaneGradient(stepPlanes, &plan.images[static_cast<std::size_t>(shareBegin) * perTile],
-                           stock ? stockInputGradient.data() : backprop.inputGradient().data(), stepRows,
-                           gradient.data_ptr<float>());
-      decoder->planes.mutable_grad() = gradient;
-      lap(prof.decoder);
-    }
-    if (group) {
-      // The whole step's gradient and loss: each rank's (a mean over its rows) weighted by its
-      // share of the rows, summed over the ranks. Every rank then takes the same step.
-      const double weight = static_cast<double>(stepTiles) / tiles;
-      std::vector<torch::Tensor> reduced = params;
-      if (polish.free()) reduced.push_back(polish.values);
-      for (const torch::Tensor& p : reduced)
-        if (p.grad().defined()) p.grad().mul_(weight);
-      loss = group->allReduceGradients(reduced, loss * weight);
-    }
-    if (!std::isfinite(loss))
-      throw Error("training diverged at step " + std::to_string(step) +
-                  " (loss is not finite); lower optimizer.learning_rate");
-    if (stock) {
-      optimizer->step();
-    } else if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer.get())) {
-      detail::fusedAdamStep(*adam);
-    } else {
-      optimizer->step();
-    }
-    if (polishing && polish.free()) detail::fusedAdamStep(*polish.optimizer);
-    lap(prof.optimizer);
-    ++step;
-    emaLoss = emaLoss < 0 ? loss : 0.98 * emaLoss + 0.02 * loss;
-
-    // Progress, status line, periodic checkpoint.
-    const double now = elapsedTotal();
-    const std::size_t done = barInSeconds ? static_cast<std::size_t>(now) : static_cast<std::size_t>(step);
-    if (done > shown) bar.advance(done - shown), shown = done;
-    const double sps = (step - firstStep) * static_cast<double>(batch) / std::max(1e-9, secondsSince(loopStart));
-    if (config.monitor) {
-      TrainStatus st;
-      st.step = step, st.totalSteps = totalSteps, st.seconds = now, st.progress = progressOf(step, now);
-      st.loss = emaLoss, st.rmseEstimate = std::sqrt(emaLoss * lossToTexelMse + withinTrain), st.samplesPerSecond = sps;
-      st.learningRate = config.learningRate * geometry.learningRateScale * scheduleFactor(config, p), st.polish = polishing;
-      config.monitor(st);
-    }
-    if (secondsSince(lastStatus) > 0.5) {
-      bar.setStatus(formatStatus(emaLoss, std::sqrt(emaLoss * lossToTexelMse + withinTrain), sps, sps * 3 * flopsPerSample / 1e9,
-                                 step / stepsPerEpoch + 1, totalEpochs, polishing));
-      lastStatus = Clock::now();
-    }
-    if (config.checkpointSeconds > 0 && secondsSince(lastCheckpoint) >= config.checkpointSeconds) writeCheckpointNow();
+bool TrainingRun::wantsStep() {
+  elapsedAtCheck_ = elapsedTotal();
+  if (geometry_.totalSteps > 0 && step_ >= geometry_.totalSteps) return false;
+  if (config_.timeBudgetSeconds > 0 && elapsedAtCheck_ + finalEvalSeconds() >= config_.timeBudgetSeconds) return false;
+  if ((config_.stopFlag && config_.stopFlag->load()) || (config_.stopAtStep > 0 && step_ >= config_.stopAtStep)) {
+    result_.interrupted = true;
+    writeCheckpointNow();
+    return false;
   }
-  result.trainSeconds = secondsSince(loopStart);
-  bar.finish();
-  if (group && group->calls() > 0) {
-    result.allReduceBytesPerStep = group->bytesReduced() / group->calls();
-    result.allReduceSecondsPerStep = group->secondsInCollectives() / group->calls();
+  return true;
+}
+
+void TrainingRun::step() {
+  const double p = progressOf(step_, elapsedAtCheck_);
+  const bool polishing = config_.polishFraction > 0 && p >= 1 - config_.polishFraction;
+  setLearningRate(*optimizer_, config_.learningRate * geometry_.learningRateScale * scheduleFactor(config_, p),
+                  planeRateFactor_);
+  phaseStart_ = Clock::now();
+  sampleStep();
+  double loss = forwardBackward(polishing, p);
+  if (planeInputs_ > 0) addPlaneGradient();
+  if (group_) loss = reduceOverRanks(loss);
+  if (!std::isfinite(loss))
+    throw Error("training diverged at step " + std::to_string(step_) +
+                " (loss is not finite); lower optimizer.learning_rate");
+  optimizerStep(polishing);
+  ++step_;
+  emaLoss_ = emaLoss_ < 0 ? loss : 0.98 * emaLoss_ + 0.02 * loss;
+  report(polishing, p);
+}
+
+// Which groups and images, then this rank's share of their directions and targets. The
+// encoder still runs on every distinct input of the step, so its BatchNorm sees the same
+// batch on every rank as in one process; only the decoder's rows (the cost) are split.
+void TrainingRun::sampleStep() {
+  const int perTile = geometry_.perTile, begin = tileShare_.first, tiles = stepTiles();
+  planStep(set_, config_.seed, step_, geometry_.tiles, perTile, plan_);
+  if (planeInputs_ > 0) {
+    stepPlanes_ = exportPlanes(decoder_);
+    set_.setPlaneFeatures(stepPlanes_);
   }
-  result.steps = step;
-  result.epochsRun = static_cast<int>(step / stepsPerEpoch);
-  result.finalLoss = std::max(0.0, emaLoss);
-  result.encoderBlocks = encoder->blocks;
-  result.samplesPerSecond =
-      result.trainSeconds > 0 ? (step - firstStep) * static_cast<double>(batch) / result.trainSeconds : 0;
-  if (worker) {
+  float* d = dirs_.data_ptr<float>();
+  float* y = targets_.data_ptr<float>();
+  const std::vector<float>& allDirs = set_.directions();
+  at::parallel_for(0, tiles, 1, [&](std::int64_t first, std::int64_t last) {
+    for (std::int64_t t = first; t < last; ++t) {
+      const int* img = &plan_.images[(begin + t) * perTile];
+      set_.targets(plan_.tileGroup[begin + t], img, perTile, y + t * perTile * outputs_);
+      for (int s = 0; s < perTile; ++s)
+        std::memcpy(d + (t * perTile + s) * dirWidth_, &allDirs[static_cast<std::size_t>(img[s]) * dirWidth_],
+                    dirWidth_ * sizeof(float));
+    }
+  });
+  for (int t = 0; t < tiles; ++t) {
+    tileSlot_.data_ptr<std::int64_t>()[t] = plan_.tileSlot[begin + t];
+    tileGroup_.data_ptr<std::int64_t>()[t] = plan_.tileGroup[begin + t];
+  }
+  // Views of the step's rows (all of them unless this rank trains a share).
+  const std::int64_t rows = static_cast<std::int64_t>(tiles) * perTile;
+  stepDirs_ = dirs_.narrow(0, 0, rows);
+  stepTargets_ = targets_.narrow(0, 0, rows);
+  stepTileSlot_ = tileSlot_.narrow(0, 0, tiles);
+  stepTileGroup_ = tileGroup_.narrow(0, 0, tiles);
+  lap(&TrainResult::Profile::sampling);
+}
+
+// The loss of the step, with every gradient in place: through the encoder, or, while
+// polishing, through the frozen (or free) latents.
+double TrainingRun::forwardBackward(bool polishing, double p) {
+  const int perTile = geometry_.perTile;
+  double loss;
+  if (!polishing) {
+    torch::Tensor in =
+        inputSource_.rows(plan_.distinctGroups.data(), static_cast<std::int64_t>(plan_.distinctGroups.size()));
+    if (stock_) {
+      // Autograd through encoder and decoder; the whole step is timed as the decoder's.
+      torch::Tensor z = encoder_->forwardStock(in.to(device_)).index_select(0, stepTileSlot_.to(device_));
+      loss = stockTrainStep(decoder_, params_, z, stepDirs_, stepTargets_, perTile, device_, planeInputs_,
+                            stockInputGradient_);
+      lap(&TrainResult::Profile::decoder);
+    } else {
+      for (auto& p : encoder_->parameters()) p.mutable_grad() = torch::Tensor();
+      torch::Tensor z = encoder_->forward(in).index_select(0, stepTileSlot_);
+      lap(&TrainResult::Profile::encoder);
+      loss = backprop_->trainStep(z.detach(), stepDirs_, stepTargets_, perTile, dz_);
+      lap(&TrainResult::Profile::decoder);
+      z.backward(dz_);
+      lap(&TrainResult::Profile::encoder);
+    }
+    return loss;
+  }
+  if (!polish_.values.defined()) {
+    // Freeze the encoder: from here on the decoder fits the latents that will be stored
+    // (and, when they are free, they fit the decoder).
+    polish_.start(encodeAll(encoder_, x_, stock_, device_), config_.latentLearningRate);
+    for (auto& p : encoder_->parameters()) p.mutable_grad() = torch::Tensor();
+  }
+  lap(&TrainResult::Profile::encoder);
+  loss = polishStep(polish_, stepTileGroup_, [&](const torch::Tensor& z) {
+    return stock_ ? stockTrainStep(decoder_, params_, z.to(device_), stepDirs_, stepTargets_, perTile, device_,
+                                   planeInputs_, stockInputGradient_)
+                  : backprop_->trainStep(z, stepDirs_, stepTargets_, perTile, dz_);
+  }, stock_, dz_);
+  if (polish_.free())
+    setLearningRate(*polish_.optimizer, config_.latentLearningRate * polishScheduleFactor(config_, p));
+  lap(&TrainResult::Profile::decoder);
+  return loss;
+}
+
+void TrainingRun::addPlaneGradient() {
+  torch::Tensor gradient = torch::zeros_like(decoder_->planes);
+  set_.addPlaneGradient(stepPlanes_, &plan_.images[static_cast<std::size_t>(tileShare_.first) * geometry_.perTile],
+                        stock_ ? stockInputGradient_.data() : backprop_->inputGradient().data(),
+                        static_cast<std::int64_t>(stepTiles()) * geometry_.perTile, gradient.data_ptr<float>());
+  decoder_->planes.mutable_grad() = gradient;
+  lap(&TrainResult::Profile::decoder);
+}
+
+// The whole step's gradient and loss: each rank's (a mean over its rows) weighted by its
+// share of the rows, summed over the ranks. Every rank then takes the same step.
+double TrainingRun::reduceOverRanks(double loss) {
+  const double weight = static_cast<double>(stepTiles()) / geometry_.tiles;
+  std::vector<torch::Tensor> reduced = params_;
+  if (polish_.free()) reduced.push_back(polish_.values);
+  for (const torch::Tensor& p : reduced)
+    if (p.grad().defined()) p.grad().mul_(weight);
+  return group_->allReduceGradients(reduced, loss * weight);
+}
+
+void TrainingRun::optimizerStep(bool polishing) {
+  if (stock_) {
+    optimizer_->step();
+  } else if (auto* adam = dynamic_cast<torch::optim::Adam*>(optimizer_.get())) {
+    detail::fusedAdamStep(*adam);
+  } else {
+    optimizer_->step();
+  }
+  if (polishing && polish_.free()) detail::fusedAdamStep(*polish_.optimizer);
+  lap(&TrainResult::Profile::optimizer);
+}
+
+// Progress, status line, monitor and periodic checkpoint.
+void TrainingRun::report(bool polishing, double p) {
+  const double now = elapsedTotal();
+  const std::size_t done = barInSeconds_ ? static_cast<std::size_t>(now) : static_cast<std::size_t>(step_);
+  if (done > shown_) bar_->advance(done - shown_), shown_ = done;
+  const double sps = samplesPerSecond(std::max(1e-9, secondsSince(loopStart_)));
+  const double rmseEstimate = std::sqrt(emaLoss_ * lossToTexelMse_ + withinTrain_);
+  if (config_.monitor) {
+    TrainStatus st;
+    st.step = step_, st.totalSteps = geometry_.totalSteps, st.seconds = now, st.progress = progressOf(step_, now);
+    st.loss = emaLoss_, st.rmseEstimate = rmseEstimate, st.samplesPerSecond = sps;
+    st.learningRate = config_.learningRate * geometry_.learningRateScale * scheduleFactor(config_, p);
+    st.polish = polishing;
+    config_.monitor(st);
+  }
+  if (secondsSince(lastStatus_) > 0.5) {
+    bar_->setStatus(formatStatus(emaLoss_, rmseEstimate, sps, sps * 3 * flopsPerSample_ / 1e9,
+                                 step_ / geometry_.stepsPerEpoch + 1, totalEpochs_, polishing));
+    lastStatus_ = Clock::now();
+  }
+  if (config_.checkpointSeconds > 0 && secondsSince(lastCheckpoint_) >= config_.checkpointSeconds) writeCheckpointNow();
+}
+
+void TrainingRun::writeCheckpointNow() {
+  if (config_.checkpointPath.empty() || worker()) return;  // rank 0 checkpoints for all
+  meta_.step = step_;
+  meta_.elapsedSeconds = elapsedTotal();
+  meta_.emaLoss = emaLoss_;
+  saveCheckpoint(config_.checkpointPath, meta_, *encoder_, *decoder_, *optimizer_, polish_);
+  lastCheckpoint_ = Clock::now();
+}
+
+TrainResult TrainingRun::finish() {
+  TrainResult& result = result_;
+  result.trainSeconds = secondsSince(loopStart_);
+  bar_->finish();
+  if (group_ && group_->calls() > 0) {
+    result.allReduceBytesPerStep = group_->bytesReduced() / group_->calls();
+    result.allReduceSecondsPerStep = group_->secondsInCollectives() / group_->calls();
+  }
+  result.steps = step_;
+  result.epochsRun = static_cast<int>(step_ / geometry_.stepsPerEpoch);
+  result.finalLoss = std::max(0.0, emaLoss_);
+  result.encoderBlocks = encoder_->blocks;
+  result.samplesPerSecond = result.trainSeconds > 0 ? samplesPerSecond(result.trainSeconds) : 0;
+  if (worker()) {
     // Rank 0 exports, evaluates and writes; this rank's part is done.
     result.worker = true;
     result.rmseTrain = result.rmseHoldout = -1;
-    result.seconds = secondsSince(callStart);
+    result.seconds = secondsSince(callStart_);
     return result;
   }
 
   // ---- Export: eval-mode latents, the decoder as an Mlp, the encoder's state.
-  result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample / 1e9;
-  result.holdoutImages = set.holdoutImages();
+  result.decoderGflops = result.samplesPerSecond * 3 * flopsPerSample_ / 1e9;
+  result.holdoutImages = set_.holdoutImages();
   // The polish phase's latents are the ones the decoder was fitted to last (the encoder's
   // outputs, moved when free); without a polish phase, the encoder's.
-  torch::Tensor latents = polish.values.defined() ? polish.values.detach() : encodeAll(encoder, x, stock, device);
-  if (!device.is_cpu()) encoder->to(torch::kCPU), decoder->to(torch::kCPU);  // export and evaluate on the CPU
-  result.latentRows = set.groups();
+  torch::Tensor latents = polish_.values.defined() ? polish_.values.detach() : encodeAll(encoder_, x_, stock_, device_);
+  if (!device_.is_cpu()) encoder_->to(torch::kCPU), decoder_->to(torch::kCPU);  // export and evaluate on the CPU
+  result.latentRows = set_.groups();
   result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());
-  result.decoder = detail::exportDecoder(decoder);
-  result.planes = exportPlanes(decoder);
-  set.setPlaneFeatures(result.planes);  // the final planes, for the evaluation below
-  result.encoderState = serializeModule(*encoder);
-  if (!config.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
+  result.decoder = detail::exportDecoder(decoder_);
+  result.planes = exportPlanes(decoder_);
+  set_.setPlaneFeatures(result.planes);  // the final planes, for the evaluation below
+  result.encoderState = serializeModule(*encoder_);
+  if (!config_.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
 
   // ---- Exact RMSE over texels x images x channels (eq. 10), from per-cluster sums.
   if (result.interrupted) {
     result.rmseTrain = result.rmseHoldout = -1;
   } else {
-    detail::RmsError rmse = detail::evaluateRmse(set, backprop, latents, config.progress);
+    detail::RmsError rmse = detail::evaluateRmse(set_, *backprop_, latents, config_.progress);
     result.rmseTrain = rmse.train;
     result.rmseHoldout = rmse.holdout;
-    if (!set.perTexel()) result.rmseFloor = std::sqrt(withinTrain);
+    if (!set_.perTexel()) result.rmseFloor = std::sqrt(withinTrain_);
   }
-  result.seconds = secondsSince(callStart);
+  result.seconds = secondsSince(callStart_);
   return result;
+}
+
+// A step allocates and frees the same few-megabyte activation tensors every time. glibc
+// serves blocks that large with mmap and unmaps them on free, so every step paid fresh page
+// faults (a few percent of its time); from the heap, the pages are reused.
+void reuseHeapForActivations() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 128 << 20);
+#endif
+}
+
+}  // namespace
+
+TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
+  detail::quietTorchLogging();
+  validateTrainConfig(config, "training config");
+  reuseHeapForActivations();
+  const auto callStart = Clock::now();
+  torch::set_num_threads(config.threads > 0 ? config.threads : threadCount());
+  TrainingRun run(inputs, config, callStart);
+  run.resume();
+  run.startLoop();
+  while (run.wantsStep()) run.step();
+  return run.finish();
 }
 
 }  // namespace nbtf

@@ -327,360 +327,470 @@ std::string adaptiveMetadataJson(const CompressOptions& o, const std::vector<Ada
   return a.dump();
 }
 
-CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x,
-                               ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats) {
-  const AdaptiveOptions& a = o.adaptive;
-  const bool say = o.progress && !Progress::quiet();  // stage lines, as the progress bars
-  const std::int64_t texels = stack.numTexels();
-  const int images = stack.numImages();
-  auto tEdit = Clock::now();
+namespace {
 
-  const std::vector<std::uint8_t> holdout = holdoutImageMask(images, o.train.holdoutFraction, o.train.seed);
-  std::vector<int> trainImages;
-  for (int i = 0; i < images; ++i)
-    if (!holdout[i]) trainImages.push_back(i);
-  const ModulationConfig& mc = o.train.modulation;
-  const bool modulated = mc.mode != "none";
-  const int terms = modulated ? mc.terms : 1, outs = 3 * terms;
-  stats.modulationMode = mc.mode;
-  const int channels = modulated ? mc.channels : 1;
-  if (modulated) stats.modulationTerms = mc.terms, stats.modulationChannels = channels, stats.modulationBits = mc.bits;
+// Deletes the run's checkpoint and stage state when they were temporary (no --checkpoint).
+struct RemoveTemporary {
+  std::vector<std::string> paths;
+  bool active = false;
+  ~RemoveTemporary() {
+    std::error_code ec;
+    if (active)
+      for (const std::string& p : paths) std::filesystem::remove(p, ec);
+  }
+};
 
-  // ---- One schedule of T steps for all stages: the plan of a fixed-k run with k = --clusters.
-  TrainConfig config = o.train;
-  config.model.outputTerms = terms;
-  config.progress = config.progress && o.progress;
-  config.stopFlag = o.stopFlag;
-  const std::int64_t totalSteps =
-      planTraining(config, std::max(1, o.clusters), static_cast<int>(trainImages.size())).totalSteps;
-  if (totalSteps <= 0)
+// One adaptive run (compressAdaptive): plan the stages in the constructor, then per stage
+// train (runStage) and edit the clusters (editClusters: merges, then splits); enforce the
+// size budget by merging; finish with the file's final metadata and the summary.
+class AdaptiveRun {
+ public:
+  AdaptiveRun(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x, ClusteringResult& clustering,
+              float alpha, int pcaComponents, CompressStats& stats);
+
+  void resume();                      // --resume: the saved stage, clusters and stage list
+  bool trainStages();                 // false when the user interrupted
+  bool enforceBudget();               // false when the user interrupted
+  CompressedBtf finish();
+
+ private:
+  void planSchedule();
+  void dropEmptyClusters();
+  bool runStage(std::int64_t end, bool warm);
+  void recordStage();
+  int nextClusterCount(int stage);
+  void editClusters(int stage);
+  int splitLargest(int stage, const std::vector<double>& shares, int wanted);
+  int applyMerges(const std::vector<std::pair<int, int>>& merges);
+  void mergeInputs(std::vector<float>& decoded, std::vector<float>& best, std::vector<double>& shares);
+  std::string metadataFor(const std::string& adaptiveJson);
+  void settleFinalSize();
+
+  const BtfStack& stack_;
+  const CompressOptions& o_;
+  const AdaptiveOptions& a_;
+  const AbrdfSource& x_;
+  ClusteringResult& clustering_;
+  const float alpha_;
+  const int pcaComponents_;
+  CompressStats& stats_;
+  const bool say_;  // stage lines, as the progress bars
+  const std::int64_t texels_;
+  const int images_;
+
+  // ---- The plan
+  std::vector<std::uint8_t> holdout_;
+  std::vector<int> trainImages_;
+  const ModulationConfig& mc_;
+  bool modulated_ = false;
+  int terms_ = 1, outs_ = 3, channels_ = 1;
+  TrainConfig config_;
+  std::int64_t totalSteps_ = 0;
+  int stagesPlanned_ = 1;
+  std::vector<std::int64_t> stageEnd_;
+  std::string statePath_;
+  RemoveTemporary removeTemporary_;
+  std::uint64_t fingerprint_ = 0;
+  std::vector<double> energy_;
+  int kCapFixed_ = 0;
+  double latentBytes_ = 0;
+
+  // ---- The clusters and the model as they stand
+  std::vector<std::int32_t> ids_;
+  int k_ = 0;
+  MatrixXfCol representatives_;
+  std::vector<int> generation_;
+  std::string stopReason_ = "stages done";
+  CompressedBtf b_;
+  TrainResult last_;
+  std::vector<float> coefficients_;
+  std::int64_t stepsDone_ = 0;
+  int firstStage_ = 0;
+  bool resumedWarm_ = false;  // the first stage run continues from the checkpoint
+};
+
+AdaptiveRun::AdaptiveRun(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x,
+                         ClusteringResult& clustering, float alpha, int pcaComponents, CompressStats& stats)
+    : stack_(stack),
+      o_(o),
+      a_(o.adaptive),
+      x_(x),
+      clustering_(clustering),
+      alpha_(alpha),
+      pcaComponents_(pcaComponents),
+      stats_(stats),
+      say_(o.progress && !Progress::quiet()),
+      texels_(stack.numTexels()),
+      images_(stack.numImages()),
+      mc_(o.train.modulation) {
+  const auto tEdit = Clock::now();
+  holdout_ = holdoutImageMask(images_, o.train.holdoutFraction, o.train.seed);
+  for (int i = 0; i < images_; ++i)
+    if (!holdout_[i]) trainImages_.push_back(i);
+  modulated_ = mc_.mode != "none";
+  terms_ = modulated_ ? mc_.terms : 1;
+  outs_ = 3 * terms_;
+  stats_.modulationMode = mc_.mode;
+  channels_ = modulated_ ? mc_.channels : 1;
+  if (modulated_) stats_.modulationTerms = mc_.terms, stats_.modulationChannels = channels_, stats_.modulationBits = mc_.bits;
+  planSchedule();
+  fingerprint_ = runFingerprint(o, clustering.ids, images_, pcaComponents);
+  energy_ = texelEnergies(stack, alpha, trainImages_);
+  ids_ = std::move(clustering.ids);
+  k_ = static_cast<int>(clustering.representatives.rows());
+  representatives_ = std::move(clustering.representatives);
+  dropEmptyClusters();
+  generation_.assign(k_, 0);
+  kCapFixed_ = static_cast<int>(std::min<std::int64_t>(texels_, a_.maxClusters > 0 ? a_.maxClusters : texels_));
+  latentBytes_ = config_.model.latentDim * (config_.storage.latents == "half" ? 2.0 : 4.0);
+  stats_.seconds.cluster += secondsSince(tEdit);
+  stats_.adaptiveStages.clear();
+}
+
+// One schedule of T steps for all stages: the plan of a fixed-k run with k = --clusters;
+// the stages end at growing fractions of it. The checkpoint carries the model between them.
+void AdaptiveRun::planSchedule() {
+  config_ = o_.train;
+  config_.model.outputTerms = terms_;
+  config_.progress = config_.progress && o_.progress;
+  config_.stopFlag = o_.stopFlag;
+  totalSteps_ = planTraining(config_, std::max(1, o_.clusters), static_cast<int>(trainImages_.size())).totalSteps;
+  if (totalSteps_ <= 0)
     throw Error("--adaptive needs a training bounded in steps (epochs > 0), not by a time budget only");
-  config.epochs = std::max(1, config.epochs);
-  config.minSteps = config.maxSteps = static_cast<int>(std::min<std::int64_t>(totalSteps, 1 << 30));
-  const int stagesPlanned = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(a.stages, totalSteps)));
-  std::vector<std::int64_t> stageEnd(stagesPlanned, totalSteps);
-  for (int j = 1; j < stagesPlanned; ++j) {
-    std::int64_t end = std::llround(totalSteps * a.growthFraction * j / (stagesPlanned - 1));
-    stageEnd[j - 1] = std::min(totalSteps - (stagesPlanned - j), std::max<std::int64_t>(j, end));
+  config_.epochs = std::max(1, config_.epochs);
+  config_.minSteps = config_.maxSteps = static_cast<int>(std::min<std::int64_t>(totalSteps_, 1 << 30));
+  stagesPlanned_ = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(a_.stages, totalSteps_)));
+  stageEnd_.assign(stagesPlanned_, totalSteps_);
+  for (int j = 1; j < stagesPlanned_; ++j) {
+    std::int64_t end = std::llround(totalSteps_ * a_.growthFraction * j / (stagesPlanned_ - 1));
+    stageEnd_[j - 1] = std::min(totalSteps_ - (stagesPlanned_ - j), std::max<std::int64_t>(j, end));
   }
-  const bool temporaryCheckpoint = o.checkpointPath.empty() && config.checkpointPath.empty();
-  config.checkpointPath = !o.checkpointPath.empty() ? o.checkpointPath
-                          : temporaryCheckpoint     ? temporaryCheckpointPath()
-                                                    : config.checkpointPath;
-  config.resume = false;
-  stats.checkpointPath = temporaryCheckpoint ? "" : config.checkpointPath;
-  const std::string statePath = adaptiveStatePath(config.checkpointPath);
-  struct RemoveTemporary {
-    std::vector<std::string> paths;
-    bool active;
-    ~RemoveTemporary() {
-      std::error_code ec;
-      if (active)
-        for (const std::string& p : paths) std::filesystem::remove(p, ec);
-    }
-  } removeTemporary{{config.checkpointPath, statePath}, temporaryCheckpoint};
-  const std::uint64_t fingerprint = runFingerprint(o, clustering.ids, images, pcaComponents);
+  const bool temporaryCheckpoint = o_.checkpointPath.empty() && config_.checkpointPath.empty();
+  config_.checkpointPath = !o_.checkpointPath.empty() ? o_.checkpointPath
+                           : temporaryCheckpoint     ? temporaryCheckpointPath()
+                                                     : config_.checkpointPath;
+  config_.resume = false;
+  stats_.checkpointPath = temporaryCheckpoint ? "" : config_.checkpointPath;
+  statePath_ = adaptiveStatePath(config_.checkpointPath);
+  removeTemporary_.paths = {config_.checkpointPath, statePath_};
+  removeTemporary_.active = temporaryCheckpoint;
+}
 
-  const std::vector<double> energy = texelEnergies(stack, alpha, trainImages);
-  const MatrixXfCol& scores = clustering.scores;
-  std::vector<std::int32_t> ids = std::move(clustering.ids);
-  int k = static_cast<int>(clustering.representatives.rows());
-  MatrixXfCol representatives = std::move(clustering.representatives);
-  {
-    // Drop clusters k-means left empty (duplicate points) before the first stage.
-    std::vector<int> kept = compactClusters(ids, k);
-    if (static_cast<int>(kept.size()) != k) {
-      k = static_cast<int>(kept.size());
-      representatives = clusterRepresentatives(x, ids, k, Representative::Median);
-    }
-  }
-  std::vector<int> generation(k, 0);
-  const int kCapFixed = static_cast<int>(std::min<std::int64_t>(texels, a.maxClusters > 0 ? a.maxClusters : texels));
-  const double latentBytes = config.model.latentDim * (config.storage.latents == "half" ? 2.0 : 4.0);
-  stats.seconds.cluster += secondsSince(tEdit);
+// Drops clusters k-means left empty (duplicate points) before the first stage.
+void AdaptiveRun::dropEmptyClusters() {
+  std::vector<int> kept = compactClusters(ids_, k_);
+  if (static_cast<int>(kept.size()) == k_) return;
+  k_ = static_cast<int>(kept.size());
+  representatives_ = clusterRepresentatives(x_, ids_, k_, Representative::Median);
+}
 
-  std::vector<AdaptiveStage>& stages = stats.adaptiveStages;
-  stages.clear();
-  std::string stopReason = "stages done";
-  CompressedBtf b;
-  TrainResult last;
-  std::vector<float> coefficients;
-  std::int64_t stepsDone = 0;
-  // Trains from the current step to `end` on the current clusters (a warm start after the
-  // first stage) and assembles the model; false when the user interrupted.
-  auto runStage = [&](std::int64_t end, bool warm) {
-    auto tc = Clock::now();
-    coefficients = modulated ? trainingCoefficients(stack, alpha, ids, k, holdout, mc, false)
-                             : std::vector<float>{};
-    stats.seconds.cluster += secondsSince(tc);
-    TrainInputs inputs;
-    inputs.stack = &stack;
-    inputs.alpha = alpha;
-    inputs.encoderInputs = &representatives;
-    inputs.ids = ids;
-    inputs.texelCoefficients = coefficients;
-    inputs.coefficientTerms = modulated ? mc.terms : 0;
-    inputs.coefficientChannels = channels;
-    TrainConfig stageConfig = config;
-    stageConfig.warmStart = warm;
-    stageConfig.stopAtStep = end < totalSteps ? end : 0;
-    auto tt = Clock::now();
-    last = trainModel(inputs, stageConfig);
-    if (o.stopFlag && o.stopFlag->load()) return false;
-    stepsDone = last.steps;
-    const bool stageEndOnly = last.interrupted;  // stopped at the stage boundary: no exact RMSE yet
-    b = assembleCompressed(stack, config, CodecMethod::ClusteredNeural, alpha, last, ids, k, coefficients,
-                           trainImages, holdout, false);
-    if (stageEndOnly && last.rmseTrain < 0) {
-      NbtfDecoder decoder(b, DecoderOptions{}, "adaptive stage");
-      std::tie(last.rmseTrain, last.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
-    }
-    stats.seconds.train += secondsSince(tt);
-    return true;
-  };
-  auto metadataFor = [&](const std::string& adaptiveJson) {
-    CompressStats s = stats;
-    s.clusters = k;
-    return metadataJson(stack, config, last, &clustering, pcaComponents, s, adaptiveJson);
-  };
-  // The stage's entry, its bytes measured with the metadata it would be written with.
-  auto recordStage = [&] {
-    AdaptiveStage st;
-    st.clusters = k;
-    st.steps = stepsDone;
-    st.rmseTrain = last.rmseTrain;
-    stages.push_back(st);
-    b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));
-    stages.back().bytes = writtenBytes(b);
-    if (say)
-      std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  steps %lld/%lld  rmse %.6f  %llu bytes\n",
-                   static_cast<int>(stages.size()), stagesPlanned, k, static_cast<long long>(stepsDone),
-                   static_cast<long long>(totalSteps), st.rmseTrain,
-                   static_cast<unsigned long long>(stages.back().bytes));
-  };
-  // Applies merges (from, into), drops empty clusters, keeps `generation` in step.
-  auto applyMerges = [&](const std::vector<std::pair<int, int>>& merges) {
-    for (const auto& m : merges) mergeClusters(ids, m.first, m.second);
-    std::vector<int> kept = compactClusters(ids, k);
-    std::vector<int> g(kept.size());
-    for (std::size_t c = 0; c < kept.size(); ++c) g[c] = generation[kept[c]];
-    generation = std::move(g);
-    const int pruned = k - static_cast<int>(kept.size());
-    k = static_cast<int>(kept.size());
-    return pruned;
-  };
-  // Decoded terms of the current model and the mean cluster error, for merges.
-  auto mergeInputs = [&](std::vector<float>& decoded, std::vector<float>& best, std::vector<double>& shares) {
-    decoded = decodeClusterTerms(b, stack, outs);
-    best = clusterValues(stack, alpha, ids, k, modulated ? coefficients.data() : nullptr, terms, true, false, channels)
-               .means;
-    shares = clusterErrorShares(decoded, best, clusterSizes(ids, k), ids, energy, trainImages, images, outs);
-  };
-
-  // ---- --resume: continue the stage in progress from its saved clusters and the checkpoint.
-  int firstStage = 0;
-  bool resumedWarm = false;  // the first stage run continues from the checkpoint
+void AdaptiveRun::resume() {
   std::error_code ec;
-  if (o.train.resume && std::filesystem::exists(statePath, ec)) {
-    StageState saved = loadStageState(statePath, fingerprint, texels, stagesPlanned, totalSteps);
-    resumedWarm = std::filesystem::exists(config.checkpointPath, ec);
-    if (saved.stage > 0 && !resumedWarm)
-      throw fileError(statePath, "stage " + std::to_string(saved.stage + 1) + " of the adaptive run continues from \"" +
-                                     config.checkpointPath + "\", which does not exist; rerun without --resume");
-    firstStage = saved.stage;
-    stepsDone = saved.startStep;
-    k = saved.k;
-    ids = std::move(saved.ids);
-    generation = std::move(saved.generation);
-    stages = std::move(saved.stages);
-    stopReason = saved.stopReason;
-    if (firstStage > 0) representatives = clusterRepresentatives(x, ids, k, Representative::Median);
-    if (say)
-      std::fprintf(stderr, "adaptive: resuming stage %d/%d (k = %d) from %s\n", firstStage + 1, stagesPlanned, k,
-                   config.checkpointPath.c_str());
-  } else if (o.train.resume && say) {
-    std::fprintf(stderr, "adaptive: --resume: no saved state at %s, starting from the beginning\n", statePath.c_str());
+  if (o_.train.resume && std::filesystem::exists(statePath_, ec)) {
+    StageState saved = loadStageState(statePath_, fingerprint_, texels_, stagesPlanned_, totalSteps_);
+    resumedWarm_ = std::filesystem::exists(config_.checkpointPath, ec);
+    if (saved.stage > 0 && !resumedWarm_)
+      throw fileError(statePath_, "stage " + std::to_string(saved.stage + 1) + " of the adaptive run continues from \"" +
+                                      config_.checkpointPath + "\", which does not exist; rerun without --resume");
+    firstStage_ = saved.stage;
+    stepsDone_ = saved.startStep;
+    k_ = saved.k;
+    ids_ = std::move(saved.ids);
+    generation_ = std::move(saved.generation);
+    stats_.adaptiveStages = std::move(saved.stages);
+    stopReason_ = saved.stopReason;
+    if (firstStage_ > 0) representatives_ = clusterRepresentatives(x_, ids_, k_, Representative::Median);
+    if (say_)
+      std::fprintf(stderr, "adaptive: resuming stage %d/%d (k = %d) from %s\n", firstStage_ + 1, stagesPlanned_, k_,
+                   config_.checkpointPath.c_str());
+  } else if (o_.train.resume && say_) {
+    std::fprintf(stderr, "adaptive: --resume: no saved state at %s, starting from the beginning\n", statePath_.c_str());
   }
+}
 
-  for (int stage = firstStage; stage < stagesPlanned; ++stage) {
-    if (say)
-      std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training steps %lld..%lld\n", stage + 1, stagesPlanned, k,
-                   static_cast<long long>(stepsDone), static_cast<long long>(stageEnd[stage]));
-    saveStageState(statePath, fingerprint, StageState{stage, stepsDone, k, ids, generation, stages, stopReason});
-    if (!runStage(stageEnd[stage], stage > 0 || resumedWarm)) {
-      stats.interrupted = true;
-      return {};
-    }
+bool AdaptiveRun::trainStages() {
+  for (int stage = firstStage_; stage < stagesPlanned_; ++stage) {
+    if (say_)
+      std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training steps %lld..%lld\n", stage + 1, stagesPlanned_, k_,
+                   static_cast<long long>(stepsDone_), static_cast<long long>(stageEnd_[stage]));
+    saveStageState(statePath_, fingerprint_,
+                   StageState{stage, stepsDone_, k_, ids_, generation_, stats_.adaptiveStages, stopReason_});
+    if (!runStage(stageEnd_[stage], stage > 0 || resumedWarm_)) return false;
     recordStage();
-    if (stage + 1 == stagesPlanned) break;
-
-    // ---- Edit the clusters for the next stage.
-    tEdit = Clock::now();
-    const std::vector<int> sizes = clusterSizes(ids, k);
-    std::vector<float> decoded, best;
-    std::vector<double> shares;
-    mergeInputs(decoded, best, shares);
-    const double total = std::accumulate(shares.begin(), shares.end(), 0.0);
-    const int roundsLeft = stagesPlanned - 1 - stage;
-    // Where k should go: toward the cap (or the budget's estimate) geometrically over the
-    // rounds left; with neither, doubling; no growth once the target is met.
-    int kCap = kCapFixed;
-    if (a.sizeBudget > 0)
-      kCap = clustersWithinBudget(stages, latentBytes, 0.99 * static_cast<double>(a.sizeBudget), kCapFixed);
-    int kNext;
-    if (a.targetRmse > 0 && last.rmseTrain <= a.targetRmse) {
-      kNext = std::min(k, kCap);
-      stopReason = "target rmse met";
-    } else if (a.maxClusters > 0 || a.sizeBudget > 0) {
-      kNext = static_cast<int>(std::ceil(k * std::pow(static_cast<double>(kCap) / k, 1.0 / roundsLeft) - 1e-9));
-      kNext = std::min(kNext, kCap);
-      if (kNext <= k) stopReason = a.sizeBudget > 0 && kCap < kCapFixed ? "size budget reached" : "max clusters reached";
-    } else {
-      kNext = std::min(2 * k, kCap);
-    }
-    // Merges: near-duplicates always, more when k must shrink.
-    const double meanShare = k > 0 ? total / k : 0;
-    std::vector<std::pair<int, int>> merges =
-        chooseMerges(b.latents, config.model.latentDim, decoded, best, sizes, trainImages, images, outs,
-                     a.mergeTolerance * meanShare, std::max(0, k - kNext));
-    // Shares follow the clusters through the merges (a merged cluster: the sum).
-    std::vector<double> merged = shares;
-    for (const auto& m : merges) merged[m.second] += merged[m.first], merged[m.first] = -1;
-    const int kBefore = k;
-    std::vector<int> keptIds;
-    {
-      std::vector<std::int32_t> probe(k);
-      std::iota(probe.begin(), probe.end(), 0);
-      for (const auto& m : merges) mergeClusters(probe, m.first, m.second);
-      for (int c = 0; c < k; ++c)
-        if (probe[c] == c && sizes[c] > 0) keptIds.push_back(c);
-    }
-    const int pruned = applyMerges(merges) - static_cast<int>(merges.size());
-    std::vector<double> shareNow(k);
-    for (int c = 0; c < k; ++c) shareNow[c] = merged[keptIds[c]];
-    // Splits: the largest share first (ties: the lower id), clusters of >= 2 distinct texels.
-    // A split's children may be split again in the same round: each is queued with the
-    // parent's share x its fraction of the texels x 1/2 (an estimate: no model has been
-    // trained on them yet).
-    const int wanted = std::max(0, kNext - k);
-    int splits = 0;
-    {
-      std::vector<int> sizesNow = clusterSizes(ids, k);
-      auto later = [](const std::pair<double, int>& p, const std::pair<double, int>& q) {
-        return p.first != q.first ? p.first < q.first : p.second > q.second;
-      };
-      std::vector<std::pair<double, int>> queue;
-      for (int c = 0; c < k; ++c) queue.emplace_back(shareNow[c], c);
-      std::make_heap(queue.begin(), queue.end(), later);
-      while (splits < wanted && !queue.empty()) {
-        std::pop_heap(queue.begin(), queue.end(), later);
-        const auto [share, c] = queue.back();
-        queue.pop_back();
-        const std::uint64_t seed =
-            SplitMix64::mix(SplitMix64::mix(SplitMix64::mix(o.train.seed, kSplitStream), stage), c);
-        if (!splitCluster(scores, ids, c, k, seed)) continue;
-        const int parentSize = sizesNow[c];
-        sizesNow = clusterSizes(ids, k + 1);
-        const int childGeneration = ++generation[c];
-        generation.push_back(childGeneration);
-        for (int child : {c, k}) {
-          queue.emplace_back(0.5 * share * sizesNow[child] / parentSize, child);
-          std::push_heap(queue.begin(), queue.end(), later);
-        }
-        ++k, ++splits;
-      }
-    }
-    AdaptiveStage& st = stages.back();
-    st.splits = splits;
-    st.merges = static_cast<int>(merges.size());
-    st.pruned = pruned;
-    if (say)
-      std::fprintf(stderr, "adaptive: after stage %d: %d merges, %d pruned, %d splits: k %d -> %d\n", stage + 1,
-                   st.merges, pruned, splits, kBefore, k);
-    if (splits < wanted && stopReason == "stages done") stopReason = "no cluster left to split";
-    representatives = clusterRepresentatives(x, ids, k, Representative::Median);
-    stats.seconds.cluster += secondsSince(tEdit);
+    if (stage + 1 == stagesPlanned_) break;
+    const auto tEdit = Clock::now();
+    editClusters(stage);
+    stats_.seconds.cluster += secondsSince(tEdit);
   }
+  return true;
+}
 
-  // ---- A byte budget is a promise: merge (without further training) until the file fits.
-  for (int attempt = 0; a.sizeBudget > 0 && stages.back().bytes > a.sizeBudget; ++attempt) {
-    if (k <= 1 || attempt >= 30) {
-      removeTemporary.active = true;  // no resumed run could meet the budget either
-      throw Error("--size-budget " + std::to_string(a.sizeBudget) + " bytes is below the smallest file this run " +
-                  "can write (" + std::to_string(stages.back().bytes) + " bytes at k = " + std::to_string(k) + ")");
+// Trains from the current step to `end` on the current clusters (a warm start after the
+// first stage) and assembles the model; false when the user interrupted.
+bool AdaptiveRun::runStage(std::int64_t end, bool warm) {
+  auto tc = Clock::now();
+  coefficients_ = modulated_ ? trainingCoefficients(stack_, alpha_, ids_, k_, holdout_, mc_, false)
+                             : std::vector<float>{};
+  stats_.seconds.cluster += secondsSince(tc);
+  TrainInputs inputs;
+  inputs.stack = &stack_;
+  inputs.alpha = alpha_;
+  inputs.encoderInputs = &representatives_;
+  inputs.ids = ids_;
+  inputs.texelCoefficients = coefficients_;
+  inputs.coefficientTerms = modulated_ ? mc_.terms : 0;
+  inputs.coefficientChannels = channels_;
+  TrainConfig stageConfig = config_;
+  stageConfig.warmStart = warm;
+  stageConfig.stopAtStep = end < totalSteps_ ? end : 0;
+  auto tt = Clock::now();
+  last_ = trainModel(inputs, stageConfig);
+  if (o_.stopFlag && o_.stopFlag->load()) return false;
+  stepsDone_ = last_.steps;
+  const bool stageEndOnly = last_.interrupted;  // stopped at the stage boundary: no exact RMSE yet
+  b_ = assembleCompressed(stack_, config_, CodecMethod::ClusteredNeural, alpha_, last_, ids_, k_, coefficients_,
+                          trainImages_, holdout_, false);
+  if (stageEndOnly && last_.rmseTrain < 0) {
+    NbtfDecoder decoder(b_, DecoderOptions{}, "adaptive stage");
+    std::tie(last_.rmseTrain, last_.rmseHoldout) = decodedRmse(decoder, stack_, alpha_, holdout_);
+  }
+  stats_.seconds.train += secondsSince(tt);
+  return true;
+}
+
+std::string AdaptiveRun::metadataFor(const std::string& adaptiveJson) {
+  CompressStats s = stats_;
+  s.clusters = k_;
+  return metadataJson(stack_, config_, last_, &clustering_, pcaComponents_, s, adaptiveJson);
+}
+
+// The stage's entry, its bytes measured with the metadata it would be written with.
+void AdaptiveRun::recordStage() {
+  std::vector<AdaptiveStage>& stages = stats_.adaptiveStages;
+  AdaptiveStage st;
+  st.clusters = k_;
+  st.steps = stepsDone_;
+  st.rmseTrain = last_.rmseTrain;
+  stages.push_back(st);
+  b_.metadataJson = metadataFor(adaptiveMetadataJson(o_, stages, generation_, stopReason_));
+  stages.back().bytes = writtenBytes(b_);
+  if (say_)
+    std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  steps %lld/%lld  rmse %.6f  %llu bytes\n",
+                 static_cast<int>(stages.size()), stagesPlanned_, k_, static_cast<long long>(stepsDone_),
+                 static_cast<long long>(totalSteps_), st.rmseTrain,
+                 static_cast<unsigned long long>(stages.back().bytes));
+}
+
+// Applies merges (from, into), drops empty clusters, keeps `generation` in step; returns
+// how many clusters went.
+int AdaptiveRun::applyMerges(const std::vector<std::pair<int, int>>& merges) {
+  for (const auto& m : merges) mergeClusters(ids_, m.first, m.second);
+  std::vector<int> kept = compactClusters(ids_, k_);
+  std::vector<int> g(kept.size());
+  for (std::size_t c = 0; c < kept.size(); ++c) g[c] = generation_[kept[c]];
+  generation_ = std::move(g);
+  const int pruned = k_ - static_cast<int>(kept.size());
+  k_ = static_cast<int>(kept.size());
+  return pruned;
+}
+
+// Decoded terms of the current model and the mean cluster error, for merges.
+void AdaptiveRun::mergeInputs(std::vector<float>& decoded, std::vector<float>& best, std::vector<double>& shares) {
+  decoded = decodeClusterTerms(b_, stack_, outs_);
+  best = clusterValues(stack_, alpha_, ids_, k_, modulated_ ? coefficients_.data() : nullptr, terms_, true, false,
+                       channels_)
+             .means;
+  shares = clusterErrorShares(decoded, best, clusterSizes(ids_, k_), ids_, energy_, trainImages_, images_, outs_);
+}
+
+// Where k should go after `stage`: toward the cap (or the budget's estimate) geometrically
+// over the rounds left; with neither, doubling; no growth once the target is met.
+int AdaptiveRun::nextClusterCount(int stage) {
+  const int roundsLeft = stagesPlanned_ - 1 - stage;
+  int kCap = kCapFixed_;
+  if (a_.sizeBudget > 0)
+    kCap = clustersWithinBudget(stats_.adaptiveStages, latentBytes_, 0.99 * static_cast<double>(a_.sizeBudget),
+                                kCapFixed_);
+  if (a_.targetRmse > 0 && last_.rmseTrain <= a_.targetRmse) {
+    stopReason_ = "target rmse met";
+    return std::min(k_, kCap);
+  }
+  if (a_.maxClusters > 0 || a_.sizeBudget > 0) {
+    int kNext = static_cast<int>(std::ceil(k_ * std::pow(static_cast<double>(kCap) / k_, 1.0 / roundsLeft) - 1e-9));
+    kNext = std::min(kNext, kCap);
+    if (kNext <= k_) stopReason_ = a_.sizeBudget > 0 && kCap < kCapFixed_ ? "size budget reached" : "max clusters reached";
+    return kNext;
+  }
+  return std::min(2 * k_, kCap);
+}
+
+// The clusters for the next stage: merges (near-duplicates always, more when k must
+// shrink), then splits of the clusters with the largest error share.
+void AdaptiveRun::editClusters(int stage) {
+  const std::vector<int> sizes = clusterSizes(ids_, k_);
+  std::vector<float> decoded, best;
+  std::vector<double> shares;
+  mergeInputs(decoded, best, shares);
+  const double total = std::accumulate(shares.begin(), shares.end(), 0.0);
+  const int kNext = nextClusterCount(stage);
+  const double meanShare = k_ > 0 ? total / k_ : 0;
+  std::vector<std::pair<int, int>> merges =
+      chooseMerges(b_.latents, config_.model.latentDim, decoded, best, sizes, trainImages_, images_, outs_,
+                   a_.mergeTolerance * meanShare, std::max(0, k_ - kNext));
+  // Shares follow the clusters through the merges (a merged cluster: the sum).
+  std::vector<double> merged = shares;
+  for (const auto& m : merges) merged[m.second] += merged[m.first], merged[m.first] = -1;
+  const int kBefore = k_;
+  std::vector<int> keptIds;
+  {
+    std::vector<std::int32_t> probe(k_);
+    std::iota(probe.begin(), probe.end(), 0);
+    for (const auto& m : merges) mergeClusters(probe, m.first, m.second);
+    for (int c = 0; c < k_; ++c)
+      if (probe[c] == c && sizes[c] > 0) keptIds.push_back(c);
+  }
+  const int pruned = applyMerges(merges) - static_cast<int>(merges.size());
+  std::vector<double> shareNow(k_);
+  for (int c = 0; c < k_; ++c) shareNow[c] = merged[keptIds[c]];
+  const int wanted = std::max(0, kNext - k_);
+  const int splits = splitLargest(stage, shareNow, wanted);
+  AdaptiveStage& st = stats_.adaptiveStages.back();
+  st.splits = splits;
+  st.merges = static_cast<int>(merges.size());
+  st.pruned = pruned;
+  if (say_)
+    std::fprintf(stderr, "adaptive: after stage %d: %d merges, %d pruned, %d splits: k %d -> %d\n", stage + 1,
+                 st.merges, pruned, splits, kBefore, k_);
+  if (splits < wanted && stopReason_ == "stages done") stopReason_ = "no cluster left to split";
+  representatives_ = clusterRepresentatives(x_, ids_, k_, Representative::Median);
+}
+
+// Splits up to `wanted` clusters, the largest share first (ties: the lower id), clusters of
+// >= 2 distinct texels. A split's children may be split again in the same round: each is
+// queued with the parent's share x its fraction of the texels x 1/2 (an estimate: no model
+// has been trained on them yet). Returns the splits made.
+int AdaptiveRun::splitLargest(int stage, const std::vector<double>& shares, int wanted) {
+  int splits = 0;
+  std::vector<int> sizesNow = clusterSizes(ids_, k_);
+  auto later = [](const std::pair<double, int>& p, const std::pair<double, int>& q) {
+    return p.first != q.first ? p.first < q.first : p.second > q.second;
+  };
+  std::vector<std::pair<double, int>> queue;
+  for (int c = 0; c < k_; ++c) queue.emplace_back(shares[c], c);
+  std::make_heap(queue.begin(), queue.end(), later);
+  while (splits < wanted && !queue.empty()) {
+    std::pop_heap(queue.begin(), queue.end(), later);
+    const auto [share, c] = queue.back();
+    queue.pop_back();
+    const std::uint64_t seed = SplitMix64::mix(SplitMix64::mix(SplitMix64::mix(o_.train.seed, kSplitStream), stage), c);
+    if (!splitCluster(clustering_.scores, ids_, c, k_, seed)) continue;
+    const int parentSize = sizesNow[c];
+    sizesNow = clusterSizes(ids_, k_ + 1);
+    const int childGeneration = ++generation_[c];
+    generation_.push_back(childGeneration);
+    for (int child : {c, k_}) {
+      queue.emplace_back(0.5 * share * sizesNow[child] / parentSize, child);
+      std::push_heap(queue.begin(), queue.end(), later);
     }
-    const double excess = static_cast<double>(stages.back().bytes - a.sizeBudget);
-    const int count = std::min(k - 1, std::max(1, static_cast<int>(std::ceil(excess / (latentBytes + 2))) + 1));
+    ++k_, ++splits;
+  }
+  return splits;
+}
+
+// A byte budget is a promise: merge (without further training) until the file fits.
+bool AdaptiveRun::enforceBudget() {
+  std::vector<AdaptiveStage>& stages = stats_.adaptiveStages;
+  for (int attempt = 0; a_.sizeBudget > 0 && stages.back().bytes > a_.sizeBudget; ++attempt) {
+    if (k_ <= 1 || attempt >= 30) {
+      removeTemporary_.active = true;  // no resumed run could meet the budget either
+      throw Error("--size-budget " + std::to_string(a_.sizeBudget) + " bytes is below the smallest file this run " +
+                  "can write (" + std::to_string(stages.back().bytes) + " bytes at k = " + std::to_string(k_) + ")");
+    }
+    const double excess = static_cast<double>(stages.back().bytes - a_.sizeBudget);
+    const int count = std::min(k_ - 1, std::max(1, static_cast<int>(std::ceil(excess / (latentBytes_ + 2))) + 1));
     std::vector<float> decoded, best;
     std::vector<double> shares;
     mergeInputs(decoded, best, shares);
-    std::vector<std::pair<int, int>> merges = chooseMerges(b.latents, config.model.latentDim, decoded, best,
-                                                           clusterSizes(ids, k), trainImages, images, outs, 0, count);
+    std::vector<std::pair<int, int>> merges = chooseMerges(b_.latents, config_.model.latentDim, decoded, best,
+                                                           clusterSizes(ids_, k_), trainImages_, images_, outs_, 0, count);
     applyMerges(merges);
-    representatives = clusterRepresentatives(x, ids, k, Representative::Median);
+    representatives_ = clusterRepresentatives(x_, ids_, k_, Representative::Median);
     stages.back().merges += static_cast<int>(merges.size());
-    if (say)
+    if (say_)
       std::fprintf(stderr, "adaptive: %llu bytes > --size-budget %llu: %d merges, k = %d\n",
                    static_cast<unsigned long long>(stages.back().bytes),
-                   static_cast<unsigned long long>(a.sizeBudget), static_cast<int>(merges.size()), k);
+                   static_cast<unsigned long long>(a_.sizeBudget), static_cast<int>(merges.size()), k_);
     // Latents of the merged clusters from the trained encoder: a warm start with no steps left.
-    if (!runStage(totalSteps, true)) {
-      stats.interrupted = true;
-      return {};
-    }
-    stopReason = "size budget reached";
+    if (!runStage(totalSteps_, true)) return false;
+    stopReason_ = "size budget reached";
     AdaptiveStage& st = stages.back();
-    st.clusters = k;
-    st.rmseTrain = last.rmseTrain;
-    b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason));
-    st.bytes = writtenBytes(b);
+    st.clusters = k_;
+    st.rmseTrain = last_.rmseTrain;
+    b_.metadataJson = metadataFor(adaptiveMetadataJson(o_, stages, generation_, stopReason_));
+    st.bytes = writtenBytes(b_);
   }
+  return true;
+}
 
-  // ---- The final material: its stage entry records the written size exactly (the entry is
-  // part of the metadata it measures, so settle it in a few rounds).
-  stats.clusters = k;
-  stats.adaptiveStopReason = stopReason;
-  stats.epochs = last.epochsRun;
-  stats.steps = last.steps;
-  stats.samplesPerSecond = last.samplesPerSecond;
-  stats.decoderGflops = last.decoderGflops;
-  stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
-  stats.rmseTrain = last.rmseTrain;
-  stats.rmseHoldout = last.rmseHoldout;
-  {
-    ClusterValues floor = clusterValues(stack, alpha, ids, k, nullptr, 1, false, false);
-    stats.rmseFloor = floor.floorRmse(trainImages, texels);
-    if (modulated)
-      stats.rmseFloorModulated =
-          clusterValues(stack, alpha, ids, k, coefficients.data(), terms, false, false, channels)
-              .floorRmse(trainImages, texels);
-  }
-  // The metadata is zstd-coded, so its size can swing between two values as the recorded
-  // size's digits change (the size with A recorded is B, with B it is A). Then a run of
-  // spaces after the JSON (which readers skip) of growing length is tried until the recorded
-  // size is the size: the first that settles is kept.
+// The final stage entry records the written size exactly. The entry is part of the metadata
+// it measures, and the metadata is zstd-coded, so its size can swing between two values as
+// the recorded size's digits change (the size with A recorded is B, with B it is A). Then a
+// run of spaces after the JSON (which readers skip) of growing length is tried until the
+// recorded size is the size: the first that settles is kept.
+void AdaptiveRun::settleFinalSize() {
+  std::vector<AdaptiveStage>& stages = stats_.adaptiveStages;
   std::string padding;
   for (int attempt = 0; attempt < 64; ++attempt, padding += ' ') {
     bool settled = false;
     for (int round = 0; round < 4 && !settled; ++round) {
-      b.metadataJson = metadataFor(adaptiveMetadataJson(o, stages, generation, stopReason)) + padding;
-      const std::uint64_t bytes = writtenBytes(b);
+      b_.metadataJson = metadataFor(adaptiveMetadataJson(o_, stages, generation_, stopReason_)) + padding;
+      const std::uint64_t bytes = writtenBytes(b_);
       settled = bytes == stages.back().bytes;
       stages.back().bytes = bytes;
     }
     if (settled) break;
   }
-  if (a.sizeBudget > 0 && writtenBytes(b) > a.sizeBudget)
+}
+
+CompressedBtf AdaptiveRun::finish() {
+  stats_.clusters = k_;
+  stats_.adaptiveStopReason = stopReason_;
+  stats_.epochs = last_.epochsRun;
+  stats_.steps = last_.steps;
+  stats_.samplesPerSecond = last_.samplesPerSecond;
+  stats_.decoderGflops = last_.decoderGflops;
+  stats_.holdoutImages = static_cast<int>(b_.holdoutImages.size());
+  stats_.rmseTrain = last_.rmseTrain;
+  stats_.rmseHoldout = last_.rmseHoldout;
+  stats_.rmseFloor = clusterValues(stack_, alpha_, ids_, k_, nullptr, 1, false, false).floorRmse(trainImages_, texels_);
+  if (modulated_)
+    stats_.rmseFloorModulated = clusterValues(stack_, alpha_, ids_, k_, coefficients_.data(), terms_, false, false, channels_)
+                                    .floorRmse(trainImages_, texels_);
+  settleFinalSize();
+  if (a_.sizeBudget > 0 && writtenBytes(b_) > a_.sizeBudget)
     throw Error("--size-budget: internal error, the final file exceeds the budget");
   // The summary says so when the target was not met (the file records the stages' RMSE).
-  if (a.targetRmse > 0 && last.rmseTrain > a.targetRmse) {
+  if (a_.targetRmse > 0 && last_.rmseTrain > a_.targetRmse) {
     char missed[128];
-    std::snprintf(missed, sizeof missed, "target rmse %g missed (%.5f at the end)", a.targetRmse, last.rmseTrain);
-    stats.adaptiveStopReason = std::string(missed) + "; " + stopReason;
+    std::snprintf(missed, sizeof missed, "target rmse %g missed (%.5f at the end)", a_.targetRmse, last_.rmseTrain);
+    stats_.adaptiveStopReason = std::string(missed) + "; " + stopReason_;
   }
-  b.validate("compressed result");
-  stats.sizes = computeSizes(b);
-  return b;
+  b_.validate("compressed result");
+  stats_.sizes = computeSizes(b_);
+  return std::move(b_);
+}
+
+}  // namespace
+
+CompressedBtf compressAdaptive(const BtfStack& stack, const CompressOptions& o, const AbrdfSource& x,
+                               ClusteringResult clustering, float alpha, int pcaComponents, CompressStats& stats) {
+  AdaptiveRun run(stack, o, x, clustering, alpha, pcaComponents, stats);
+  run.resume();
+  if (!run.trainStages() || !run.enforceBudget()) {
+    stats.interrupted = true;
+    return {};
+  }
+  return run.finish();
 }
 
 }  // namespace detail
