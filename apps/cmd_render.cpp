@@ -80,72 +80,188 @@ void checkCompareDirections(const MaterialSource& reference, const MaterialSourc
 }
 }  // namespace
 
+namespace {
+
+cxxopts::Options renderOptions() {
+  cxxopts::Options options("nbtf render", "Ray trace a BTF material on an object (adaptive anti-aliasing by automatic differentiation)");
+  options.positional_help("<material: file.nbtf or image stack folder> -o image.png");
+  options.add_options()("material", "A .nbtf file or an original image stack folder", cxxopts::value<std::string>())(
+      "o,output", "Output image (PNG/JPG, sRGB); with --compare an output folder", cxxopts::value<std::string>())(
+      "exr", "Also write the linear radiance as a float EXR", cxxopts::value<std::string>())(
+      "scene", "plane, sphere, cylinder or cloth", cxxopts::value<std::string>()->default_value("sphere"))(
+      "light", "Direction towards the light THETA,PHI in degrees (theta from +y up, phi from +x towards +z)",
+      cxxopts::value<std::string>()->default_value("45,300"))(
+      "camera", "EX,EY,EZ[,TX,TY,TZ[,FOV]]: eye, target, vertical field of view (default: the scene's)",
+      cxxopts::value<std::string>())("size", "Image size WxH", cxxopts::value<std::string>()->default_value("320x240"))(
+      "tiling", "Copies of the texture across the object's parametrization", cxxopts::value<double>()->default_value("1"))(
+      "adaptive", "Adaptive oversampling by automatic differentiation (the default)")(
+      "uniform", "N x N samples in every pixel instead", cxxopts::value<int>())(
+      "spp", "Samples per pixel for uniform sampling (a square: 1, 4, 9, ...)", cxxopts::value<int>())(
+      "levels", "Adaptive: levels of 3x3 refinement (1 or 2; 3 allowed)", cxxopts::value<int>()->default_value("2"))(
+      "threshold", "Adaptive: split when a covered texel differs from the centre's by more (linear radiance)", cxxopts::value<double>()->default_value("0.08"))(
+      "no-shadow-corners", "Adaptive: skip the corner shadow rule")(
+      "no-derivative-tests", "Adaptive: skip the silhouette/terminator/shadow tests from derivatives")(
+      "no-texture-test", "Adaptive: skip the texture test")(
+      "no-footprint-filter", "Adaptive: an unsplit sample keeps its centre value (not the footprint mean of the texels)")(
+      "sun", "Light strength", cxxopts::value<double>()->default_value("1"))(
+      "env", "Constant environment (and background) radiance", cxxopts::value<double>()->default_value("0.25"))(
+      "show-refined", "Write the refined pixels (white: 1 ray, grey: 3x3, black: 9x9) to this PNG",
+      cxxopts::value<std::string>())(
+      "compare", "Original stack to compare with the .nbtf <material>: writes reference/compressed/error images, "
+                 "compare.md and compare.json into the -o folder",
+      cxxopts::value<std::string>())("magnify", "--compare: error image magnification",
+                                     cxxopts::value<double>()->default_value("8"))(
+      "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
+      cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
+      "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>());
+  addCropOption(options, " (a material given as an image stack)");
+  return options;
+}
+
+// Sampling: adaptive (the default) or N x N uniform, from --uniform or --spp.
+RenderOptions samplingOptions(const cxxopts::ParseResult& args, bool quiet) {
+  RenderOptions ro;
+  auto [w, h] = parseImageSize(args["size"].as<std::string>(), "--size", kMaxRenderSide);
+  ro.width = w, ro.height = h;
+  if (args.count("uniform") + args.count("spp") + args.count("adaptive") > 1)
+    throw Error("give one of --adaptive, --uniform N and --spp N");
+  if (args.count("uniform")) {
+    ro.mode = SamplingMode::Uniform;
+    ro.uniform = args["uniform"].as<int>();
+  } else if (args.count("spp")) {
+    const int spp = args["spp"].as<int>();
+    const int n = static_cast<int>(std::lround(std::sqrt(std::max(0, spp))));
+    if (spp < 1 || n * n != spp) throw Error("--spp must be a square number (1, 4, 9, 16, ...), got " + std::to_string(spp));
+    ro.mode = SamplingMode::Uniform;
+    ro.uniform = n;
+  }
+  ro.levels = args["levels"].as<int>();
+  ro.threshold = args["threshold"].as<double>();
+  ro.shadowCorners = !args.count("no-shadow-corners");
+  ro.derivativeTests = !args.count("no-derivative-tests");
+  ro.textureTest = !args.count("no-texture-test");
+  ro.footprintFilter = !args.count("no-footprint-filter");
+  ro.progress = !quiet;
+  checkRenderOptions(ro);
+  return ro;
+}
+
+// The paths the command reads and writes.
+struct RenderPaths {
+  std::string material, output, exr, mask, stats, stack, referenceExr;
+};
+
+// --compare: the same scene rendered from the original stack and from the .nbtf, the images
+// and their difference, compare.md and compare.json in the output folder.
+int renderCompare(const cxxopts::ParseResult& args, const RenderPaths& p, const Scene& scene, const Camera& camera,
+                     const RenderOptions& ro, const Crop& crop, bool quiet) {
+  const std::string &material = p.material, &output = p.output, &stackPath = p.stack, &statsPath = p.stats;
+  for (const char* o : {"exr", "show-refined", "reference", "ray-cost"})
+    if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
+  if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
+    throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
+                "nbtf render --compare STACK FILE.nbtf -o DIR)");
+  if (std::filesystem::is_directory(material))
+    throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
+  std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
+  std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
+  checkCompareDirections(*reference, *compressed);
+  checkFolderCreatable(output);
+  createFolder(output);
+  if (reference->width() != compressed->width() || reference->height() != compressed->height())
+    std::cerr << "nbtf render: warning: " << stackPath << " is " << reference->width() << "x" << reference->height()
+              << " texels, " << material << " is " << compressed->width() << "x" << compressed->height()
+              << " (use --crop for the crop the .nbtf was made from)" << std::endl;
+  const RenderResult ref = renderImage(scene, camera, *reference, ro);
+  const RenderResult cmp = renderImage(scene, camera, *compressed, ro);
+  const RenderComparison c = compareImages(ref.rgb, cmp.rgb, ref.coverage, ro.width, ro.height);
+  CompareReportInfo info;
+  info.reference = stackPath, info.compressed = material, info.scene = scene.name;
+  info.width = ro.width, info.height = ro.height, info.sampling = samplingName(ro);
+  info.magnify = args["magnify"].as<double>();
+  info.referenceSeconds = ref.stats.seconds, info.compressedSeconds = cmp.stats.seconds;
+  const std::filesystem::path dir(output);
+  writeRender((dir / "reference.png").string(), (dir / "reference.exr").string(), ref);
+  writeRender((dir / "compressed.png").string(), (dir / "compressed.exr").string(), cmp);
+  const std::vector<float> err = errorImage(ref.rgb, cmp.rgb, info.magnify);
+  writeImageSrgb8((dir / "error.png").string(), ImageFormat::Png, ro.width, ro.height, err.data());
+  writeFileAtomic((dir / "compare.md").string(), compareMarkdown(c, info));
+  writeFileAtomic((dir / "compare.json").string(), compareJson(c, info));
+  if (!statsPath.empty()) {
+    nlohmann::json j;
+    j["reference"] = statsJson(ref, ro);
+    j["compressed"] = statsJson(cmp, ro);
+    writeFileAtomic(statsPath, j.dump(2) + "\n");
+  }
+  std::cout << "render --compare: " << scene.name << " " << ro.width << "x" << ro.height << ", RMSE (linear) all "
+            << c.all.rmse << ", darkest 10% " << c.dark.rmse << ", brightest 10% " << c.bright.rmse << " -> "
+            << (dir / "compare.md").string() << std::endl;
+  return 0;
+}
+
+// One render of the material, with its optional EXR, refined-pixel mask, statistics and RMSE
+// against a reference EXR.
+int renderSingle(const cxxopts::ParseResult& args, const RenderPaths& p, const Scene& scene, const Camera& camera,
+                 const RenderOptions& ro, const Crop& crop, bool quiet) {
+  const std::string &material = p.material, &output = p.output, &exr = p.exr, &mask = p.mask, &statsPath = p.stats;
+  for (const char* o : {"magnify"})
+    if (args.count(o)) throw Error(std::string("--") + o + " is for --compare");
+  imageFormatFromName(output);  // a clear error for an unknown extension, before rendering
+  createParentFolders(output);
+  checkWritable(output);
+  if (!exr.empty()) checkWritable(exr);
+  if (!mask.empty()) checkWritable(mask), imageFormatFromName(mask);
+  if (!statsPath.empty()) checkWritable(statsPath);
+  ImageF referenceImage;
+  if (args.count("reference")) {
+    referenceImage = readExr(args["reference"].as<std::string>());
+    if (referenceImage.width != ro.width || referenceImage.height != ro.height)
+      throw fileError(args["reference"].as<std::string>(),
+                      "is " + std::to_string(referenceImage.width) + "x" + std::to_string(referenceImage.height) +
+                          ", the render is " + std::to_string(ro.width) + "x" + std::to_string(ro.height));
+  }
+  std::unique_ptr<MaterialSource> source = openMaterial(material, crop, !quiet);
+  const RenderResult r = renderImage(scene, camera, *source, ro);
+  writeRender(output, exr, r);
+  if (!mask.empty()) writeRefinedMask(mask, r);
+  nlohmann::json j = statsJson(r, ro);
+  j["material"] = material;
+  j["scene"] = scene.name;
+  if (args.count("ray-cost")) {
+    const RayCost cost = measureRayCost(scene, camera, *source, ro);
+    j["ray_cost"] = {{"samples", cost.samples}, {"plain_seconds", cost.plainSeconds},
+                     {"derivative_seconds", cost.derivativeSeconds}, {"derivative_over_plain", cost.ratio}};
+    j["ray_equivalents"] = double(r.stats.plainRays) + cost.ratio * double(r.stats.derivativeRays);
+    j["ray_equivalents_per_pixel"] = j["ray_equivalents"].get<double>() / double(r.stats.pixels);
+  }
+  if (args.count("reference")) j["rmse_vs_reference"] = rmseOf(r.rgb.data(), referenceImage.rgb.data(), r.rgb.size());
+  if (!statsPath.empty()) writeFileAtomic(statsPath, j.dump(2) + "\n");
+  const RenderStats& s = r.stats;
+  std::ostringstream o;
+  o << "render: " << scene.name << " " << ro.width << "x" << ro.height << ", " << samplingName(ro) << ": ";
+  if (ro.mode == SamplingMode::Adaptive)
+    o << std::fixed << std::setprecision(1) << 100.0 * s.refinedPixels / s.pixels << "% of pixels refined ("
+      << 100.0 * s.refinedTwice / s.pixels << "% twice), ";
+  o << s.derivativeRays << " derivative + " << s.plainRays << " plain rays, " << std::fixed << std::setprecision(2)
+    << s.seconds << " s -> " << output;
+  if (j.contains("rmse_vs_reference")) o << "; RMSE vs reference " << std::setprecision(5) << j["rmse_vs_reference"].get<double>();
+  std::cout << o.str() << std::endl;  // -q hides progress bars only, as in every command
+  return 0;
+}
+
+}  // namespace
+
 int renderMain(int argc, char** argv) {
   return runGuarded("render", [&] {
-    cxxopts::Options options("nbtf render", "Ray trace a BTF material on an object (adaptive anti-aliasing by automatic differentiation)");
-    options.positional_help("<material: file.nbtf or image stack folder> -o image.png");
-    options.add_options()("material", "A .nbtf file or an original image stack folder", cxxopts::value<std::string>())(
-        "o,output", "Output image (PNG/JPG, sRGB); with --compare an output folder", cxxopts::value<std::string>())(
-        "exr", "Also write the linear radiance as a float EXR", cxxopts::value<std::string>())(
-        "scene", "plane, sphere, cylinder or cloth", cxxopts::value<std::string>()->default_value("sphere"))(
-        "light", "Direction towards the light THETA,PHI in degrees (theta from +y up, phi from +x towards +z)",
-        cxxopts::value<std::string>()->default_value("45,300"))(
-        "camera", "EX,EY,EZ[,TX,TY,TZ[,FOV]]: eye, target, vertical field of view (default: the scene's)",
-        cxxopts::value<std::string>())("size", "Image size WxH", cxxopts::value<std::string>()->default_value("320x240"))(
-        "tiling", "Copies of the texture across the object's parametrization", cxxopts::value<double>()->default_value("1"))(
-        "adaptive", "Adaptive oversampling by automatic differentiation (the default)")(
-        "uniform", "N x N samples in every pixel instead", cxxopts::value<int>())(
-        "spp", "Samples per pixel for uniform sampling (a square: 1, 4, 9, ...)", cxxopts::value<int>())(
-        "levels", "Adaptive: levels of 3x3 refinement (1 or 2; 3 allowed)", cxxopts::value<int>()->default_value("2"))(
-        "threshold", "Adaptive: split when a covered texel differs from the centre's by more (linear radiance)", cxxopts::value<double>()->default_value("0.08"))(
-        "no-shadow-corners", "Adaptive: skip the corner shadow rule")(
-        "no-derivative-tests", "Adaptive: skip the silhouette/terminator/shadow tests from derivatives")(
-        "no-texture-test", "Adaptive: skip the texture test")(
-        "no-footprint-filter", "Adaptive: an unsplit sample keeps its centre value (not the footprint mean of the texels)")(
-        "sun", "Light strength", cxxopts::value<double>()->default_value("1"))(
-        "env", "Constant environment (and background) radiance", cxxopts::value<double>()->default_value("0.25"))(
-        "show-refined", "Write the refined pixels (white: 1 ray, grey: 3x3, black: 9x9) to this PNG",
-        cxxopts::value<std::string>())(
-        "compare", "Original stack to compare with the .nbtf <material>: writes reference/compressed/error images, "
-                   "compare.md and compare.json into the -o folder",
-        cxxopts::value<std::string>())("magnify", "--compare: error image magnification",
-                                       cxxopts::value<double>()->default_value("8"))(
-        "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
-        cxxopts::value<std::string>())("ray-cost", "Measure a derivative ray's cost relative to a plain one (in --stats-json)")(
-        "stats-json", "Write counts, times and RMSE as JSON", cxxopts::value<std::string>());
-    addCropOption(options, " (a material given as an image stack)");
+    cxxopts::Options options = renderOptions();
     cxxopts::ParseResult args;
     if (!parseCommand(options, "material", argc, argv, args)) return 0;
     const bool quiet = args.count("quiet") > 0;
     if (quiet) Progress::setQuiet(true);
     if (!args.count("material")) throw Error("missing <material> (a .nbtf file or an image stack folder; see 'nbtf render --help')");
     if (!args.count("output")) throw Error("missing -o (the output image; with --compare the output folder)");
-    const std::string material = args["material"].as<std::string>(), output = args["output"].as<std::string>();
     const bool compare = args.count("compare") > 0;
-
-    RenderOptions ro;
-    auto [w, h] = parseImageSize(args["size"].as<std::string>(), "--size", kMaxRenderSide);
-    ro.width = w, ro.height = h;
-    if (args.count("uniform") + args.count("spp") + args.count("adaptive") > 1)
-      throw Error("give one of --adaptive, --uniform N and --spp N");
-    if (args.count("uniform")) {
-      ro.mode = SamplingMode::Uniform;
-      ro.uniform = args["uniform"].as<int>();
-    } else if (args.count("spp")) {
-      const int spp = args["spp"].as<int>();
-      const int n = static_cast<int>(std::lround(std::sqrt(std::max(0, spp))));
-      if (spp < 1 || n * n != spp) throw Error("--spp must be a square number (1, 4, 9, 16, ...), got " + std::to_string(spp));
-      ro.mode = SamplingMode::Uniform;
-      ro.uniform = n;
-    }
-    ro.levels = args["levels"].as<int>();
-    ro.threshold = args["threshold"].as<double>();
-    ro.shadowCorners = !args.count("no-shadow-corners");
-    ro.derivativeTests = !args.count("no-derivative-tests");
-    ro.textureTest = !args.count("no-texture-test");
-    ro.footprintFilter = !args.count("no-footprint-filter");
-    ro.progress = !quiet;
-    checkRenderOptions(ro);
+    const RenderOptions ro = samplingOptions(args, quiet);
 
     Scene scene = makeScene(args["scene"].as<std::string>(), args["tiling"].as<double>());
     setLight(scene, parseDirection(args["light"].as<std::string>(), "--light"));
@@ -158,107 +274,24 @@ int renderMain(int argc, char** argv) {
     const Camera camera(cam, ro.width, ro.height);
     const Crop crop = cropOption(args).value_or(Crop{});
 
-    const std::string exr = args.count("exr") ? args["exr"].as<std::string>() : "";
-    const std::string mask = args.count("show-refined") ? args["show-refined"].as<std::string>() : "";
-    const std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
-
+    auto optional = [&](const char* name) { return args.count(name) ? args[name].as<std::string>() : std::string(); };
+    RenderPaths p;
+    p.material = args["material"].as<std::string>();
+    p.output = args["output"].as<std::string>();
+    p.exr = optional("exr");
+    p.mask = optional("show-refined");
+    p.stats = optional("stats-json");
+    p.stack = optional("compare");
+    p.referenceExr = optional("reference");
     // No output may overwrite an input or another output; then every output's folders are made.
-    const std::string stackPath = compare ? args["compare"].as<std::string>() : "";
-    const std::string referenceExr = args.count("reference") ? args["reference"].as<std::string>() : "";
-    refuseOverlappingPaths({{"<material>", material, isFolder(material)},
-                            {"--compare", stackPath, isFolder(stackPath)},
-                            {"--reference", referenceExr}},
-                           {{"-o", output, compare}, {"--exr", exr}, {"--show-refined", mask}, {"--stats-json", statsPath}});
-    for (const std::string& out : {exr, mask, statsPath})
+    refuseOverlappingPaths({{"<material>", p.material, isFolder(p.material)},
+                            {"--compare", p.stack, isFolder(p.stack)},
+                            {"--reference", p.referenceExr}},
+                           {{"-o", p.output, compare}, {"--exr", p.exr}, {"--show-refined", p.mask}, {"--stats-json", p.stats}});
+    for (const std::string& out : {p.exr, p.mask, p.stats})
       if (!out.empty()) createParentFolders(out);
-
-    if (compare) {
-      for (const char* o : {"exr", "show-refined", "reference", "ray-cost"})
-        if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
-      if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
-        throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
-                    "nbtf render --compare STACK FILE.nbtf -o DIR)");
-      if (std::filesystem::is_directory(material))
-        throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
-      std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
-      std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
-      checkCompareDirections(*reference, *compressed);
-      checkFolderCreatable(output);
-      createFolder(output);
-      if (reference->width() != compressed->width() || reference->height() != compressed->height())
-        std::cerr << "nbtf render: warning: " << stackPath << " is " << reference->width() << "x" << reference->height()
-                  << " texels, " << material << " is " << compressed->width() << "x" << compressed->height()
-                  << " (use --crop for the crop the .nbtf was made from)" << std::endl;
-      const RenderResult ref = renderImage(scene, camera, *reference, ro);
-      const RenderResult cmp = renderImage(scene, camera, *compressed, ro);
-      const RenderComparison c = compareImages(ref.rgb, cmp.rgb, ref.coverage, ro.width, ro.height);
-      CompareReportInfo info;
-      info.reference = stackPath, info.compressed = material, info.scene = scene.name;
-      info.width = ro.width, info.height = ro.height, info.sampling = samplingName(ro);
-      info.magnify = args["magnify"].as<double>();
-      info.referenceSeconds = ref.stats.seconds, info.compressedSeconds = cmp.stats.seconds;
-      const std::filesystem::path dir(output);
-      writeRender((dir / "reference.png").string(), (dir / "reference.exr").string(), ref);
-      writeRender((dir / "compressed.png").string(), (dir / "compressed.exr").string(), cmp);
-      const std::vector<float> err = errorImage(ref.rgb, cmp.rgb, info.magnify);
-      writeImageSrgb8((dir / "error.png").string(), ImageFormat::Png, ro.width, ro.height, err.data());
-      writeFileAtomic((dir / "compare.md").string(), compareMarkdown(c, info));
-      writeFileAtomic((dir / "compare.json").string(), compareJson(c, info));
-      if (!statsPath.empty()) {
-        nlohmann::json j;
-        j["reference"] = statsJson(ref, ro);
-        j["compressed"] = statsJson(cmp, ro);
-        writeFileAtomic(statsPath, j.dump(2) + "\n");
-      }
-      std::cout << "render --compare: " << scene.name << " " << ro.width << "x" << ro.height << ", RMSE (linear) all "
-                << c.all.rmse << ", darkest 10% " << c.dark.rmse << ", brightest 10% " << c.bright.rmse << " -> "
-                << (dir / "compare.md").string() << std::endl;
-      return 0;
-    }
-
-    for (const char* o : {"magnify"})
-      if (args.count(o)) throw Error(std::string("--") + o + " is for --compare");
-    imageFormatFromName(output);  // a clear error for an unknown extension, before rendering
-    createParentFolders(output);
-    checkWritable(output);
-    if (!exr.empty()) checkWritable(exr);
-    if (!mask.empty()) checkWritable(mask), imageFormatFromName(mask);
-    if (!statsPath.empty()) checkWritable(statsPath);
-    ImageF referenceImage;
-    if (args.count("reference")) {
-      referenceImage = readExr(args["reference"].as<std::string>());
-      if (referenceImage.width != ro.width || referenceImage.height != ro.height)
-        throw fileError(args["reference"].as<std::string>(),
-                        "is " + std::to_string(referenceImage.width) + "x" + std::to_string(referenceImage.height) +
-                            ", the render is " + std::to_string(ro.width) + "x" + std::to_string(ro.height));
-    }
-    std::unique_ptr<MaterialSource> source = openMaterial(material, crop, !quiet);
-    const RenderResult r = renderImage(scene, camera, *source, ro);
-    writeRender(output, exr, r);
-    if (!mask.empty()) writeRefinedMask(mask, r);
-    nlohmann::json j = statsJson(r, ro);
-    j["material"] = material;
-    j["scene"] = scene.name;
-    if (args.count("ray-cost")) {
-      const RayCost cost = measureRayCost(scene, camera, *source, ro);
-      j["ray_cost"] = {{"samples", cost.samples}, {"plain_seconds", cost.plainSeconds},
-                       {"derivative_seconds", cost.derivativeSeconds}, {"derivative_over_plain", cost.ratio}};
-      j["ray_equivalents"] = double(r.stats.plainRays) + cost.ratio * double(r.stats.derivativeRays);
-      j["ray_equivalents_per_pixel"] = j["ray_equivalents"].get<double>() / double(r.stats.pixels);
-    }
-    if (args.count("reference")) j["rmse_vs_reference"] = rmseOf(r.rgb.data(), referenceImage.rgb.data(), r.rgb.size());
-    if (!statsPath.empty()) writeFileAtomic(statsPath, j.dump(2) + "\n");
-    const RenderStats& s = r.stats;
-    std::ostringstream o;
-    o << "render: " << scene.name << " " << ro.width << "x" << ro.height << ", " << samplingName(ro) << ": ";
-    if (ro.mode == SamplingMode::Adaptive)
-      o << std::fixed << std::setprecision(1) << 100.0 * s.refinedPixels / s.pixels << "% of pixels refined ("
-        << 100.0 * s.refinedTwice / s.pixels << "% twice), ";
-    o << s.derivativeRays << " derivative + " << s.plainRays << " plain rays, " << std::fixed << std::setprecision(2)
-      << s.seconds << " s -> " << output;
-    if (j.contains("rmse_vs_reference")) o << "; RMSE vs reference " << std::setprecision(5) << j["rmse_vs_reference"].get<double>();
-    std::cout << o.str() << std::endl;  // -q hides progress bars only, as in every command
-    return 0;
+    return compare ? renderCompare(args, p, scene, camera, ro, crop, quiet)
+                   : renderSingle(args, p, scene, camera, ro, crop, quiet);
   });
 }
 

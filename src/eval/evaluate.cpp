@@ -35,13 +35,19 @@ std::vector<DirectionPair> paperFigure7Pairs() {
   };
 }
 
-EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
-  auto start = std::chrono::steady_clock::now();
-  if (!in.reference) throw Error("evaluation: no reference stack");
-  if (!in.reconstruct) throw Error("evaluation: no reconstruction");
-  const BtfStack& ref = *in.reference;
-  if (ref.numImages() == 0 || ref.numTexels() == 0) throw Error("evaluation: the reference stack is empty");
+namespace {
 
+// Per-texel sums over images for the mean brightness maps, in fixed point (2^-32 of alpha):
+// integer sums do not depend on the order the workers add them in. One set per worker.
+constexpr double kFixed = 4294967296.0;
+struct MeanSums {
+  std::vector<std::vector<std::int64_t>> reference, reconstruction;
+};
+
+// The result's description of the material and the method, and alpha (the reference's
+// maximum unless given).
+EvalResult describe(const EvalInputs& in, const EvalOptions& options) {
+  const BtfStack& ref = *in.reference;
   EvalResult r;
   r.method = in.method, r.referenceName = in.referenceName, r.compressedName = in.compressedName;
   r.methodFamily = in.methodFamily.empty() ? in.method : in.methodFamily;
@@ -54,7 +60,6 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   checkHoldoutImages(in.holdoutImages, ref.numImages());
   r.holdoutImages = in.holdoutImages;
   std::sort(r.holdoutImages.begin(), r.holdoutImages.end());
-
   r.alpha = in.alpha;
   if (!(r.alpha > 0)) {
     float lo, hi;
@@ -63,9 +68,14 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
     r.alpha = hi, r.alphaFromReference = true;
   }
   if (!std::isfinite(r.alpha)) throw Error("evaluation: alpha is not finite");
+  return r;
+}
 
-  // ---- Which reconstructions to keep: compared pairs and the blur sample.
-  const int numImages = ref.numImages(), nv = ref.numViews();
+// The compared pairs (nearest measured directions) into r.comparisons, and the blur sample:
+// lights evenly spaced, views along a golden-ratio sequence, so the sample spreads over the
+// (light, view) square instead of a diagonal (a stride through image indices lands on
+// light == view for 81 x 81).
+std::set<int> chooseImages(const BtfStack& ref, const EvalOptions& options, EvalResult& r) {
   for (const auto& pair : options.pairs) {
     Comparison c;
     c.name = pair.name, c.note = pair.note, c.requested = pair;
@@ -75,32 +85,28 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
     c.exact = sameDirection(r.lights[c.light], pair.light) && sameDirection(r.views[c.view], pair.view);
     r.comparisons.push_back(c);
   }
-  std::set<int> keep;
-  for (const auto& c : r.comparisons) keep.insert(c.image);
-  // Blur sample: lights evenly spaced, views along a golden-ratio sequence, so the sample
-  // spreads over the (light, view) square instead of a diagonal (a stride through image
-  // indices lands on light == view for 81 x 81).
-  int samples = std::min(options.blurSampleImages, numImages);
+  const int samples = std::min(options.blurSampleImages, ref.numImages());
+  const int nl = ref.numLights(), nv = ref.numViews();
   std::set<int> blurImages;
-  const int nl = ref.numLights();
   for (int i = 0; i < samples; ++i) {
     int light = static_cast<int>((i + 0.5) * nl / samples);
     double frac = std::fmod(0.5 + i * 0.6180339887498949, 1.0);
     blurImages.insert(ref.imageIndex(std::min(light, nl - 1), std::min(static_cast<int>(frac * nv), nv - 1)));
   }
-  keep.insert(blurImages.begin(), blurImages.end());
+  return blurImages;
+}
 
-  // ---- The pass: every image once, errors per image.
+// The pass: every image once, its errors into r.table, the mean sums, and the
+// reconstructions of the images in `kept` (whose slots exist before the threads run).
+MeanSums comparePass(const EvalInputs& in, const EvalOptions& options, EvalResult& r,
+                     std::map<int, std::vector<float>>& kept) {
+  const BtfStack& ref = *in.reference;
+  const int numImages = ref.numImages();
   const std::size_t n = static_cast<std::size_t>(ref.numTexels()) * 3;
   r.table = ErrorTable(r.lights, r.views);
-  std::map<int, std::vector<float>> kept;  // image -> reconstruction
-  for (int i : keep) kept[i];              // create the slots before the threads run
   const int workers = threadCount();
   std::vector<std::vector<float>> refBuf(workers), recBuf(workers);
-  // Per-texel sums over images for the mean brightness maps, in fixed point (2^-32 of alpha):
-  // integer sums do not depend on the order the workers add them in.
-  constexpr double kFixed = 4294967296.0;
-  std::vector<std::vector<std::int64_t>> refSum(workers), recSum(workers);
+  MeanSums sums{std::vector<std::vector<std::int64_t>>(workers), std::vector<std::vector<std::int64_t>>(workers)};
   Progress progress("eval: reconstruct + compare", static_cast<std::size_t>(numImages), options.progress);
   parallelForDynamic(static_cast<std::size_t>(numImages), [&](std::size_t index, int worker) {
     int image = static_cast<int>(index);
@@ -111,8 +117,8 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
       ref.imageLinear(image, rb.data());
       in.reconstruct(image, cb.data());
       r.table.set(image, errorSums(rb.data(), cb.data(), n, r.alpha));
-      auto& rs = refSum[worker];
-      auto& cs = recSum[worker];
+      auto& rs = sums.reference[worker];
+      auto& cs = sums.reconstruction[worker];
       if (rs.empty()) rs.assign(n, 0), cs.assign(n, 0);
       const double scale = kFixed / r.alpha;
       for (std::size_t j = 0; j < n; ++j) {
@@ -127,84 +133,86 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
     progress.advance();
   });
   progress.finish();
+  return sums;
+}
 
-  // ---- Mean brightness maps (linear, on the reference's scale) and their RMSE / alpha.
-  {
-    std::vector<float> refMean(n, 0.0f), recMean(n, 0.0f);
-    const double toLinear = r.alpha / (kFixed * numImages);
-    double sse = 0, brightest = 0;
-    for (std::size_t j = 0; j < n; ++j) {
-      std::int64_t a = 0, b = 0;
-      for (int w = 0; w < workers; ++w)
-        if (!refSum[w].empty()) a += refSum[w][j], b += recSum[w][j];
-      refMean[j] = static_cast<float>(a * toLinear);
-      recMean[j] = static_cast<float>(b * toLinear);
-      const double d = (static_cast<double>(b) - static_cast<double>(a)) / (kFixed * numImages);
-      sse += d * d;
-      brightest = std::max(brightest, static_cast<double>(refMean[j]));
-    }
-    r.meanMapRmse = std::sqrt(sse / static_cast<double>(n));
-    // Brighten both maps alike for display; alpha scales with them so the error panel's units stay.
-    r.meanMapGain = brightest > 0 ? r.alpha / brightest : 1.0;
-    for (std::size_t j = 0; j < n; ++j) refMean[j] *= r.meanMapGain, recMean[j] *= r.meanMapGain;
-    const float shownAlpha = static_cast<float>(r.alpha * r.meanMapGain);
-    r.meanMapMagnification = chooseErrorMagnification(refMean.data(), recMean.data(), ref.numTexels(), shownAlpha);
-    char title[96];
-    std::snprintf(title, sizeof title, "Mean brightness over all images (shown x %.3g)", r.meanMapGain);
-    r.meanMapFigure = renderComparison(refMean.data(), recMean.data(), r.width, r.height, shownAlpha,
-                                       r.meanMapMagnification, title);
+// Mean brightness maps (linear, on the reference's scale), their RMSE / alpha and figure.
+void meanBrightnessMaps(const MeanSums& sums, int numImages, EvalResult& r) {
+  const std::size_t n = static_cast<std::size_t>(r.width) * r.height * 3;
+  std::vector<float> refMean(n, 0.0f), recMean(n, 0.0f);
+  const double toLinear = r.alpha / (kFixed * numImages);
+  double sse = 0, brightest = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    std::int64_t a = 0, b = 0;
+    for (std::size_t w = 0; w < sums.reference.size(); ++w)
+      if (!sums.reference[w].empty()) a += sums.reference[w][j], b += sums.reconstruction[w][j];
+    refMean[j] = static_cast<float>(a * toLinear);
+    recMean[j] = static_cast<float>(b * toLinear);
+    const double d = (static_cast<double>(b) - static_cast<double>(a)) / (kFixed * numImages);
+    sse += d * d;
+    brightest = std::max(brightest, static_cast<double>(refMean[j]));
   }
+  r.meanMapRmse = std::sqrt(sse / static_cast<double>(n));
+  // Brighten both maps alike for display; alpha scales with them so the error panel's units stay.
+  r.meanMapGain = brightest > 0 ? r.alpha / brightest : 1.0;
+  for (std::size_t j = 0; j < n; ++j) refMean[j] *= r.meanMapGain, recMean[j] *= r.meanMapGain;
+  const float shownAlpha = static_cast<float>(r.alpha * r.meanMapGain);
+  r.meanMapMagnification = chooseErrorMagnification(refMean.data(), recMean.data(), r.width * r.height, shownAlpha);
+  char title[96];
+  std::snprintf(title, sizeof title, "Mean brightness over all images (shown x %.3g)", r.meanMapGain);
+  r.meanMapFigure = renderComparison(refMean.data(), recMean.data(), r.width, r.height, shownAlpha,
+                                     r.meanMapMagnification, title);
+}
 
-  // ---- The cluster-mean floor of this reference, with and without the per-texel factors.
-  if (in.clusters > 0) {
-    std::vector<int> everyImage(numImages);
-    for (int i = 0; i < numImages; ++i) everyImage[i] = i;
-    r.floorRmse = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, nullptr, 1, false, false)
-                      .floorRmse(everyImage, ref.numTexels());
-    if (!in.texelCoefficients.empty())
-      r.floorRmseModulated = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, in.texelCoefficients.data(),
-                                           in.coefficientTerms, false, false, in.coefficientChannels)
-                                 .floorRmse(everyImage, ref.numTexels());
-    // Where the latents went: the label image by split generation.
-    const bool adaptive = !in.clusterGenerations.empty();
-    r.clusterMapFigure = renderClusterMap(in.clusterIds, r.width, r.height, in.clusters, in.clusterGenerations,
-                                          adaptive ? "Clusters by split generation (adaptive, k = " +
-                                                         std::to_string(in.clusters) + ")"
-                                                   : "Clusters (k = " + std::to_string(in.clusters) + ")");
-    for (int c = 0; c < in.clusters; ++c) {
-      const int g = adaptive ? std::max(0, in.clusterGenerations[c]) : 0;
-      if (static_cast<int>(r.clustersPerGeneration.size()) <= g) r.clustersPerGeneration.resize(g + 1, 0);
-      ++r.clustersPerGeneration[g];
-    }
+// The cluster-mean floor of this reference, with and without the per-texel factors, and
+// the cluster map (by split generation when adaptive: where the latents went).
+void clusterFloor(const EvalInputs& in, EvalResult& r) {
+  const BtfStack& ref = *in.reference;
+  std::vector<int> everyImage(ref.numImages());
+  for (int i = 0; i < ref.numImages(); ++i) everyImage[i] = i;
+  r.floorRmse = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, nullptr, 1, false, false)
+                    .floorRmse(everyImage, ref.numTexels());
+  if (!in.texelCoefficients.empty())
+    r.floorRmseModulated = clusterValues(ref, r.alpha, in.clusterIds, in.clusters, in.texelCoefficients.data(),
+                                         in.coefficientTerms, false, false, in.coefficientChannels)
+                               .floorRmse(everyImage, ref.numTexels());
+  const bool adaptive = !in.clusterGenerations.empty();
+  r.clusterMapFigure = renderClusterMap(in.clusterIds, r.width, r.height, in.clusters, in.clusterGenerations,
+                                        adaptive ? "Clusters by split generation (adaptive, k = " +
+                                                       std::to_string(in.clusters) + ")"
+                                                 : "Clusters (k = " + std::to_string(in.clusters) + ")");
+  for (int c = 0; c < in.clusters; ++c) {
+    const int g = adaptive ? std::max(0, in.clusterGenerations[c]) : 0;
+    if (static_cast<int>(r.clustersPerGeneration.size()) <= g) r.clustersPerGeneration.resize(g + 1, 0);
+    ++r.clustersPerGeneration[g];
   }
+}
 
-  r.all = r.table.all();
-  r.training = r.hasHoldout() ? r.table.subset(r.holdoutImages, true) : r.all;
-  if (r.hasHoldout()) r.holdout = r.table.subset(r.holdoutImages, false);
-  r.byLightElevation = r.table.byLightElevation();
-  r.byViewElevation = r.table.byViewElevation();
-  r.worstImage = r.table.worstImage();
-
+// The worst pair joins the comparisons, its reconstruction kept.
+void addWorstComparison(const EvalInputs& in, EvalResult& r, std::map<int, std::vector<float>>& kept) {
+  const int nv = static_cast<int>(r.views.size());
   Comparison worst;
   worst.name = "worst error";
   worst.note = "The (light, view) pair with the largest RMSE";
   worst.image = r.worstImage, worst.light = r.worstImage / nv, worst.view = r.worstImage % nv;
   worst.requested = {worst.name, r.views[worst.view], r.lights[worst.light], worst.note};
   r.comparisons.push_back(worst);
-  if (!kept.count(r.worstImage)) {
-    auto& buf = kept[r.worstImage];
-    buf.assign(n, std::numeric_limits<float>::quiet_NaN());
-    try {
-      in.reconstruct(r.worstImage, buf.data());
-    } catch (const std::exception& e) {
-      throw Error(imageName(r, r.worstImage) + ": " + e.what());
-    }
+  if (kept.count(r.worstImage)) return;
+  auto& buf = kept[r.worstImage];
+  buf.assign(static_cast<std::size_t>(r.width) * r.height * 3, std::numeric_limits<float>::quiet_NaN());
+  try {
+    in.reconstruct(r.worstImage, buf.data());
+  } catch (const std::exception& e) {
+    throw Error(imageName(r, r.worstImage) + ": " + e.what());
   }
-  blurImages.insert(r.worstImage);
-  for (const auto& c : r.comparisons) blurImages.insert(c.image);
+}
 
-  // ---- Effective blur on every kept image (in parallel; each estimate is independent).
-  std::vector<int> blurList(blurImages.begin(), blurImages.end());
+// Effective blur on every kept image (in parallel; each estimate is independent) and its median.
+void estimateBlurs(const BtfStack& ref, const EvalOptions& options, const std::set<int>& images,
+                   const std::map<int, std::vector<float>>& kept, EvalResult& r) {
+  const int nv = ref.numViews();
+  const std::size_t n = static_cast<std::size_t>(ref.numTexels()) * 3;
+  std::vector<int> blurList(images.begin(), images.end());
   r.blurSamples.resize(blurList.size());
   Progress blurProgress("eval: effective blur", blurList.size(), options.progress);
   parallelForDynamic(blurList.size(), [&](std::size_t k, int) {
@@ -222,9 +230,11 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   std::sort(sigmas.begin(), sigmas.end());
   std::size_t m = sigmas.size();
   r.blurSigmaMedian = m % 2 ? sigmas[m / 2] : 0.5 * (sigmas[m / 2 - 1] + sigmas[m / 2]);
+}
 
-  // ---- Comparison strips.
-  std::vector<float> reference(n);
+// Comparison strips: reference | reconstruction | magnified error, per compared pair.
+void comparisonStrips(const BtfStack& ref, const std::map<int, std::vector<float>>& kept, EvalResult& r) {
+  std::vector<float> reference(static_cast<std::size_t>(ref.numTexels()) * 3);
   for (auto& c : r.comparisons) {
     c.error = r.table.image(c.image);
     for (const auto& s : r.blurSamples)
@@ -236,6 +246,37 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
                         formatDirection(r.views[c.view]);
     c.figure = renderComparison(reference.data(), rec.data(), r.width, r.height, r.alpha, c.magnification, title);
   }
+}
+
+}  // namespace
+
+EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
+  auto start = std::chrono::steady_clock::now();
+  if (!in.reference) throw Error("evaluation: no reference stack");
+  if (!in.reconstruct) throw Error("evaluation: no reconstruction");
+  const BtfStack& ref = *in.reference;
+  if (ref.numImages() == 0 || ref.numTexels() == 0) throw Error("evaluation: the reference stack is empty");
+
+  EvalResult r = describe(in, options);
+  std::set<int> blurImages = chooseImages(ref, options, r);
+  std::map<int, std::vector<float>> kept;  // image -> reconstruction
+  for (const auto& c : r.comparisons) kept[c.image];
+  for (int i : blurImages) kept[i];
+  const MeanSums sums = comparePass(in, options, r, kept);
+  meanBrightnessMaps(sums, ref.numImages(), r);
+  if (in.clusters > 0) clusterFloor(in, r);
+
+  r.all = r.table.all();
+  r.training = r.hasHoldout() ? r.table.subset(r.holdoutImages, true) : r.all;
+  if (r.hasHoldout()) r.holdout = r.table.subset(r.holdoutImages, false);
+  r.byLightElevation = r.table.byLightElevation();
+  r.byViewElevation = r.table.byViewElevation();
+  r.worstImage = r.table.worstImage();
+  addWorstComparison(in, r, kept);
+  blurImages.insert(r.worstImage);
+  for (const auto& c : r.comparisons) blurImages.insert(c.image);
+  estimateBlurs(ref, options, blurImages, kept, r);
+  comparisonStrips(ref, kept, r);
   r.seconds = secondsSince(start);
   return r;
 }
