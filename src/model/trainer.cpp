@@ -448,7 +448,8 @@ bool TrainingRun::wantsStep() {
   elapsedAtCheck_ = elapsedTotal();
   if (geometry_.totalSteps > 0 && step_ >= geometry_.totalSteps) return false;
   if (config_.timeBudgetSeconds > 0 && elapsedAtCheck_ + finalEvalSeconds() >= config_.timeBudgetSeconds) return false;
-  if ((config_.stopFlag && config_.stopFlag->load()) || (config_.stopAtStep > 0 && step_ >= config_.stopAtStep)) {
+  if ((config_.stopFlag && config_.stopFlag->load()) || (config_.stopAtStep > 0 && step_ >= config_.stopAtStep) ||
+      (config_.stopAtSeconds > 0 && elapsedAtCheck_ >= config_.stopAtSeconds)) {
     result_.interrupted = true;
     writeCheckpointNow();
     return false;

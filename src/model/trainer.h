@@ -165,6 +165,7 @@ struct TrainConfig {
   // ---- run control (not in config files)
   std::atomic<bool>* stopFlag = nullptr;  // set (e.g. by SIGINT) -> checkpoint and return, interrupted
   std::int64_t stopAtStep = 0;            // > 0: behave as if stopped once this many steps are done
+  double stopAtSeconds = 0;               // > 0: the same once the run's training clock (resumed runs included) reaches it
   std::function<void(const TrainStatus&)> monitor;  // called after every step (keep it cheap)
 };
 

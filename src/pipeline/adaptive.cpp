@@ -356,7 +356,7 @@ class AdaptiveRun {
  private:
   void planSchedule();
   void dropEmptyClusters();
-  bool runStage(std::int64_t end, bool warm);
+  bool runStage(std::int64_t endStep, double endSeconds, bool warm);
   void recordStage();
   int nextClusterCount(int stage);
   void editClusters(int stage);
@@ -388,6 +388,10 @@ class AdaptiveRun {
   std::int64_t totalSteps_ = 0;
   int stagesPlanned_ = 1;
   std::vector<std::int64_t> stageEnd_;
+  // --time-budget without --epochs: the stages end at these seconds of the training clock,
+  // which carries over the stages through the checkpoint, so they share the budget.
+  bool timed_ = false;
+  std::vector<double> stageEndSeconds_;
   std::string statePath_;
   RemoveTemporary removeTemporary_;
   std::uint64_t fingerprint_ = 0;
@@ -455,15 +459,23 @@ void AdaptiveRun::planSchedule() {
   config_.progress = config_.progress && o_.progress;
   config_.stopFlag = o_.stopFlag;
   totalSteps_ = planTraining(config_, std::max(1, o_.clusters), static_cast<int>(trainImages_.size())).totalSteps;
-  if (totalSteps_ <= 0)
-    throw Error("--adaptive needs a training bounded in steps (epochs > 0), not by a time budget only");
-  config_.epochs = std::max(1, config_.epochs);
-  config_.minSteps = config_.maxSteps = static_cast<int>(std::min<std::int64_t>(totalSteps_, 1 << 30));
-  stagesPlanned_ = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(a_.stages, totalSteps_)));
-  stageEnd_.assign(stagesPlanned_, totalSteps_);
-  for (int j = 1; j < stagesPlanned_; ++j) {
-    std::int64_t end = std::llround(totalSteps_ * a_.growthFraction * j / (stagesPlanned_ - 1));
-    stageEnd_[j - 1] = std::min(totalSteps_ - (stagesPlanned_ - j), std::max<std::int64_t>(j, end));
+  timed_ = totalSteps_ <= 0;
+  if (timed_) {
+    // The same fractions of the budget as of the steps below; the last stage runs to its end.
+    stagesPlanned_ = std::max(1, a_.stages);
+    stageEnd_.assign(stagesPlanned_, 0);
+    stageEndSeconds_.assign(stagesPlanned_, 0);
+    for (int j = 1; j < stagesPlanned_; ++j)
+      stageEndSeconds_[j - 1] = config_.timeBudgetSeconds * a_.growthFraction * j / (stagesPlanned_ - 1);
+  } else {
+    config_.epochs = std::max(1, config_.epochs);
+    config_.minSteps = config_.maxSteps = static_cast<int>(std::min<std::int64_t>(totalSteps_, 1 << 30));
+    stagesPlanned_ = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(a_.stages, totalSteps_)));
+    stageEnd_.assign(stagesPlanned_, totalSteps_);
+    for (int j = 1; j < stagesPlanned_; ++j) {
+      std::int64_t end = std::llround(totalSteps_ * a_.growthFraction * j / (stagesPlanned_ - 1));
+      stageEnd_[j - 1] = std::min(totalSteps_ - (stagesPlanned_ - j), std::max<std::int64_t>(j, end));
+    }
   }
   const bool temporaryCheckpoint = o_.checkpointPath.empty() && config_.checkpointPath.empty();
   config_.checkpointPath = !o_.checkpointPath.empty() ? o_.checkpointPath
@@ -510,12 +522,18 @@ void AdaptiveRun::resume() {
 
 bool AdaptiveRun::trainStages() {
   for (int stage = firstStage_; stage < stagesPlanned_; ++stage) {
-    if (say_)
+    if (say_ && timed_)
+      std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training from step %lld until %.0f s of the %.0f s budget\n",
+                   stage + 1, stagesPlanned_, k_, static_cast<long long>(stepsDone_),
+                   stageEndSeconds_[stage] > 0 ? stageEndSeconds_[stage] : config_.timeBudgetSeconds,
+                   config_.timeBudgetSeconds);
+    else if (say_)
       std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  training steps %lld..%lld\n", stage + 1, stagesPlanned_, k_,
                    static_cast<long long>(stepsDone_), static_cast<long long>(stageEnd_[stage]));
     saveStageState(statePath_, fingerprint_,
                    StageState{stage, stepsDone_, k_, ids_, generation_, stats_.adaptiveStages, stopReason_});
-    if (!runStage(stageEnd_[stage], stage > 0 || resumedWarm_)) return false;
+    if (!runStage(stageEnd_[stage], stageEndSeconds_.empty() ? 0 : stageEndSeconds_[stage], stage > 0 || resumedWarm_))
+      return false;
     recordStage();
     if (stage + 1 == stagesPlanned_) break;
     const auto tEdit = Clock::now();
@@ -525,9 +543,10 @@ bool AdaptiveRun::trainStages() {
   return true;
 }
 
-// Trains from the current step to `end` on the current clusters (a warm start after the
-// first stage) and assembles the model; false when the user interrupted.
-bool AdaptiveRun::runStage(std::int64_t end, bool warm) {
+// Trains from the current step to step `endStep` (or to `endSeconds` of the training clock;
+// 0 = the plan's end) on the current clusters (a warm start after the first stage) and
+// assembles the model; false when the user interrupted.
+bool AdaptiveRun::runStage(std::int64_t endStep, double endSeconds, bool warm) {
   auto tc = Clock::now();
   coefficients_ = modulated_ ? trainingCoefficients(stack_, alpha_, ids_, k_, holdout_, mc_, false)
                              : std::vector<float>{};
@@ -542,7 +561,8 @@ bool AdaptiveRun::runStage(std::int64_t end, bool warm) {
   inputs.coefficientChannels = channels_;
   TrainConfig stageConfig = config_;
   stageConfig.warmStart = warm;
-  stageConfig.stopAtStep = end < totalSteps_ ? end : 0;
+  stageConfig.stopAtStep = endStep < totalSteps_ || timed_ ? endStep : 0;
+  stageConfig.stopAtSeconds = endSeconds;
   auto tt = Clock::now();
   last_ = trainModel(inputs, stageConfig);
   if (o_.stopFlag && o_.stopFlag->load()) return false;
@@ -574,11 +594,12 @@ void AdaptiveRun::recordStage() {
   stages.push_back(st);
   b_.metadataJson = metadataFor(adaptiveMetadataJson(o_, stages, generation_, stopReason_));
   stages.back().bytes = writtenBytes(b_);
-  if (say_)
-    std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  steps %lld/%lld  rmse %.6f  %llu bytes\n",
+  if (say_) {
+    const std::string planned = timed_ ? "" : "/" + std::to_string(totalSteps_);
+    std::fprintf(stderr, "adaptive: stage %d/%d  k = %d  steps %lld%s  rmse %.6f  %llu bytes\n",
                  static_cast<int>(stages.size()), stagesPlanned_, k_, static_cast<long long>(stepsDone_),
-                 static_cast<long long>(totalSteps_), st.rmseTrain,
-                 static_cast<unsigned long long>(stages.back().bytes));
+                 planned.c_str(), st.rmseTrain, static_cast<unsigned long long>(stages.back().bytes));
+  }
 }
 
 // Applies merges (from, into), drops empty clusters, keeps `generation` in step; returns
@@ -721,7 +742,7 @@ bool AdaptiveRun::enforceBudget() {
                    static_cast<unsigned long long>(stages.back().bytes),
                    static_cast<unsigned long long>(a_.sizeBudget), static_cast<int>(merges.size()), k_);
     // Latents of the merged clusters from the trained encoder: a warm start with no steps left.
-    if (!runStage(totalSteps_, true)) return false;
+    if (!runStage(timed_ ? stepsDone_ : totalSteps_, 0, true)) return false;
     stopReason_ = "size budget reached";
     AdaptiveStage& st = stages.back();
     st.clusters = k_;
