@@ -12,6 +12,7 @@
 #include "eval/report.h"
 #include "eval/sweep.h"
 #include "io/btf_loader.h"
+#include "io/ground_truth.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -122,6 +123,8 @@ int runEval(const cxxopts::ParseResult& args) {
   CompressedReconstruction reconstruction(btf, file);
   EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
   inputs.details.push_back({"reference check", referenceCheck});
+  if (!args.count("no-ground-truth")) inputs.groundTruth = groundTruthBeside(referencePath, reference, load.crop);
+  if (inputs.groundTruth) inputs.groundTruthName = (std::filesystem::path(referencePath) / kGroundTruthFolder).string();
   EvalResult result = evaluate(inputs, options);
   result.render = std::move(render);
   ReportPaths paths = writeReport(result, outDir);
@@ -161,6 +164,8 @@ int evalMain(int argc, char** argv) {
         "blur-images", "Evenly spaced images for the blur estimate (besides the compared ones)",
         cxxopts::value<int>()->default_value("8"))(
         "force", "Evaluate even when the reference does not match the file's source fingerprint (the report says so)")(
+        "no-ground-truth", "Do not also measure against the float ground truth beside the reference (nbtf-synth's "
+                           "ground_truth/ folder; read by default when present)")(
         "render-compare", "Include a rendered comparison: the folder `nbtf render --compare` wrote",
         cxxopts::value<std::string>())(
         "summarize", "Sweep mode: summarize report.json files into -o (tables, rate-distortion plots)");

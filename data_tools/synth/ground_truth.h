@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "io/ground_truth.h"
+
 namespace nbtf::synth {
 
 class GroundTruthWriter {
@@ -25,9 +27,6 @@ class GroundTruthWriter {
   int width_, height_, blocks_, written_ = 0;
 };
 
-// Reads image `block` of a ground-truth file of `blocks` stacked images. Checks the file's
-// shape and values; throws nbtf::Error naming the file otherwise.
-std::vector<float> readGroundTruthBlock(const std::string& path, int block, int blocks, int* width = nullptr,
-                                        int* height = nullptr);
+using nbtf::readGroundTruthBlock;  // the reader is in io/ground_truth.h (nbtf eval reads it too)
 
 }  // namespace nbtf::synth

@@ -36,7 +36,6 @@ namespace {
 
 constexpr int kJpegQuality = 95;
 const char* kJsonName = "synth.json";
-const char* kGroundTruthFolder = "ground_truth";
 
 std::string formatName(ImageFormat f) { return extensionOf(f).substr(1); }
 
@@ -58,9 +57,7 @@ std::string imagePath(const std::string& outDir, Layout layout, ImageFormat form
   return (fs::path(outDir) / viewFolderName(v) / name).string();
 }
 
-std::string groundTruthPath(const std::string& outDir, int view) {
-  return (fs::path(outDir) / kGroundTruthFolder / (viewFolderName(hemisphere81()[view]) + ".exr")).string();
-}
+std::string groundTruthPath(const std::string& outDir, int view) { return nbtf::groundTruthPath(outDir, hemisphere81()[view]); }
 
 // linearToSrgb8 without a pow per value, giving identical codes: the 255 linear
 // thresholds where the 8-bit code steps up are found by bisection on linearToSrgb8

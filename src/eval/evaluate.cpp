@@ -10,6 +10,7 @@
 
 #include "cluster/cluster_values.h"
 #include "eval/figures.h"
+#include "io/ground_truth.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -42,6 +43,12 @@ namespace {
 constexpr double kFixed = 4294967296.0;
 struct MeanSums {
   std::vector<std::vector<std::int64_t>> reference, reconstruction;
+};
+
+// Per-image errors against the float ground truth: the reconstruction's and the stored
+// reference's.
+struct GroundTruthTables {
+  ErrorTable reconstruction, reference;
 };
 
 // The result's description of the material and the method, and alpha (the reference's
@@ -99,13 +106,14 @@ std::set<int> chooseImages(const BtfStack& ref, const EvalOptions& options, Eval
 // The pass: every image once, its errors into r.table, the mean sums, and the
 // reconstructions of the images in `kept` (whose slots exist before the threads run).
 MeanSums comparePass(const EvalInputs& in, const EvalOptions& options, EvalResult& r,
-                     std::map<int, std::vector<float>>& kept) {
+                     std::map<int, std::vector<float>>& kept, GroundTruthTables& truth) {
   const BtfStack& ref = *in.reference;
   const int numImages = ref.numImages();
   const std::size_t n = static_cast<std::size_t>(ref.numTexels()) * 3;
   r.table = ErrorTable(r.lights, r.views);
   const int workers = threadCount();
-  std::vector<std::vector<float>> refBuf(workers), recBuf(workers);
+  std::vector<std::vector<float>> refBuf(workers), recBuf(workers), truthBuf(workers);
+  if (in.groundTruth) truth = {ErrorTable(r.lights, r.views), ErrorTable(r.lights, r.views)};
   MeanSums sums{std::vector<std::vector<std::int64_t>>(workers), std::vector<std::vector<std::int64_t>>(workers)};
   Progress progress("eval: reconstruct + compare", static_cast<std::size_t>(numImages), options.progress);
   parallelForDynamic(static_cast<std::size_t>(numImages), [&](std::size_t index, int worker) {
@@ -117,6 +125,13 @@ MeanSums comparePass(const EvalInputs& in, const EvalOptions& options, EvalResul
       ref.imageLinear(image, rb.data());
       in.reconstruct(image, cb.data());
       r.table.set(image, errorSums(rb.data(), cb.data(), n, r.alpha));
+      if (in.groundTruth) {
+        auto& tb = truthBuf[worker];
+        tb.assign(n, std::numeric_limits<float>::quiet_NaN());
+        in.groundTruth(image, tb.data());
+        truth.reconstruction.set(image, errorSums(tb.data(), cb.data(), n, r.alpha));
+        truth.reference.set(image, errorSums(tb.data(), rb.data(), n, r.alpha));
+      }
       auto& rs = sums.reference[worker];
       auto& cs = sums.reconstruction[worker];
       if (rs.empty()) rs.assign(n, 0), cs.assign(n, 0);
@@ -250,6 +265,21 @@ void comparisonStrips(const BtfStack& ref, const std::map<int, std::vector<float
 
 }  // namespace
 
+std::function<void(int image, float* linearRgb)> groundTruthBeside(const std::string& stackDir,
+                                                                   const BtfStack& reference, const Crop& crop) {
+  if (!hasGroundTruth(stackDir, reference.views())) return {};
+  const std::vector<Direction> lights = reference.lights(), views = reference.views();
+  const std::size_t values = static_cast<std::size_t>(reference.numTexels()) * 3;
+  return [stackDir, lights, views, crop, values](int image, float* out) {
+    const std::vector<float> rgb = readGroundTruthImage(stackDir, lights, views, image, crop);
+    if (rgb.size() != values)
+      throw fileError(groundTruthPath(stackDir, views[image % views.size()]),
+                      "holds " + std::to_string(rgb.size() / 3) + " texels per image, the reference " +
+                          std::to_string(values / 3));
+    std::copy(rgb.begin(), rgb.end(), out);
+  };
+}
+
 EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   auto start = std::chrono::steady_clock::now();
   if (!in.reference) throw Error("evaluation: no reference stack");
@@ -262,7 +292,8 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   std::map<int, std::vector<float>> kept;  // image -> reconstruction
   for (const auto& c : r.comparisons) kept[c.image];
   for (int i : blurImages) kept[i];
-  const MeanSums sums = comparePass(in, options, r, kept);
+  GroundTruthTables truth;
+  const MeanSums sums = comparePass(in, options, r, kept, truth);
   meanBrightnessMaps(sums, ref.numImages(), r);
   if (in.clusters > 0) clusterFloor(in, r);
 
@@ -272,6 +303,14 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
   r.byLightElevation = r.table.byLightElevation();
   r.byViewElevation = r.table.byViewElevation();
   r.worstImage = r.table.worstImage();
+  if (in.groundTruth) {
+    r.hasGroundTruth = true;
+    r.groundTruthName = in.groundTruthName;
+    r.groundTruthAll = truth.reconstruction.all();
+    r.groundTruthTraining = r.hasHoldout() ? truth.reconstruction.subset(r.holdoutImages, true) : r.groundTruthAll;
+    if (r.hasHoldout()) r.groundTruthHoldout = truth.reconstruction.subset(r.holdoutImages, false);
+    r.referenceVsGroundTruth = truth.reference.all();
+  }
   addWorstComparison(in, r, kept);
   blurImages.insert(r.worstImage);
   for (const auto& c : r.comparisons) blurImages.insert(c.image);

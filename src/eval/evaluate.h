@@ -75,6 +75,11 @@ struct EvalInputs {
   // Adaptive files (nbtf compress --adaptive): each cluster's split generation (empty = none,
   // every cluster from the initial k-means), for the cluster map.
   std::vector<int> clusterGenerations;
+  // Optional: the float ground truth the reference was quantized from (nbtf-synth writes it
+  // beside its stacks; io/ground_truth.h), as `reconstruct` writes images. When set, the
+  // reconstruction and the stored reference are measured against it too.
+  std::function<void(int image, float* linearRgb)> groundTruth;
+  std::string groundTruthName;
 };
 
 struct EvalOptions {
@@ -115,6 +120,11 @@ struct EvalResult {
   // ---- Metrics
   ErrorTable table;
   ErrorSummary all, training, holdout;  // training = all when there is no hold-out set
+  // Against the float ground truth (EvalInputs::groundTruth; hasGroundTruth false = none):
+  // the reconstruction's errors, and the stored reference's own (its quantization).
+  bool hasGroundTruth = false;
+  std::string groundTruthName;
+  ErrorSummary groundTruthAll, groundTruthTraining, groundTruthHoldout, referenceVsGroundTruth;
   std::vector<ElevationError> byLightElevation, byViewElevation;
   int worstImage = 0;
   std::vector<Comparison> comparisons;
@@ -144,5 +154,12 @@ struct EvalResult {
 // Runs the pass. Throws nbtf::Error on bad inputs, naming the image (light, view) and the
 // value for a non-finite reconstruction.
 EvalResult evaluate(const EvalInputs& inputs, const EvalOptions& options = {});
+
+// The float ground truth beside a stack folder (nbtf-synth's ground_truth/, io/ground_truth.h)
+// as EvalInputs::groundTruth, cropped as the reference was loaded; empty when the folder has
+// none for every view of `reference`.
+std::function<void(int image, float* linearRgb)> groundTruthBeside(const std::string& stackDir,
+                                                                   const BtfStack& reference, const Crop& crop);
+
 
 }  // namespace nbtf

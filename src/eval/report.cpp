@@ -97,6 +97,13 @@ json reportJson(const EvalResult& r) {
   j["rmse_srgb8_training"] = r.training.rmseSrgb8;
   j["rmse_holdout"] = r.hasHoldout() ? json(r.holdout.rmse) : json(nullptr);
   j["rmse_srgb8_holdout"] = r.hasHoldout() ? json(r.holdout.rmseSrgb8) : json(nullptr);
+  // Against the float ground truth, when the reference has one (null otherwise).
+  auto truth = [&](const ErrorSummary& e, bool present) { return present ? json(e.rmse) : json(nullptr); };
+  j["ground_truth"] = r.hasGroundTruth ? json(r.groundTruthName) : json(nullptr);
+  j["rmse_ground_truth"] = truth(r.groundTruthAll, r.hasGroundTruth);
+  j["rmse_ground_truth_training"] = truth(r.groundTruthTraining, r.hasGroundTruth);
+  j["rmse_ground_truth_holdout"] = truth(r.groundTruthHoldout, r.hasGroundTruth && r.hasHoldout());
+  j["rmse_reference_vs_ground_truth"] = truth(r.referenceVsGroundTruth, r.hasGroundTruth);
   j["psnr_holdout"] = r.hasHoldout() ? finiteOrNull(r.holdout.psnr) : json(nullptr);
   j["mean_brightness_rmse"] = r.meanMapRmse;
   j["mean_brightness_display_gain"] = r.meanMapGain;
@@ -290,6 +297,14 @@ void addSummary(Doc& doc, const json& j) {
     rows.push_back({"RMSE, training images", rmseText(j["rmse_training"]), kLinear});
     rows.push_back({"RMSE, held-out images (interpolation, " + integerText(j["holdout_count"]) + " images)",
                     rmseText(j["rmse_holdout"]), kLinear});
+  }
+  if (j.contains("rmse_ground_truth") && !j["rmse_ground_truth"].is_null()) {
+    rows.push_back({"RMSE against the float ground truth, all images", rmseText(j["rmse_ground_truth"]), kLinear});
+    if (holdout)
+      rows.push_back({"RMSE against the float ground truth, held-out images",
+                      rmseText(j["rmse_ground_truth_holdout"]), kLinear});
+    rows.push_back({"The stored reference against the float ground truth (its quantization)",
+                    rmseText(j["rmse_reference_vs_ground_truth"]), kLinear});
   }
   rows.push_back({"RMSE, all images", srgbText(j["rmse_srgb8"]), kSrgb});
   if (holdout) rows.push_back({"RMSE, held-out images", srgbText(j["rmse_srgb8_holdout"]), kSrgb});
