@@ -193,6 +193,44 @@ Eigen::MatrixXd leadingLeftVectors(const Eigen::MatrixXf& y, int terms, std::uin
 
 }  // namespace
 
+namespace {
+
+// The ABRDFs of clusters [first, last) as one matrix each (y[g - first]: the cluster's texels
+// as rows in `members` order, column 3 j + c: image used[j], channel c), in one pass over the
+// images: each image's texels of the batch are read in ascending order (nearly sequential
+// for a stack in memory, and each image once), and the images are split over the threads.
+// The values are gatherLinear's, as a per-cluster gather reads them.
+void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const std::vector<std::vector<int>>& members,
+                    std::size_t first, std::size_t last, std::vector<Eigen::MatrixXf>& y) {
+  struct Slot {
+    int texel;
+    std::uint32_t cluster;  // within the batch
+    std::uint32_t row;
+  };
+  std::vector<Slot> slots;
+  for (std::size_t g = first; g < last; ++g)
+    for (std::size_t k = 0; k < members[g].size(); ++k)
+      slots.push_back({members[g][k], static_cast<std::uint32_t>(g - first), static_cast<std::uint32_t>(k)});
+  std::sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) { return a.texel < b.texel; });
+  std::vector<int> texels(slots.size());
+  for (std::size_t i = 0; i < slots.size(); ++i) texels[i] = slots[i].texel;
+  const Eigen::Index dims = 3 * static_cast<Eigen::Index>(used.size());
+  y.resize(last - first);
+  for (std::size_t g = first; g < last; ++g) y[g - first].resize(static_cast<Eigen::Index>(members[g].size()), dims);
+  const int count = static_cast<int>(texels.size());
+  parallelFor(used.size(), [&](std::size_t begin, std::size_t end) {
+    std::vector<float> values(3 * static_cast<std::size_t>(count));
+    for (std::size_t j = begin; j < end; ++j) {
+      stack.gatherLinear(&used[j], 1, texels.data(), count, values.data());
+      for (int i = 0; i < count; ++i)
+        for (int c = 0; c < 3; ++c)
+          y[slots[i].cluster](slots[i].row, static_cast<Eigen::Index>(3 * j + c)) = values[static_cast<std::size_t>(c) * count + i];
+    }
+  });
+}
+
+}  // namespace
+
 std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                      int clusters, const std::vector<std::uint8_t>& useImage, int terms, bool progress,
                                      int channels) {
@@ -212,35 +250,47 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
     members[ids[t]].push_back(static_cast<int>(t));
   }
   const float invAlpha = 1.0f / alpha;
-  const Eigen::Index usedImages = static_cast<Eigen::Index>(used.size()), dims = 3 * usedImages;
+  const Eigen::Index usedImages = static_cast<Eigen::Index>(used.size());
   const int columns = terms * channels;
   std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
+  // Batches of clusters of up to threads x 8 x the mean cluster size texels (at least one
+  // cluster): the memory the estimate allows this stage (pipeline/memory_estimate.cpp).
+  const std::size_t batchTexels =
+      static_cast<std::size_t>(threadCount()) * (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1);
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
-  parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
-    Eigen::MatrixXf y, channel;
-    for (std::size_t g = begin; g < end; ++g) {
-      const std::vector<int>& texelsOf = members[g];
-      const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
-      if (n == 0) continue;
-      // The cluster's ABRDFs as rows (linear / alpha; column 3 j + c: image j, channel c).
-      y.resize(n, dims);
-      stack.gatherLinear(used.data(), static_cast<int>(used.size()), texelsOf.data(), static_cast<int>(n), y.data());
-      y *= invAlpha;
-      const double scale = std::sqrt(static_cast<double>(n));
-      const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
-      for (int c = 0; c < channels; ++c) {
-        if (channels > 1) {
-          channel.resize(n, usedImages);
-          for (Eigen::Index j = 0; j < usedImages; ++j) channel.col(j) = y.col(3 * j + c);
+  std::vector<Eigen::MatrixXf> batch;
+  for (std::size_t first = 0; first < static_cast<std::size_t>(clusters);) {
+    std::size_t last = first, size = 0;
+    while (last < static_cast<std::size_t>(clusters) && (last == first || size + members[last].size() <= batchTexels))
+      size += members[last++].size();
+    gatherClusters(stack, used, members, first, last, batch);
+    parallelFor(last - first, [&](std::size_t begin, std::size_t end) {
+      Eigen::MatrixXf channel;
+      for (std::size_t b = begin; b < end; ++b) {
+        const std::size_t g = first + b;
+        const std::vector<int>& texelsOf = members[g];
+        const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
+        if (n == 0) continue;
+        // The cluster's ABRDFs as rows (linear / alpha; column 3 j + c: image j, channel c).
+        Eigen::MatrixXf& y = batch[b];
+        y *= invAlpha;
+        const double scale = std::sqrt(static_cast<double>(n));
+        const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
+        for (int c = 0; c < channels; ++c) {
+          if (channels > 1) {
+            channel.resize(n, usedImages);
+            for (Eigen::Index j = 0; j < usedImages; ++j) channel.col(j) = y.col(3 * j + c);
+          }
+          const Eigen::MatrixXd u = leadingLeftVectors(channels > 1 ? channel : y, terms, seed);
+          for (int r = 0; r < terms; ++r)
+            for (Eigen::Index k = 0; k < n; ++k)
+              out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
         }
-        const Eigen::MatrixXd u = leadingLeftVectors(channels > 1 ? channel : y, terms, seed);
-        for (int r = 0; r < terms; ++r)
-          for (Eigen::Index k = 0; k < n; ++k)
-            out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
+        bar.advance(static_cast<std::size_t>(n));
       }
-      bar.advance(static_cast<std::size_t>(n));
-    }
-  });
+    });
+    first = last;
+  }
   bar.finish();
   return out;
 }
