@@ -90,6 +90,33 @@ TEST(KMeans, BoundsReproducePlainLloyd) {
   EXPECT_EQ(r.iterations, referenceIterations);
 }
 
+// A settled fraction stops Lloyd once a round moves at most that share of the points: no
+// later than the full run, with an inertia within a hair of it; below 1 / fraction points it
+// is the full run (the default changes nothing under 100,000 points).
+TEST(KMeans, ASettledFractionStopsOnceFewPointsMove) {
+  auto blobs = makeBlobs(12, 50, 8, 5.0f, 4);  // 600 points
+  MatrixXfCol start(20, 8);
+  for (int j = 0; j < 20; ++j) start.row(j) = blobs.points.row(j * 29);
+  KMeansOptions full = quiet(20);
+  full.settledFraction = 0;
+  const KMeansResult exact = kmeansFromCenters(blobs.points, start, full);
+  ASSERT_TRUE(exact.converged);
+  ASSERT_GT(exact.iterations, 3);
+  EXPECT_EQ(exact.lastMoved, 0u);
+  EXPECT_EQ(kmeansFromCenters(blobs.points, start, quiet(20)).ids, exact.ids);  // default: 600 x 1e-5 = 0 points
+  KMeansOptions loose = quiet(20);
+  loose.settledFraction = 0.02;  // up to 12 points
+  const KMeansResult early = kmeansFromCenters(blobs.points, start, loose);
+  EXPECT_TRUE(early.converged);
+  EXPECT_LT(early.iterations, exact.iterations);
+  EXPECT_LE(early.lastMoved, 12u);
+  EXPECT_GT(early.lastMoved, 0u);
+  EXPECT_LT(early.inertia, exact.inertia * 1.01);
+  KMeansOptions bad = quiet(20);
+  bad.settledFraction = 1;
+  EXPECT_THROW(kmeansFromCenters(blobs.points, start, bad), Error);
+}
+
 TEST(KMeans, InertiaAndCentresMatchTheAssignment) {
   auto blobs = makeBlobs(10, 30, 3, 6.0f, 5);
   KMeansResult r = kmeansPlusPlus(blobs.points, quiet(10));

@@ -206,6 +206,8 @@ struct Lloyd {
 
 KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, const KMeansOptions& options,
                       KMeansResult result) {
+  if (!(options.settledFraction >= 0 && options.settledFraction < 1))
+    throw Error("k-means: the settled fraction must be in [0, 1), got " + std::to_string(options.settledFraction));
   const auto start = std::chrono::steady_clock::now();
   Lloyd lloyd(points);
   lloyd.centers = std::move(initialCenters);
@@ -214,6 +216,7 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
   lloyd.assignStep(moved, true);
 
   Progress bar("k-means", options.maxIterations, options.progress);
+  const auto settled = static_cast<std::size_t>(options.settledFraction * static_cast<double>(points.rows()));
   RowMatrixXf previous;
   for (int iteration = 1; iteration <= options.maxIterations; ++iteration) {
     previous = lloyd.centers;
@@ -229,13 +232,17 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
     result.iterations = iteration;
     bar.setStatus("moved " + std::to_string(changed) + " points");
     bar.advance();
-    if (changed == 0 && reseeded == 0) {
+    result.lastMoved = changed;
+    if (changed <= settled && reseeded == 0) {
       result.converged = true;
       break;
     }
   }
-  bar.setStatus(result.converged ? "converged after " + std::to_string(result.iterations) + " iterations"
-                                 : "iteration limit reached");
+  bar.setStatus(!result.converged ? "iteration limit reached"
+                : result.lastMoved == 0
+                    ? "converged after " + std::to_string(result.iterations) + " iterations"
+                    : "settled after " + std::to_string(result.iterations) + " iterations (" +
+                          std::to_string(result.lastMoved) + " points still moving)");
   if (result.converged) bar.setTotal(static_cast<std::size_t>(result.iterations));
   bar.finish();
 

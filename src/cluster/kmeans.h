@@ -12,6 +12,11 @@ namespace nbtf {
 struct KMeansOptions {
   int clusters = 500;
   int maxIterations = 300;  // Lloyd rounds; stops earlier when no point changes cluster
+  // Also stops once a round moves at most this fraction of the points (and re-seeds none):
+  // on large materials a few points on cluster borders can swap back and forth for hundreds
+  // of rounds that no longer change the inertia. Below 1 / fraction points (100,000 at the
+  // default) that is 0 points: only a round that moves none stops it.
+  double settledFraction = 1e-5;
   std::uint64_t seed = 1;
   bool progress = true;
   // Candidates drawn per k-means++ step, the one lowering the potential most is kept
@@ -26,7 +31,8 @@ struct KMeansResult {
   double inertia = 0;             // sum of squared distances to the assigned centre
   int iterations = 0;
   int reseeded = 0;               // empty clusters re-seeded
-  bool converged = false;         // stopped because no point changed cluster
+  bool converged = false;         // stopped because no point (or at most settledFraction of them) changed cluster
+  std::size_t lastMoved = 0;      // points the last round moved (0 when fully converged)
   int emptyClusters = 0;          // clusters left empty (only when fewer distinct points than k)
   double seedingSeconds = 0, lloydSeconds = 0;
 };
