@@ -44,7 +44,7 @@ python=$(sed -n 's/^NBTF_PYTHON_EXECUTABLE:INTERNAL=//p' "$build/CMakeCache.txt"
 module=$(find "$work/prefix" -name '_nbtf.*.so' | head -n 1)
 if [[ -n "$python" && -n "$module" ]]; then
   site=$(dirname "$(dirname "$module")")
-  nbtf=$src/tests/data/legacy_v1_0.nbtf
+  nbtf=$(cd "$src" && pwd)/tests/data/legacy_v1_0.nbtf  # absolute: python runs in $work (not beside a build tree)
   want=$("$build/bin/nbtf" query "$nbtf" --texel 5,3 --light 30,60 --view 45,180)
   got=$(cd "$work" && PYTHONPATH="$site" "$python" -c '
 import sys, nbtf
