@@ -41,6 +41,15 @@ def cli_error(*args):
     return line.split(": error: ", 1)[1]
 
 
+def cli_errors(*commands):
+    """cli_error of several commands (argument lists), run side by side: each is mostly the
+    program's start."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        return list(pool.map(lambda args: cli_error(*args), commands))
+
+
 @pytest.fixture(scope="session")
 def bin_dir():
     return BIN

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import nbtf
-from conftest import cli, cli_error, cli_json
+from conftest import cli, cli_error, cli_errors, cli_json
 
 QUICK = dict(clusters=4, epochs=1, config="compact", seed=1, threads=1, quiet=True)
 QUICK_CLI = ["--clusters", "4", "--epochs", "1", "--config", "compact", "--seed", "1", "--threads", "1", "-q"]
@@ -72,8 +72,8 @@ def test_compress_errors_have_the_cli_messages(synth_stack, tmp_path):
         (dict(target_rmse=0.1), ["--target-rmse", "0.1"]),
         (dict(memory_limit="12X"), ["--memory-limit", "12X"]),
     ]
-    for kwargs, args in cases:
-        want = cli_error("compress", synth_stack, "-o", out, *args, "-q")
+    wants = cli_errors(*[["compress", synth_stack, "-o", out, *args, "-q"] for _, args in cases])
+    for (kwargs, _), want in zip(cases, wants):
         with pytest.raises(ValueError) as e:
             nbtf.compress(synth_stack, out, quiet=True, **kwargs)
         assert str(e.value) == want, kwargs
@@ -133,3 +133,37 @@ def test_evaluate_errors(synth_stack, synth_nbtf, tmp_path):
     with pytest.raises(ValueError) as e:
         nbtf.evaluate(synth_nbtf, synth_stack, output=synth_stack, quiet=True)
     assert str(e.value) == cli_error("eval", synth_nbtf, "--reference", synth_stack, "-o", synth_stack, "-q")
+
+
+def test_ctrl_c_stops_after_a_checkpoint(synth_stack, tmp_path):
+    # A run far too long to finish, checkpointing every 0.2 s; SIGINT once training has started.
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    config = tmp_path / "long.json"
+    config.write_text(json.dumps({
+        "optimizer": {"name": "adam", "learning_rate": 0.003},
+        "training": {"batch_size": 1024, "images_per_input": 64, "min_steps": 0, "min_steps_per_input": 0,
+                     "epochs": 1000000, "checkpoint_seconds": 0.2}}))
+    out = tmp_path / "long.nbtf"
+    code = """
+import sys, nbtf
+try:
+    nbtf.compress(sys.argv[1], sys.argv[2], clusters=4, config=sys.argv[3], seed=1, threads=1, quiet=True)
+except KeyboardInterrupt as e:
+    print(e)
+    sys.exit(3)
+"""
+    p = subprocess.Popen([sys.executable, "-c", code, synth_stack, str(out), str(config)], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    checkpoint = tmp_path / "long.nbtf.ckpt"
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    p.send_signal(signal.SIGINT)
+    stdout, stderr = p.communicate(timeout=120)
+    assert p.returncode == 3, stderr
+    assert f"nothing written to {out}. Training state is in {checkpoint}: call compress again with resume=True" in stdout
+    assert not out.exists() and checkpoint.exists()
