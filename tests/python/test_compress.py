@@ -119,20 +119,24 @@ def test_evaluate_equals_cli_eval(synth_stack, synth_nbtf, tmp_path):
 
 def test_evaluate_errors(synth_stack, synth_nbtf, tmp_path):
     missing = str(tmp_path / "missing.nbtf")
+    report = str(tmp_path / "r")
+    wants = cli_errors(
+        ["eval", missing, "--reference", synth_stack, "-o", report, "-q"],
+        ["eval", synth_nbtf, "--reference", synth_stack, "-o", report, "--crop", "0,0,4,4", "-q"],
+        ["eval", synth_nbtf, "--reference", synth_stack, "-o", report, "--blur-images", "-1", "-q"],
+        ["eval", synth_nbtf, "--reference", synth_stack, "-o", synth_stack, "-q"])
     with pytest.raises(FileNotFoundError) as e:
         nbtf.evaluate(missing, synth_stack, quiet=True)
-    assert str(e.value) == cli_error("eval", missing, "--reference", synth_stack, "-o", tmp_path / "r", "-q")
+    assert str(e.value) == wants[0]
     with pytest.raises(ValueError) as e:
         nbtf.evaluate(synth_nbtf, synth_stack, crop=(0, 0, 4, 4), quiet=True)
-    assert str(e.value) == cli_error("eval", synth_nbtf, "--reference", synth_stack, "-o", tmp_path / "r",
-                                     "--crop", "0,0,4,4", "-q")
+    assert str(e.value) == wants[1]
     with pytest.raises(ValueError) as e:
         nbtf.evaluate(synth_nbtf, synth_stack, blur_images=-1, quiet=True)
-    assert str(e.value) == cli_error("eval", synth_nbtf, "--reference", synth_stack, "-o", tmp_path / "r",
-                                     "--blur-images", "-1", "-q")
+    assert str(e.value) == wants[2]
     with pytest.raises(ValueError) as e:
         nbtf.evaluate(synth_nbtf, synth_stack, output=synth_stack, quiet=True)
-    assert str(e.value) == cli_error("eval", synth_nbtf, "--reference", synth_stack, "-o", synth_stack, "-q")
+    assert str(e.value) == wants[3]
 
 
 def test_ctrl_c_stops_after_a_checkpoint(synth_stack, tmp_path):

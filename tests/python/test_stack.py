@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import nbtf
-from conftest import cli, cli_error, cli_json
+from conftest import cli, cli_error, cli_errors, cli_json
 
 LIGHTS = [(0, 0), (15, 0), (15, 60)]
 VIEWS = [(0, 0), (30, 120)]
@@ -90,25 +90,28 @@ def test_crop_and_layout(png_stack):
 def test_load_errors_have_the_cli_messages(png_stack, tmp_path):
     path, _ = png_stack
     missing = str(tmp_path / "nothing")
-    with pytest.raises(FileNotFoundError) as e:
-        nbtf.load_stack(missing)
-    assert str(e.value) == cli_error("info", missing, "--json")
-    with pytest.raises(ValueError) as e:
-        nbtf.load_stack(path, crop=(4, 0, 3, 3))
-    assert str(e.value) == cli_error("info", path, "--json", "--crop", "4,0,3,3")
-    with pytest.raises(ValueError) as e:
-        nbtf.load_stack(path, crop=(0, 0, 0, 3))
-    assert str(e.value) == cli_error("info", path, "--json", "--crop", "0,0,0,3")
-    with pytest.raises(ValueError) as e:
-        nbtf.load_stack(path, layout="ubo2099")
-    assert str(e.value) == cli_error("info", path, "--json", "--layout", "ubo2099")
-    with pytest.raises(ValueError, match=r"crop: expected \(x, y, width, height\)"):
-        nbtf.load_stack(path, crop=(1, 2))
     empty = tmp_path / "empty"
     empty.mkdir()
+    wants = cli_errors(["info", missing, "--json"], ["info", path, "--json", "--crop", "4,0,3,3"],
+                       ["info", path, "--json", "--crop", "0,0,0,3"], ["info", path, "--json", "--layout", "ubo2099"],
+                       ["info", empty, "--json"])
+    with pytest.raises(FileNotFoundError) as e:
+        nbtf.load_stack(missing)
+    assert str(e.value) == wants[0]
+    with pytest.raises(ValueError) as e:
+        nbtf.load_stack(path, crop=(4, 0, 3, 3))
+    assert str(e.value) == wants[1]
+    with pytest.raises(ValueError) as e:
+        nbtf.load_stack(path, crop=(0, 0, 0, 3))
+    assert str(e.value) == wants[2]
+    with pytest.raises(ValueError) as e:
+        nbtf.load_stack(path, layout="ubo2099")
+    assert str(e.value) == wants[3]
     with pytest.raises(ValueError) as e:
         nbtf.load_stack(empty)
-    assert str(e.value) == cli_error("info", empty, "--json")
+    assert str(e.value) == wants[4]
+    with pytest.raises(ValueError, match=r"crop: expected \(x, y, width, height\)"):
+        nbtf.load_stack(path, crop=(1, 2))
     with pytest.raises(ValueError, match="progress: expected a callable"):
         nbtf.load_stack(path, progress=3)
 
