@@ -12,11 +12,9 @@
 #include <thread>
 
 #include "cli_common.h"
-#include "model/config_section.h"
-#include "pipeline/compress_config.h"
 #include "commands.h"
+#include "options/compress_options.h"
 #include "util/atomic_file.h"
-#include "util/memory.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -42,217 +40,21 @@ void installInterruptHandler() {
   sigaction(SIGINT, &sa, nullptr);
 }
 
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
-// What a value checked after the command line was applied came from, for its error.
-std::string configSource(const cxxopts::ParseResult& args) {
-  return args.count("config") ? args["config"].as<std::string>() + " + command line" : "command line";
-}
-
-// The config file's recipe (or the compiled-in defaults, identical to configs/default.json),
-// with the command-line options on top.
-TrainConfig buildTrainConfig(TrainConfig c, const cxxopts::ParseResult& args, const std::string& output,
-                             const std::string& program) {
-  // Threads: --threads (capped, with its warning, by applyCommonOptions) over the config file's
-  // training.threads, which is capped by the same rule.
-  if (args.count("threads"))
-    c.threads = args["threads"].as<int>() > 0 ? threadCount() : 0;
-  else if (c.threads > 0)
-    c.threads = cappedThreads(c.threads, program, "training.threads in " + args["config"].as<std::string>() + ":");
-  if (args.count("holdout")) {
-    c.holdoutFraction = args["holdout"].as<double>();
-    if (!(c.holdoutFraction >= 0 && c.holdoutFraction < 1))
-      throw Error("--holdout must be a fraction in [0, 1), got " + number(c.holdoutFraction));
-  }
-  if (args.count("epochs")) {
-    c.epochs = args["epochs"].as<int>();
-    if (c.epochs < 1) throw Error("--epochs must be >= 1, got " + std::to_string(c.epochs));
-    c.minSteps = c.minStepsPerInput = c.maxSteps = 0;  // epochs given explicitly: exactly that many, no step bounds
-  }
-  if (args.count("time-budget")) {
-    c.timeBudgetSeconds = args["time-budget"].as<double>();
-    if (!(c.timeBudgetSeconds > 0 && std::isfinite(c.timeBudgetSeconds)))
-      throw Error("--time-budget must be a positive number of seconds, got " + number(c.timeBudgetSeconds));
-    if (!args.count("epochs")) c.epochs = 0;  // a budget alone: train until it is spent
-  }
-  if (args.count("seed")) {
-    long long seed = args["seed"].as<long long>();
-    if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
-    c.seed = static_cast<std::uint64_t>(seed);
-  }
-  if (args.count("resume")) c.resume = true;
-  if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
-  validateTrainConfig(c, configSource(args));
-  return c;
-}
-
-// --method: "clustered" (default; k from --clusters), "per-texel" (= --clusters 0) or "pca".
-// Options that only mean something to another method are errors, not silently ignored.
-void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
-  const std::string method = args["method"].as<std::string>();
-  if (method == "pca") {
-    for (const char* neural : {"clusters", "config", "epochs", "time-budget", "resume", "save-encoder"})
-      if (args.count(neural))
-        throw Error(std::string("--") + neural + " applies to the neural methods only, not to --method pca");
-    if (!args.count("components"))
-      throw Error("--method pca needs --components C (the number of principal components kept, >= 1)");
-    o.pcaBaseline = true;
-    if (o.pcaComponents < 1)
-      throw Error("--components must be >= 1 with --method pca (the number of principal components kept), got " +
-                  std::to_string(o.pcaComponents));
-  } else if (method == "per-texel") {
-    if (args.count("clusters") && o.clusters != 0)
-      throw Error("--method per-texel has one latent per texel; it takes no --clusters (got " +
-                  std::to_string(o.clusters) + ")");
-    o.clusters = 0;
-  } else if (method == "clustered") {
-    if (args.count("method") && o.clusters == 0)
-      throw Error("--method clustered needs --clusters k >= 1 (for one latent per texel use --method per-texel)");
-  } else {
-    throw Error("unknown --method '" + method + "' (expected clustered, per-texel or pca)");
-  }
-}
-
-// --adaptive and its targets over the config file's "adaptive" object (`a`); the targets
-// without adaptive clusters are errors.
-void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, CompressOptions& o) {
-  if (args.count("adaptive")) a.enabled = true;
-  for (const char* key : {"target-rmse", "max-clusters", "size-budget", "stages", "initial-clusters"})
-    if (args.count(key) && !a.enabled)
-      throw Error(std::string("--") + key + " needs --adaptive (or \"adaptive\": {\"enabled\": true} in the config)");
-  if (!a.enabled) return;
-  const std::string given = args.count("adaptive") ? "--adaptive" : "adaptive.enabled in the config";
-  if (o.pcaBaseline || o.clusters == 0) throw Error(given + " needs the clustered method (--clusters > 0)");
-  // On the command line 0 is not a target: the options take positive values.
-  if (args.count("target-rmse")) {
-    a.targetRmse = args["target-rmse"].as<double>();
-    if (!(a.targetRmse > 0 && std::isfinite(a.targetRmse)))
-      throw Error("--target-rmse must be a positive number, got " + number(a.targetRmse));
-  }
-  if (args.count("max-clusters")) {
-    a.maxClusters = args["max-clusters"].as<int>();
-    if (a.maxClusters < 1) throw Error("--max-clusters must be >= 1, got " + std::to_string(a.maxClusters));
-  }
-  if (args.count("size-budget")) {
-    const long long bytes = args["size-budget"].as<long long>();
-    if (bytes < 1) throw Error("--size-budget must be a positive number of bytes, got " + std::to_string(bytes));
-    a.sizeBudget = static_cast<std::uint64_t>(bytes);
-  }
-  if (args.count("stages")) a.stages = args["stages"].as<int>();
-  if (args.count("initial-clusters")) {
-    a.initialClusters = args["initial-clusters"].as<int>();
-    if (a.initialClusters < 1)
-      throw Error("--initial-clusters must be >= 1, got " + std::to_string(a.initialClusters));
-  }
-  validateAdaptiveOptions(a, configSource(args));
-  o.adaptive = a;
-}
-
 }  // namespace
 
 int compressMain(int argc, char** argv) {
   return runGuarded("compress", [&] {
     cxxopts::Options options("nbtf compress", "Compress a BTF image stack into a .nbtf file");
     options.positional_help("<input> -o <out.nbtf>");
-    options.add_options()("input", "BTF stack folder (UBO2003 or UTIA layout) or UBO2014 .btf file", cxxopts::value<std::string>())(
-        "o,output", "Output .nbtf file", cxxopts::value<std::string>())(
-        "method",
-        "clustered (the paper's clustered neural BTF), per-texel (neural, one latent per texel; = --clusters 0) or "
-        "pca (the classic PCA baseline: --components C principal components, no training)",
-        cxxopts::value<std::string>()->default_value("clustered"))(
-        "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
-        cxxopts::value<int>()->default_value("500"))(
-        "config",
-        "Config JSON: the training recipe and the adaptive clusters; a file, or the name of a config of configs/, "
-        "compiled in (" + builtInConfigList() + ") (default: identical to configs/default.json)",
-        cxxopts::value<std::string>())(
-        "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
-        "epochs", "Training epochs (overrides the config)", cxxopts::value<int>())(
-        "time-budget", "Training time budget in seconds (alone: train until it is spent)",
-        cxxopts::value<double>())("seed", "Random seed (clustering and training)", cxxopts::value<long long>())(
-        "stats-json", "Also write the summary as JSON to this file", cxxopts::value<std::string>())(
-        "save-encoder", "Also write this .nbtf file with the encoder inside (for fine-tuning)",
-        cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
-        "components",
-        "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
-        cxxopts::value<int>()->default_value("0"))(
-        "world-size", "Data-parallel training over this many processes (docs/model.md; same command on every rank)",
-        cxxopts::value<int>()->default_value("1"))(
-        "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
-        cxxopts::value<int>()->default_value("0"))(
-        "master", "HOST:PORT of rank 0's rendezvous (with --world-size > 1; rank 0 listens on that address only)",
-        cxxopts::value<std::string>())(
-        "dist-timeout", "Seconds the rendezvous and every collective may wait for the other ranks",
-        cxxopts::value<double>()->default_value("120"))(
-        "dist-secret",
-        "Shared secret every rank presents at the rendezvous (default: NBTF_DIST_SECRET, which keeps it out of the "
-        "process list; rank 0 generates and prints one when neither is set)",
-        cxxopts::value<std::string>())(
-        "adaptive",
-        "Adaptive clusters: train in stages, splitting the clusters with the largest share of the error and "
-        "merging near-duplicates between stages (training steps as for fixed k = --clusters)")(
-        "target-rmse", "--adaptive: stop adding clusters once a stage's training RMSE is at most R",
-        cxxopts::value<double>())("max-clusters", "--adaptive: at most K clusters", cxxopts::value<int>())(
-        "size-budget", "--adaptive: the written file is at most BYTES bytes", cxxopts::value<long long>())(
-        "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
-        "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
-        cxxopts::value<int>())(
-        "memory-limit",
-        "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
-        "physical memory)",
-        cxxopts::value<std::string>());
-    addStackOptions(options);
+    addCompressOptions(options);
     cxxopts::ParseResult args;
     if (!parseCommand(options, "input", argc, argv, args)) return 0;
-    if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
-    if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
-    const std::string input = args["input"].as<std::string>();
-    const std::string output = args["output"].as<std::string>();
-
-    const std::string configPath = args.count("config") ? args["config"].as<std::string>() : "";
-    const CompressConfig config = configPath.empty() ? CompressConfig{} : loadCompressConfig(configPath);
-    CompressOptions o;
-    o.train = buildTrainConfig(config.train, args, output, options.program());
-    if (isBuiltInConfig(configPath)) o.train.builtInConfig = configPath;
-    if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
-    o.clusters = args["clusters"].as<int>();
-    if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
-    o.pcaComponents = args["components"].as<int>();
-    if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
-    applyMethod(args, o);
-    DistributedConfig& dist = o.train.distributed;
-    dist.worldSize = args["world-size"].as<int>();
-    dist.rank = args["rank"].as<int>();
-    dist.timeoutSeconds = args["dist-timeout"].as<double>();
-    if (args.count("master")) dist.master = args["master"].as<std::string>();
-    if (dist.enabled() && !args.count("master")) throw Error("--world-size > 1 needs --master HOST:PORT");
-    if (dist.enabled() && o.pcaBaseline) throw Error("--world-size: the PCA baseline has no training to distribute");
-    validateDistributedConfig(dist);
-    if (args.count("dist-secret")) dist.secret = args["dist-secret"].as<std::string>();
-    completeDistributedSecret(dist);
-    applyAdaptive(args, config.adaptive, o);
-    if (dist.enabled() && o.adaptive.enabled)
-      throw Error("--adaptive cannot be used with --world-size > 1 (its stages restart from checkpoints)");
-    if (auto layout = layoutOption(args)) o.load.layout = *layout;
-    if (auto crop = cropOption(args)) o.load.crop = *crop;
-    if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
-    if (args.count("memory-limit")) {
-      const std::string limit = args["memory-limit"].as<std::string>();
-      o.memoryLimit = parseByteSize(limit, "--memory-limit");
-      o.memoryLimitText = "--memory-limit " + limit;
-    }
-    std::string statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
-    // Before anything is created or read: no output may be an input or another output.
-    refuseOverlappingCompressPaths(input, output, o, o.train.builtInConfig.empty() ? configPath : "",
-                                   {{"--stats-json", statsPath}});
-    // Every command creates the missing folders above its outputs.
-    for (const std::string& out : {output, statsPath, o.saveEncoderPath})
-      if (!out.empty()) createParentFolders(out);
-    if (!statsPath.empty()) checkWritable(statsPath);  // the rest is checked by compressBtf
+    CompressRequest request = compressRequest(args, options.program());
+    prepareCompressOutputs(request);
+    const std::string& output = request.output;
+    const std::string& statsPath = request.statsPath;
+    CompressOptions& o = request.options;
+    const DistributedConfig& dist = o.train.distributed;
     if (o.train.resume) {
       std::error_code ec;
       if (std::filesystem::exists(o.train.checkpointPath, ec))
@@ -264,7 +66,7 @@ int compressMain(int argc, char** argv) {
     o.stopFlag = &gStopRequested;
     installInterruptHandler();
 
-    CompressStats stats = compressBtf(input, output, o);
+    CompressStats stats = compressBtf(request.input, output, o);
     if (stats.interrupted) {
       std::error_code ec;
       if (dist.enabled()) {  // --resume is for one process; rank 0's checkpoint can go on in one

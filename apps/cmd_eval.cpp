@@ -4,15 +4,10 @@
 #include <filesystem>
 
 #include "cli_common.h"
-#include "codec/nbtf_file.h"
-#include "io/source_fingerprint.h"
 #include "commands.h"
-#include "eval/compressed_source.h"
-#include "eval/evaluate.h"
+#include "eval/evaluate_file.h"
 #include "eval/report.h"
 #include "eval/sweep.h"
-#include "io/btf_loader.h"
-#include "io/ground_truth.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
@@ -32,54 +27,6 @@ int runSummarize(const cxxopts::ParseResult& args) {
   std::printf("table           %s\n", files.table.c_str());
   for (const auto& plot : files.plots) std::printf("plot            %s\n", plot.c_str());
   return 0;
-}
-
-std::string rgbText(const std::array<double, 3>& m) {
-  char buf[96];
-  std::snprintf(buf, sizeof buf, "(%.4g, %.4g, %.4g)", m[0], m[1], m[2]);
-  return buf;
-}
-
-// The reference must be the material the file was made from: its per-image means are
-// compared with the file's source fingerprint. Returns the line the report states.
-std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
-                             const std::string& referencePath, bool force) {
-  std::optional<SourceFingerprint> stored = sourceFingerprintOf(btf.metadataJson, file);
-  if (!stored) {
-    std::fprintf(stderr,
-                 "nbtf eval: warning: %s has no source fingerprint (made by an older nbtf): cannot check that '%s' "
-                 "is the material it was made from\n",
-                 file.c_str(), referencePath.c_str());
-    return "not checked: the file has no source fingerprint (made by an older nbtf)";
-  }
-  FingerprintCheck c = checkSourceFingerprint(*stored, reference);
-  char pct[32], pattern[160];
-  std::snprintf(pct, sizeof pct, "%.1f%%", 100 * c.medianDifference);
-  std::snprintf(pattern, sizeof pattern,
-                c.patternDifference >= 0 ? "texel pattern difference %.3f (tolerance 0.1)" : "texel pattern not compared",
-                c.patternDifference);
-  if (c.matches)
-    return std::string("matches the file's source fingerprint (median difference ") + pct + ", " + pattern + ")";
-  std::string what = "reference '" + referencePath + "' is not the material '" + file + "' was made from: ";
-  std::string summary;
-  if (c.medianDifference > 0.1 || c.patternMatches) {
-    const Direction& l = reference.lights()[c.worstImage / reference.numViews()];
-    const Direction& v = reference.views()[c.worstImage % reference.numViews()];
-    what += "per-image mean linear RGB differs by " + std::string(pct) + " (median over " +
-            std::to_string(stored->images.size()) + " images, tolerance 10%); image " + std::to_string(c.worstImage) +
-            " (light " + formatDirection(l) + ", view " + formatDirection(v) + ") has " + rgbText(c.measured) +
-            " in the reference, " + rgbText(c.stored) + " in the source";
-    summary = std::string("per-image mean linear RGB differs by ") + pct + " (median)";
-  } else {
-    // The same kind of material, another piece of it: the means agree, the texels do not.
-    what += std::string("the means agree (median difference ") + pct + ") but the texels do not: " + pattern +
-            "; the RMS difference of the median luminance at " + std::to_string(stored->pattern.size()) +
-            " sampled texels, over the source's spread (another capture of the same kind of material?)";
-    summary = std::string(pattern);
-  }
-  if (!force) throw Error(what + " (--force evaluates anyway)");
-  std::fprintf(stderr, "nbtf eval: warning: %s; evaluating anyway (--force)\n", what.c_str());
-  return "MISMATCH, evaluated anyway (--force): " + summary + " from the file's source";
 }
 
 int runEval(const cxxopts::ParseResult& args) {
@@ -105,32 +52,19 @@ int runEval(const cxxopts::ParseResult& args) {
                            true}},
                          {{"-o", outDir, true}});
   checkFolderCreatable(outDir);
-  RenderSection render;
-  if (args.count("render-compare")) render = loadRenderSection(args["render-compare"].as<std::string>());
-
-  CompressedBtf btf = readNbtf(file);
-  std::uint64_t fileBytes = std::filesystem::file_size(file);
-
-  // The reference, cut the way the file was made unless told otherwise.
-  LoadOptions load;
-  load.progress = options.progress;
-  load.crop = cropOption(args).value_or(btf.crop);
-  load.layout = layoutOption(args).value_or(btf.layout);
-  BtfStack reference = loadBtfStack(referencePath, load);
-  checkReferenceMatches(btf, reference, file, referencePath);
-  const std::string referenceCheck = checkFingerprint(btf, reference, file, referencePath, args.count("force") > 0);
-
-  CompressedReconstruction reconstruction(btf, file);
-  EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
-  inputs.details.push_back({"reference check", referenceCheck});
-  if (!args.count("no-ground-truth")) inputs.groundTruth = groundTruthBeside(referencePath, reference, load.crop);
-  if (inputs.groundTruth) inputs.groundTruthName = (std::filesystem::path(referencePath) / kGroundTruthFolder).string();
-  EvalResult result = evaluate(inputs, options);
-  result.render = std::move(render);
+  EvaluateFileOptions fileOptions;
+  fileOptions.eval = options;
+  fileOptions.crop = cropOption(args);
+  fileOptions.layout = layoutOption(args);
+  fileOptions.force = args.count("force") > 0;
+  fileOptions.groundTruth = !args.count("no-ground-truth");
+  if (args.count("render-compare")) fileOptions.renderCompare = args["render-compare"].as<std::string>();
+  EvaluateFileResult run = evaluateFile(file, referencePath, fileOptions);
+  const EvalResult& result = run.result;
   ReportPaths paths = writeReport(result, outDir);
 
   std::printf("method          %s (%d decoder evaluations per image)\n", result.method.c_str(),
-              reconstruction.evaluationsPerImage());
+              run.evaluationsPerImage);
   std::printf("RMSE            %.5f (linear RGB / alpha, eq. 10), %.3f (sRGB 8-bit codes)\n", result.all.rmse,
               result.all.rmseSrgb8);
   std::printf("PSNR            %.2f dB (linear / alpha, peak 1), %.2f dB (sRGB 8-bit, peak 255)\n", result.all.psnr,

@@ -6,6 +6,7 @@
 #include "cli_common.h"
 #include "codec/nbtf_describe.h"
 #include "codec/nbtf_file.h"
+#include "codec/nbtf_info.h"
 #include "commands.h"
 #include "io/btf_loader.h"
 #include "io/ubo2014_btf.h"
@@ -194,34 +195,7 @@ int infoNbtf(const std::string& path, const cxxopts::ParseResult& args) {
     std::fputs(describeNbtf(btf, path, bytes.size()).c_str(), stdout);
     return 0;
   }
-  const NbtfSizes sizes = computeSizes(btf, bytes.size());
-  nlohmann::json j;
-  j["kind"] = "nbtf";
-  j["file"] = path;
-  j["format_version"] = std::to_string(btf.formatMajor) + "." + std::to_string(btf.formatMinor);
-  j["method"] = codecMethodName(btf.method);
-  j["width"] = btf.width;
-  j["height"] = btf.height;
-  j["image_size"] = {btf.sourceWidth, btf.sourceHeight};
-  j["crop"] = btf.crop.empty() ? nlohmann::json(nullptr)
-                               : nlohmann::json{btf.crop.x, btf.crop.y, btf.crop.width, btf.crop.height};
-  j["layout"] = layoutName(btf.layout);
-  j["lights"] = btf.lights.size();
-  j["views"] = btf.views.size();
-  j["images"] = btf.numImages();
-  j["clusters"] = btf.numClusters();
-  j["latent_dim"] = btf.latentDim;
-  j["latent_rows"] = btf.latentRows;
-  if (!btf.isPca()) j["direction_inputs"] = directionEncodingName(btf.directionEncoding);
-  j["pca_components"] = btf.pcaComponents();
-  j["alpha"] = btf.alpha;
-  j["holdout_images"] = btf.holdoutImages.size();
-  j["bytes"] = {{"decoder", sizes.decoder}, {"latents", sizes.latents}, {"ids", sizes.ids},
-                {"total", sizes.total},     {"raw_float32", sizes.rawFloat32}, {"file", sizes.fileBytes}};
-  j["ratio"] = sizes.ratio;
-  nlohmann::json meta = nlohmann::json::parse(btf.metadataJson, nullptr, /*allow_exceptions=*/false);
-  j["metadata"] = meta.is_discarded() ? nlohmann::json(nullptr) : meta;
-  std::printf("%s\n", j.dump(2).c_str());
+  std::printf("%s\n", nbtfInfoJson(btf, path, bytes.size()).c_str());
   return 0;
 }
 

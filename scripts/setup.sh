@@ -15,6 +15,8 @@ PACKAGES=(
   libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
   libgloo-dev             # headers of libtorch's distributed backend (c10d Gloo): data-parallel training
   libgoogle-glog-dev      # libtorch's logging, initialized quietly by nbtf (src/model/torch_logging.cpp)
+  pybind11-dev python3-dev python3-numpy  # the Python module `nbtf` (python/, docs/python.md)
+  python3-pytest          # its tests (tests/python, run by ctest)
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do

@@ -2,7 +2,8 @@
 # The installed package works for an outside project: `cmake --install` the build into a
 # fresh prefix, build examples/decode_texel against it with find_package(nbtf) and
 # nbtf::decode alone, check that it links neither torch nor OpenCV nor OpenEXR, and that it
-# decodes committed files to exactly what `nbtf query` prints.
+# decodes committed files to exactly what `nbtf query` prints; and that the installed Python
+# package (where the build has one) imports from the prefix and answers the same.
 #   tests/install_example_test.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1 src=$2
@@ -38,4 +39,22 @@ for file in legacy_v1_0 compact_v1_2; do
   fi
   echo "$file: example and nbtf query agree ($got); image $w x $h"
 done
+# The Python package: installed into site-packages under the prefix.
+python=$(sed -n 's/^NBTF_PYTHON_EXECUTABLE:INTERNAL=//p' "$build/CMakeCache.txt")
+module=$(find "$work/prefix" -name '_nbtf.*.so' | head -n 1)
+if [[ -n "$python" && -n "$module" ]]; then
+  site=$(dirname "$(dirname "$module")")
+  nbtf=$(cd "$src" && pwd)/tests/data/legacy_v1_0.nbtf  # absolute: python runs in $work (not beside a build tree)
+  want=$("$build/bin/nbtf" query "$nbtf" --texel 5,3 --light 30,60 --view 45,180)
+  got=$(cd "$work" && PYTHONPATH="$site" "$python" -c '
+import sys, nbtf
+print(nbtf.__file__)
+print(" ".join("%.9g" % v for v in nbtf.open(sys.argv[1]).query(texel=(5, 3), light=(30, 60), view=(45, 180))))' "$nbtf")
+  if [[ "$(sed -n 1p <<< "$got")" != "$site"/nbtf/__init__.py || "$(sed -n 2p <<< "$got")" != "$want" ]]; then
+    echo "FAIL: the installed Python package printed '$got', nbtf query '$want' (expected from $site)" >&2
+    status=1
+  else
+    echo "python: the installed package ($site) and nbtf query agree"
+  fi
+fi
 exit $status

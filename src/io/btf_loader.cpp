@@ -1,6 +1,7 @@
 #include "io/btf_loader.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -57,7 +58,7 @@ std::string describe(const Direction& d) {
 
 StackListing listBtfStack(const std::string& path, Layout forced) {
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw fileError(path, "no such file or folder");
+  if (!fs::exists(path, ec)) throw fileAccessError(path, "no such file or folder", ENOENT);
   if (looksLikeUbo2014(path)) {
     if (forced != Layout::Unknown && forced != Layout::Ubo2014)
       throw fileError(path, "is a UBO2014 .btf file: --layout " + layoutName(forced) +
@@ -71,7 +72,7 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
     return listing;
   }
   if (!fs::is_directory(path, ec))
-    throw fileError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)");
+    throw fileAccessError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)", ENOTDIR);
   if (forced == Layout::Ubo2014) forced = Layout::Unknown;  // a folder's layout is detected from its names
   refuseInterruptedOutput(path);
 
@@ -80,7 +81,7 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
   std::size_t otherFiles = 0;
   std::vector<fs::path> entries;
   for (const auto& e : fs::directory_iterator(path, ec)) entries.push_back(e.path());
-  if (ec) throw fileError(path, "cannot list folder: " + ec.message());
+  if (ec) throw fileAccessError(path, "cannot list folder: " + ec.message(), ec.value());
   std::sort(entries.begin(), entries.end());
   for (const auto& p : entries) {
     if (fs::is_directory(p, ec)) {

@@ -65,7 +65,7 @@ std::string linkTarget(const std::string& path) {
 
 void writeStream(const std::string& path, const void* data, std::size_t size) {
   int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
-  if (fd < 0) throw fileError(path, std::string("cannot open for writing: ") + std::strerror(errno));
+  if (fd < 0) throw fileAccessError(path, std::string("cannot open for writing: ") + std::strerror(errno), errno);
   const char* p = static_cast<const char*>(data);
   while (size > 0) {
     ssize_t n = ::write(fd, p, size);
@@ -73,7 +73,7 @@ void writeStream(const std::string& path, const void* data, std::size_t size) {
     if (n <= 0) {
       int err = errno;
       ::close(fd);
-      throw fileError(path, std::string("write failed: ") + std::strerror(err));
+      throw fileAccessError(path, std::string("write failed: ") + std::strerror(err), err);
     }
     p += n, size -= static_cast<std::size_t>(n);
   }
@@ -87,7 +87,7 @@ void writeFileAtomic(const std::string& requested, const void* data, std::size_t
   const std::string path = linkTarget(requested);
   std::string tmp = temporaryPathFor(path);
   FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw fileError(path, std::string("cannot create file: ") + std::strerror(errno));
+  if (!f) throw fileAccessError(path, std::string("cannot create file: ") + std::strerror(errno), errno);
   bool ok = std::fwrite(data, 1, size, f) == size;
   int err = errno;
   ok = (std::fflush(f) == 0) && ok;
@@ -95,7 +95,7 @@ void writeFileAtomic(const std::string& requested, const void* data, std::size_t
   ok = (std::fclose(f) == 0) && ok;
   if (!ok) {
     std::remove(tmp.c_str());
-    throw fileError(path, std::string("write failed (disk full?): ") + std::strerror(err));
+    throw fileAccessError(path, std::string("write failed (disk full?): ") + std::strerror(err), err);
   }
   syncAndRename(tmp, path);
 }
@@ -130,22 +130,25 @@ void writeAtomicVia(const std::string& requested, const std::function<void(const
 }
 
 std::vector<std::uint8_t> readFileBytes(const std::string& path) {
+  std::error_code ec;
+  // A folder opens as a stream on Linux and reports an absurd size: name it instead.
+  if (fs::is_directory(path, ec)) throw fileAccessError(path, "is a folder, expected a file", EISDIR);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw fileError(path, std::string("cannot open file: ") + std::strerror(errno));
+  if (!in) throw fileAccessError(path, std::string("cannot open file: ") + std::strerror(errno), errno);
   in.seekg(0, std::ios::end);
   std::streamoff size = in.tellg();
   if (size < 0) throw fileError(path, "cannot determine file size");
   in.seekg(0);
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
   if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size))
-    throw fileError(path, "read failed");
+    throw fileAccessError(path, "read failed", EIO);
   return bytes;
 }
 
 void checkWritable(const std::string& requested) {
   if (isStreamOutput(requested)) {  // written in place: it must exist and take writes
     if (::access(requested.c_str(), W_OK) != 0)
-      throw fileError(requested, std::string("cannot write to it: ") + std::strerror(errno));
+      throw fileAccessError(requested, std::string("cannot write to it: ") + std::strerror(errno), errno);
     return;
   }
   const std::string path = linkTarget(requested);
@@ -153,21 +156,24 @@ void checkWritable(const std::string& requested) {
   fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
-    throw fileError(path, "'" + dir.string() + "' is a file, not a folder");
-  if (!fs::is_directory(dir, ec)) throw fileError(path, "output folder '" + dir.string() + "' does not exist");
+    throw fileAccessError(path, "'" + dir.string() + "' is a file, not a folder", ENOTDIR);
+  if (!fs::is_directory(dir, ec))
+    throw fileAccessError(path, "output folder '" + dir.string() + "' does not exist", ENOENT);
   if (::access(dir.c_str(), W_OK) != 0)
-    throw fileError(path, "output folder '" + dir.string() + "' is not writable");
-  if (fs::is_directory(p, ec)) throw fileError(path, "output path is a folder, expected a file name");
+    throw fileAccessError(path, "output folder '" + dir.string() + "' is not writable", EACCES);
+  if (fs::is_directory(p, ec))
+    throw fileAccessError(path, "output path is a folder, expected a file name", EISDIR);
   // A real probe: create and remove a small file (catches read-only mounts, full disks).
   std::string probe = temporaryPathFor(path);
   FILE* f = std::fopen(probe.c_str(), "wb");
-  if (!f) throw fileError(path, std::string("cannot create files in output folder: ") + std::strerror(errno));
+  if (!f)
+    throw fileAccessError(path, std::string("cannot create files in output folder: ") + std::strerror(errno), errno);
   char buf[4096] = {};
   bool ok = std::fwrite(buf, 1, sizeof buf, f) == sizeof buf && std::fflush(f) == 0;
   int err = errno;
   std::fclose(f);
   std::remove(probe.c_str());
-  if (!ok) throw fileError(path, std::string("cannot write to output folder: ") + std::strerror(err));
+  if (!ok) throw fileAccessError(path, std::string("cannot write to output folder: ") + std::strerror(err), err);
 }
 
 void createParentFolders(const std::string& path) {
@@ -179,12 +185,14 @@ void createParentFolders(const std::string& path) {
   for (fs::path p = dir; !p.empty() && p != p.parent_path(); p = p.parent_path())
     if (fs::exists(p, ec)) {
       if (!fs::is_directory(p, ec))
-        throw fileError(path, "cannot create the folder '" + dir.string() + "': '" + p.string() +
-                                  "' is a file, not a folder");
+        throw fileAccessError(path,
+                              "cannot create the folder '" + dir.string() + "': '" + p.string() +
+                                  "' is a file, not a folder",
+                              ENOTDIR);
       break;
     }
   fs::create_directories(dir, ec);
-  if (ec) throw fileError(path, "cannot create the folder '" + dir.string() + "': " + ec.message());
+  if (ec) throw fileAccessError(path, "cannot create the folder '" + dir.string() + "': " + ec.message(), ec.value());
 }
 
 }  // namespace nbtf

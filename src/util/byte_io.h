@@ -4,6 +4,7 @@
 // naming the file, what is being read, the field and the file offset. A declared count is
 // checked against the bytes left before anything is allocated for it.
 #pragma once
+#include <cerrno>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -68,11 +69,11 @@ class ByteReader {
   // one that cannot be opened or sized).
   static ByteReader openFile(const std::string& path, std::string what) {
     std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw fileError(path, "no such file");
+    if (!std::filesystem::exists(path, ec)) throw fileAccessError(path, "no such file", ENOENT);
     auto in = std::make_unique<std::ifstream>(path, std::ios::binary);
-    if (!*in) throw fileError(path, "cannot open for reading");
+    if (!*in) throw fileAccessError(path, "cannot open for reading", errno);
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
-    if (ec) throw fileError(path, "cannot read the file size: " + ec.message());
+    if (ec) throw fileAccessError(path, "cannot read the file size: " + ec.message(), ec.value());
     ByteReader r(nullptr, static_cast<std::size_t>(size), path, std::move(what));
     r.stream_ = std::move(in);
     return r;

@@ -16,6 +16,26 @@ inline Error fileError(const std::string& path, const std::string& message) {
   return Error(path + ": " + message);
 }
 
+// A file or folder that cannot be reached, read or written (missing, not a folder, no
+// permission, disk full), as opposed to one whose contents are wrong (a plain Error). The
+// command line prints both alike; the Python module raises OSError for this one and
+// ValueError for the others. `errnum` is the errno value that says why (0 = none fits).
+class FileAccessError : public Error {
+ public:
+  FileAccessError(const std::string& path, const std::string& message, int errnum)
+      : Error(path + ": " + message), path_(path), errnum_(errnum) {}
+  const std::string& path() const { return path_; }
+  int errnum() const { return errnum_; }
+
+ private:
+  std::string path_;
+  int errnum_;
+};
+
+inline FileAccessError fileAccessError(const std::string& path, const std::string& message, int errnum) {
+  return FileAccessError(path, message, errnum);
+}
+
 // The text of an exception as a user reads it: one line per line of the message, without
 // the stack trace libtorch appends to its c10::Error ("Exception raised from F at FILE:LINE
 // (most recent call first):" and a frame per line). An internal check keeps its place:

@@ -8,10 +8,40 @@
 namespace nbtf {
 namespace {
 std::atomic<bool> g_quiet{false};
+std::mutex g_listenerMutex;
+std::shared_ptr<const Progress::Listener> g_listener;  // under g_listenerMutex
+std::atomic<bool> g_hasListener{false};                 // g_listener is set (checked without the lock)
+
+std::shared_ptr<const Progress::Listener> currentListener() {
+  std::lock_guard<std::mutex> lock(g_listenerMutex);
+  return g_listener;
 }
+}  // namespace
 
 void Progress::setQuiet(bool quiet) { g_quiet = quiet; }
 bool Progress::quiet() { return g_quiet; }
+
+void Progress::setListener(Listener listener) {
+  std::lock_guard<std::mutex> lock(g_listenerMutex);
+  g_listener = listener ? std::make_shared<const Listener>(std::move(listener)) : nullptr;
+  g_hasListener = g_listener != nullptr;
+}
+
+// Called with mutex_ held.
+bool Progress::notify(bool final) {
+  if (!g_hasListener) return false;
+  std::shared_ptr<const Listener> listener = currentListener();
+  if (!listener) return false;
+  Update u;
+  u.label = label_;
+  u.done = done_.load();
+  u.total = total_.load();
+  u.seconds = elapsedSeconds();
+  u.status = status_;
+  u.final = final;
+  (*listener)(u);
+  return true;
+}
 
 Progress::Progress(std::string label, std::size_t total, bool enabled)
     : label_(std::move(label)),
@@ -29,10 +59,15 @@ double Progress::elapsedSeconds() const {
 
 void Progress::advance(std::size_t count) {
   done_ += count;
-  if (!enabled_ || !tty_) return;
+  if (!enabled_ || (!tty_ && !g_hasListener)) return;
   auto now = std::chrono::steady_clock::now();
   std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
   if (!lock.owns_lock() || now - lastDraw_ < std::chrono::milliseconds(100)) return;
+  if (notify(false)) {
+    lastDraw_ = now;
+    return;
+  }
+  if (!tty_) return;
   lastDraw_ = now;
   draw(false);
 }
@@ -48,7 +83,7 @@ void Progress::finish() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (finished_) return;
   finished_ = true;
-  if (enabled_) draw(true);
+  if (enabled_ && !notify(true)) draw(true);
 }
 
 void Progress::draw(bool final) {

@@ -5,6 +5,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstddef>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
 
@@ -27,8 +29,23 @@ class Progress {
   static void setQuiet(bool quiet);
   static bool quiet();
 
+  // Progress sent somewhere other than the terminal (the Python module's callback): while a
+  // listener is set, every enabled bar calls it instead of drawing, from whichever thread
+  // advances it, at most ~10 times a second and once when it finishes (final = true). The
+  // listener must not throw. An empty listener restores the terminal.
+  struct Update {
+    std::string label;
+    std::size_t done = 0, total = 0;
+    double seconds = 0;
+    std::string status;
+    bool final = false;
+  };
+  using Listener = std::function<void(const Update&)>;
+  static void setListener(Listener listener);
+
  private:
   void draw(bool final);
+  bool notify(bool final);  // true when a listener took the update
   std::string label_;
   std::atomic<std::size_t> total_;
   std::atomic<std::size_t> done_{0};

@@ -1,0 +1,95 @@
+#include "eval/evaluate_file.h"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "codec/nbtf_file.h"
+#include "eval/compressed_source.h"
+#include "io/btf_loader.h"
+#include "io/ground_truth.h"
+#include "io/source_fingerprint.h"
+#include "util/error.h"
+
+namespace nbtf {
+namespace {
+
+std::string rgbText(const std::array<double, 3>& m) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.4g, %.4g, %.4g)", m[0], m[1], m[2]);
+  return buf;
+}
+
+// The reference must be the material the file was made from: its per-image means are
+// compared with the file's source fingerprint. Returns the line the report states.
+std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
+                             const std::string& referencePath, bool force) {
+  std::optional<SourceFingerprint> stored = sourceFingerprintOf(btf.metadataJson, file);
+  if (!stored) {
+    std::fprintf(stderr,
+                 "nbtf eval: warning: %s has no source fingerprint (made by an older nbtf): cannot check that '%s' "
+                 "is the material it was made from\n",
+                 file.c_str(), referencePath.c_str());
+    return "not checked: the file has no source fingerprint (made by an older nbtf)";
+  }
+  FingerprintCheck c = checkSourceFingerprint(*stored, reference);
+  char pct[32], pattern[160];
+  std::snprintf(pct, sizeof pct, "%.1f%%", 100 * c.medianDifference);
+  std::snprintf(pattern, sizeof pattern,
+                c.patternDifference >= 0 ? "texel pattern difference %.3f (tolerance 0.1)" : "texel pattern not compared",
+                c.patternDifference);
+  if (c.matches)
+    return std::string("matches the file's source fingerprint (median difference ") + pct + ", " + pattern + ")";
+  std::string what = "reference '" + referencePath + "' is not the material '" + file + "' was made from: ";
+  std::string summary;
+  if (c.medianDifference > 0.1 || c.patternMatches) {
+    const Direction& l = reference.lights()[c.worstImage / reference.numViews()];
+    const Direction& v = reference.views()[c.worstImage % reference.numViews()];
+    what += "per-image mean linear RGB differs by " + std::string(pct) + " (median over " +
+            std::to_string(stored->images.size()) + " images, tolerance 10%); image " + std::to_string(c.worstImage) +
+            " (light " + formatDirection(l) + ", view " + formatDirection(v) + ") has " + rgbText(c.measured) +
+            " in the reference, " + rgbText(c.stored) + " in the source";
+    summary = std::string("per-image mean linear RGB differs by ") + pct + " (median)";
+  } else {
+    // The same kind of material, another piece of it: the means agree, the texels do not.
+    what += std::string("the means agree (median difference ") + pct + ") but the texels do not: " + pattern +
+            "; the RMS difference of the median luminance at " + std::to_string(stored->pattern.size()) +
+            " sampled texels, over the source's spread (another capture of the same kind of material?)";
+    summary = std::string(pattern);
+  }
+  if (!force) throw Error(what + " (--force evaluates anyway)");
+  std::fprintf(stderr, "nbtf eval: warning: %s; evaluating anyway (--force)\n", what.c_str());
+  return "MISMATCH, evaluated anyway (--force): " + summary + " from the file's source";
+}
+
+}  // namespace
+
+EvaluateFileResult evaluateFile(const std::string& file, const std::string& referencePath,
+                                const EvaluateFileOptions& options) {
+  RenderSection render;
+  if (!options.renderCompare.empty()) render = loadRenderSection(options.renderCompare);
+
+  CompressedBtf btf = readNbtf(file);
+  std::uint64_t fileBytes = std::filesystem::file_size(file);
+
+  // The reference, cut the way the file was made unless told otherwise.
+  LoadOptions load;
+  load.progress = options.eval.progress;
+  load.crop = options.crop.value_or(btf.crop);
+  load.layout = options.layout.value_or(btf.layout);
+  BtfStack reference = loadBtfStack(referencePath, load);
+  checkReferenceMatches(btf, reference, file, referencePath);
+  const std::string referenceCheck = checkFingerprint(btf, reference, file, referencePath, options.force);
+
+  CompressedReconstruction reconstruction(btf, file);
+  EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);
+  inputs.details.push_back({"reference check", referenceCheck});
+  if (options.groundTruth) inputs.groundTruth = groundTruthBeside(referencePath, reference, load.crop);
+  if (inputs.groundTruth) inputs.groundTruthName = (std::filesystem::path(referencePath) / kGroundTruthFolder).string();
+  EvaluateFileResult out;
+  out.result = evaluate(inputs, options.eval);
+  out.result.render = std::move(render);
+  out.evaluationsPerImage = reconstruction.evaluationsPerImage();
+  return out;
+}
+
+}  // namespace nbtf
