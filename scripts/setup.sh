@@ -15,6 +15,7 @@ PACKAGES=(
   libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
   libgloo-dev             # headers of libtorch's distributed backend (c10d Gloo): data-parallel training
   libgoogle-glog-dev      # libtorch's logging, initialized quietly by nbtf (src/model/torch_logging.cpp)
+  chromium                # headless browser test of the viewer (tests/viewer_browser_test.cpp; WebGL2 on SwiftShader)
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do

@@ -189,6 +189,28 @@ TEST(ViewerPage, EmbedsTheDecoderAndRefusesALargeReference) {
   EXPECT_NE(buildViewerPage(s, m, o).find("\"reference\":{"), std::string::npos);
 }
 
+TEST(ViewerPage, CommandEmbedsTheReferenceStackAtTheFilesCrop) {
+  test::TempDir tmp;
+  const CompressedBtf m = makeShaderPerTexelMaterial();  // 8 x 6 texels cropped at (3, 5) of 18 x 26
+  const std::string file = tmp / "pt.nbtf", stack = tmp / "stack";
+  writeNbtf(file, m);
+  test::writeTestStack(stack, m.lights, m.views, m.sourceWidth, m.sourceHeight, Layout::Utia, ImageFormat::Png);
+  const auto r = test::runNbtf("view " + file + " -o " + tmp / "page.html --reference " + stack + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string page = readText(tmp / "page.html");
+  EXPECT_NE(page.find("\"reference\":{"), std::string::npos);
+  EXPECT_NE(page.find("\"width\":8"), std::string::npos);
+  // The wrong crop: refused, naming both sizes, and no page written.
+  const auto bad = test::runNbtf("view " + file + " -o " + tmp / "bad.html --reference " + stack + " --crop 0,0,4,4 -q");
+  EXPECT_EQ(bad.exitCode, 1) << bad.output;
+  EXPECT_NE(bad.output.find("4 x 4"), std::string::npos) << bad.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "bad.html"));
+  // --crop without --reference is a mistake, said so.
+  const auto stray = test::runNbtf("view " + file + " -o " + tmp / "x.html --crop 0,0,4,4");
+  EXPECT_EQ(stray.exitCode, 1);
+  EXPECT_NE(stray.output.find("--reference"), std::string::npos) << stray.output;
+}
+
 TEST(ViewerPage, Base64) {
   EXPECT_EQ(base64Encode("", 0), "");
   EXPECT_EQ(base64Encode("f", 1), "Zg==");

@@ -212,7 +212,8 @@ function grid(nu, nv, vertexAt) {
   return {v: v, i: i};
 }
 const objects = {
-  plane: () => grid(1, 1, (s, t) => [2 * s - 1, 0, 2 * t - 1, 0, 1, 0, 1, 0, 0, s, t]),
+  // As nbtf render's plane: u along +x, v along -z (so the local y = n x tangent = -z grows with v).
+  plane: () => grid(1, 1, (s, t) => [2 * s - 1, 0, 2 * t - 1, 0, 1, 0, 1, 0, 0, s, 1 - t]),
   sphere: () => grid(128, 64, (s, t) => {
     const phi = 2 * Math.PI * s, theta = Math.PI * t;
     const n = [Math.sin(theta) * Math.cos(phi), Math.cos(theta), Math.sin(theta) * Math.sin(phi)];
