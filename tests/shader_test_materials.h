@@ -8,12 +8,13 @@
 
 namespace nbtf::testing {
 
-// Clustered, two-octave Fourier inputs, direction planes, 2 modulation terms per channel.
+// Clustered, two-octave Fourier inputs, direction planes, 2 modulation terms per channel; the
+// default's hidden width (106), so the weights fill more than one row of their texture.
 inline CompressedBtf makeShaderClusteredMaterial() {
-  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 9, 7, 11, DirectionEncoding::StereographicFourier2, 3);
+  CompressedBtf b = makeDecoderMaterial(5, {106, 106}, 9, 7, 11, DirectionEncoding::StereographicFourier2, 3);
   const int terms = 2, channels = 3;
   std::mt19937 rng(3);
-  std::normal_distribution<float> normal(0.f, 0.05f);
+  std::normal_distribution<float> normal(0.f, 0.02f);
   DenseLayer& last = b.decoder.layers.back();
   last.out = 3 * terms;
   last.weight.resize(static_cast<std::size_t>(last.in) * last.out);
