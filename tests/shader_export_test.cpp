@@ -142,6 +142,10 @@ TEST(ShaderExport, WhatTheShaderCannotExpressIsRefusedAndNothingIsWritten) {
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("decoder layer 0"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(tmp / "out"));
+  const auto page = test::runNbtf("view " + file + " -o " + tmp / "wide.html");
+  EXPECT_EQ(page.exitCode, 1) << page.output;
+  EXPECT_NE(page.output.find("wider than the 256"), std::string::npos) << page.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "wide.html"));
   // A folder that is not an earlier export is never replaced.
   std::filesystem::create_directories(tmp / "mine");
   std::ofstream(tmp / "mine/notes.txt") << "keep";
