@@ -401,8 +401,11 @@ function interactive() {
     const x = 2 * (e.clientX - r.left) / r.width - 1, y = 1 - 2 * (e.clientY - r.top) / r.height;
     const rr = Math.min(1, Math.hypot(x, y));
     state.lightTheta = 88 * rr;
-    // The mouse's direction on the screen, turned with the camera's azimuth.
-    state.lightPhi = (Math.atan2(-y, x) * 180 / Math.PI + 90 - state.azimuth + 720) % 360;
+    // The mouse seen from above: right on the screen is the camera's right, up is away from
+    // the camera (azimuth a: the eye towards (sin a, cos a) in x, z).
+    const a = state.azimuth * Math.PI / 180;
+    const wx = x * Math.cos(a) - y * Math.sin(a), wz = -x * Math.sin(a) - y * Math.cos(a);
+    state.lightPhi = (Math.atan2(wz, wx) * 180 / Math.PI + 360) % 360;
     redraw();
   };
   canvas.addEventListener('mousedown', (e) => { drag = {x: e.clientX, y: e.clientY, shift: e.shiftKey}; e.preventDefault(); });
