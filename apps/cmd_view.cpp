@@ -63,7 +63,9 @@ int viewMain(int argc, char** argv) {
         "reference", "Original image stack: show the measured image at the nearest measured pair beside (at most " +
                          std::to_string(kMaxViewerReferenceBytes >> 20) + " MiB of 8-bit images)",
         cxxopts::value<std::string>())("title", "Title shown in the page (default: the file name)",
-                                       cxxopts::value<std::string>());
+                                       cxxopts::value<std::string>())(
+        "weights", "Where the decoder's weights live: auto (uniform blocks when they fit 12 of 16 KiB), texture, "
+                   "uniform-blocks", cxxopts::value<std::string>()->default_value("auto"));
     addStackOptions(options);
     cxxopts::ParseResult args;
     if (!parseCommand(options, "file", argc, argv, args)) return 0;
@@ -74,7 +76,8 @@ int viewMain(int argc, char** argv) {
     const std::string path = args["file"].as<std::string>(), output = args["output"].as<std::string>();
     checkWritable(output);
     const CompressedBtf material = readNbtf(path);
-    const ShaderDecoder shader = buildShaderDecoder(material, path);
+    const ShaderDecoder shader =
+        buildShaderDecoder(material, path, parseShaderWeights(args["weights"].as<std::string>()));
     ViewerOptions o;
     if (args.count("title")) o.title = args["title"].as<std::string>();
     ViewerReference reference;

@@ -3,13 +3,14 @@
 # Chromium (WebGL2 on SwiftShader, the software rasterizer) renders the plane's default view at
 # SIZE x SIZE (default 1024) a few times; the page reports the median frame time and the pixels
 # the material covers. Beside it: the shader's work per pixel, counted from the decoder's
-# description (`nbtf export-shader`'s manifest: multiply-adds, other operations, texture
-# fetches), an estimate for a named GPU from its throughput (docs/shader.md), and the CPU
+# description (`nbtf export-shader`'s manifest: multiply-adds, other operations, uniform loads,
+# texture fetches), an estimate for a named GPU from its throughput (docs/shader.md), and the CPU
 # cross-check: `nbtf render` of the same view (same camera, light, one sample per pixel, no
 # environment term) with all cores.
 # Material: a compressed 100 x 100 synthetic fabric (k = 500, 60 s training budget; cached),
 # or --file F.nbtf. --quick: a 32 x 32 material trained for 2 epochs, 256 x 256, 1 frame.
-# Options: --size N, --frames F (default 3), --file F.nbtf, --quick.
+# Options: --size N, --frames F (default 3), --file F.nbtf, --quick, --weights W (auto, texture,
+# uniform-blocks: where the page keeps the decoder's weights).
 # SwiftShader's frame times say nothing about a GPU; the operation count is the portable figure.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
@@ -17,12 +18,14 @@ size=1024
 frames=3
 file=
 quick=
+weights=auto
 while [[ $# -gt 0 ]]; do
   case $1 in
     --size) size=$2; shift 2 ;;
     --frames) frames=$2; shift 2 ;;
     --file) file=$2; shift 2 ;;
     --quick) quick=1; size=256; frames=1; shift ;;
+    --weights) weights=$2; shift 2 ;;
     *) echo "bench_shader.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -53,8 +56,8 @@ if [[ -z "$file" ]]; then
   fi
 fi
 echo "== material $file"
-"$nbtf" export-shader "$file" -o "$work/export" -q
-"$nbtf" view "$file" -o "$work/viewer.html" -q
+"$nbtf" export-shader "$file" -o "$work/export" --weights "$weights" -q
+"$nbtf" view "$file" -o "$work/viewer.html" --weights "$weights" -q
 echo "== chromium (SwiftShader): #bench=$size,$frames"
 profile=$(mktemp -d)
 trap 'rm -rf "$profile"' EXIT
@@ -84,6 +87,7 @@ cost = manifest["cost_per_pixel"]
 n, ms, covered = page["size"], page["frame_ms"], page["material_pixels"]
 print(f"shader per pixel: {cost['operations']:.0f} operations ({cost['multiply_adds']:.0f} multiply-adds, "
       f"{cost['other_ops']:.0f} other, {cost['transcendentals']:.0f} transcendental), "
+      f"{cost['uniform_loads']:.0f} uniform loads (weights: {manifest['weights']}), "
       f"{cost['texture_fetches']:.0f} texture fetches")
 print(f"SwiftShader: {ms:.1f} ms per {n} x {n} frame (median of {len(page['frames_ms'])}; "
       f"{covered} pixels of material, {1e6 * ms / max(covered, 1) / 1e3:.2f} us per decoded pixel)")
@@ -91,8 +95,8 @@ print(f"CPU nbtf render, same view: {cpu['seconds'] * 1e3:.1f} ms ({cpu['materia
       f"light and environment per pixel, even at --env 0; {1e6 * cpu['seconds'] / max(cpu['material_queries'], 1):.3f} us each)")
 # A named GPU from its throughput (docs/shader.md): NVIDIA GeForce RTX 4090, 82.6 TFLOP/s FP32
 # (41.3 T FMA instructions/s), 1290 GTexel/s bilinear (RGBA32F texels at a quarter of that).
-alu = covered * cost["operations"] / 41.3e12
+alu = covered * (cost["operations"] + cost["uniform_loads"]) / 41.3e12
 tex = covered * cost["texture_fetches"] / (1290e9 / 4)
 print(f"estimate, RTX 4090: {1e3 * max(alu, tex):.2f} ms per frame "
-      f"(arithmetic {1e3 * alu:.2f} ms, RGBA32F fetches {1e3 * tex:.2f} ms; the larger bounds it)")
+      f"(arithmetic and uniform loads {1e3 * alu:.2f} ms, RGBA32F fetches {1e3 * tex:.2f} ms; the larger bounds it)")
 PY

@@ -32,7 +32,9 @@ const ShaderTexture* findTexture(const ShaderDecoder& s, const std::string& unif
 
 TEST(ShaderExport, ClusteredDescriptionFollowsTheFile) {
   const CompressedBtf m = makeShaderClusteredMaterial();
-  const ShaderDecoder s = buildShaderDecoder(m, "dir/cl.nbtf");
+  const ShaderDecoder s = buildShaderDecoder(m, "dir/cl.nbtf", ShaderWeights::Texture);
+  EXPECT_FALSE(s.description.weightsInUniformBlocks);
+  EXPECT_TRUE(s.uniformBlocks.empty());
   const ShaderDecoderDescription& d = s.description;
   EXPECT_EQ(d.method, CodecMethod::ClusteredNeural);
   EXPECT_TRUE(d.idMap);
@@ -55,18 +57,65 @@ TEST(ShaderExport, ClusteredDescriptionFollowsTheFile) {
     EXPECT_NE(s.glsl.find("uniform highp sampler2D " + std::string(name) + ";"), std::string::npos) << name;
   }
   EXPECT_NE(s.glsl.find("vec3 nbtf_decode(vec2 uv, vec3 light, vec3 view)"), std::string::npos);
-  // The weights: layer 0's first output row, then (after the padded rows) its biases.
+  // The weights: layer 0's first group of 4 output rows (each padded to whole vec4s), then the
+  // group's 4 biases; the groups one after the other.
   const ShaderTexture& w = *findTexture(s, "nbtf_weights");
-  EXPECT_GT(w.height, 1);  // the browser test then reads weights past the first texture row
+  EXPECT_GT(w.height, 1);
   const DenseLayer& l0 = m.decoder.layers[0];
-  for (int i = 0; i < l0.in; ++i) EXPECT_EQ(w.data[i], l0.weight[i]);
-  for (int o = 0; o < l0.out; ++o) EXPECT_EQ(w.data[4 * d.layers[0].biasOffset + o], l0.bias[o]);
+  const int in4 = d.layers[0].inVec4s();
+  for (int r = 0; r < 4; ++r)
+    for (int i = 0; i < l0.in; ++i) EXPECT_EQ(w.data[r * in4 * 4 + i], l0.weight[r * l0.in + i]);
+  for (int r = 0; r < 4; ++r) EXPECT_EQ(w.data[16 * in4 + r], l0.bias[r]);
+  EXPECT_EQ(w.data[4 * d.layers[0].groupVec4s() + 0], l0.weight[4 * l0.in]);  // group 1, row 4
+  ASSERT_EQ(d.layers[0].segments.size(), 1u);
+  EXPECT_EQ(d.layers[0].segments[0].block, -1);
   // Ids: four texels per RGBA texel, as floats.
   const ShaderTexture& ids = *findTexture(s, "nbtf_ids");
   for (int t = 0; t < m.numTexels(); ++t) EXPECT_EQ(ids.data[t], static_cast<float>(m.ids[t]));
   EXPECT_GT(s.cost.multiplyAdds, 106.0 * (8 + 20 + 9) + 106.0 * 106);
   EXPECT_GT(s.cost.textureFetches, 0);
   EXPECT_GT(s.cost.transcendentals, 0);  // the Fourier inputs' sin and cos
+}
+
+TEST(ShaderExport, WeightsInUniformBlocksWhenTheyFit) {
+  const CompressedBtf m = makeShaderClusteredMaterial();
+  const ShaderDecoder s = buildShaderDecoder(m, "cl.nbtf");  // auto
+  EXPECT_TRUE(s.description.weightsInUniformBlocks);
+  EXPECT_EQ(findTexture(s, "nbtf_weights"), nullptr);
+  ASSERT_GE(s.uniformBlocks.size(), 2u);  // 106-wide layers: more than one block, a layer split across two
+  EXPECT_LE(s.uniformBlocks.size(), static_cast<std::size_t>(kMaxShaderUniformBlocks));
+  std::size_t vec4s = 0;
+  for (const ShaderUniformBlock& b : s.uniformBlocks) {
+    EXPECT_LE(b.vec4s, static_cast<std::size_t>(kShaderUniformBlockVec4s));
+    EXPECT_EQ(b.data.size(), 4 * b.vec4s);
+    EXPECT_NE(s.glsl.find("uniform " + b.block + " { vec4 " + b.array + "[" + std::to_string(b.vec4s) + "]; }"),
+              std::string::npos);
+    vec4s += b.vec4s;
+  }
+  // Every group in exactly one segment; segments in order.
+  std::size_t groupVec4s = 0;
+  for (const ShaderLayer& l : s.description.layers) {
+    int next = 0;
+    for (const ShaderLayerSegment& seg : l.segments) {
+      EXPECT_EQ(seg.firstGroup, next);
+      EXPECT_GE(seg.block, 0);
+      EXPECT_LE(seg.offset + (seg.endGroup - seg.firstGroup) * l.groupVec4s(), kShaderUniformBlockVec4s);
+      next = seg.endGroup;
+    }
+    EXPECT_EQ(next, l.groups());
+    groupVec4s += static_cast<std::size_t>(l.groups()) * l.groupVec4s();
+  }
+  EXPECT_EQ(vec4s, groupVec4s);
+  EXPECT_EQ(s.uniformBlocks[0].data[0], m.decoder.layers[0].weight[0]);
+  EXPECT_EQ(s.cost.textureFetches + s.cost.uniformLoads,
+            buildShaderDecoder(m, "cl.nbtf", ShaderWeights::Texture).cost.textureFetches);
+  // A decoder too large for 12 blocks: textures under auto, an error when blocks are demanded.
+  const CompressedBtf big = testing::makeDecoderMaterial(3, {256, 256, 256});
+  EXPECT_FALSE(buildShaderDecoder(big, "big.nbtf").description.weightsInUniformBlocks);
+  test::expectErrorContaining([&] { buildShaderDecoder(big, "big.nbtf", ShaderWeights::UniformBlocks); },
+                              {"big.nbtf", "uniform blocks", "12"});
+  EXPECT_EQ(parseShaderWeights("uniform-blocks"), ShaderWeights::UniformBlocks);
+  test::expectErrorContaining([] { parseShaderWeights("ubo"); }, {"ubo", "auto, texture or uniform-blocks"});
 }
 
 TEST(ShaderExport, PerTexelAndPcaHaveTheirOwnTextures) {
@@ -103,6 +152,14 @@ TEST(ShaderExport, ExportFolderHoldsWhatTheManifestLists) {
   EXPECT_EQ(manifest["glsl"], "nbtf_decoder.glsl");
   EXPECT_EQ(readText(dir + "/nbtf_decoder.glsl"), s.glsl);
   ASSERT_EQ(manifest["textures"].size(), s.textures.size());
+  ASSERT_EQ(manifest["uniform_blocks"].size(), s.uniformBlocks.size());
+  EXPECT_EQ(manifest["weights"], "uniform-blocks");
+  for (const auto& b : manifest["uniform_blocks"]) {
+    const std::string file = dir + "/" + b["file"].get<std::string>();
+    ASSERT_TRUE(std::filesystem::exists(file)) << file;
+    EXPECT_EQ(std::filesystem::file_size(file), b["vec4s"].get<std::size_t>() * 16);
+    EXPECT_NE(s.glsl.find(b["block"].get<std::string>()), std::string::npos);
+  }
   std::size_t files = 0;
   for (const auto& t : manifest["textures"]) {
     const std::string file = dir + "/" + t["file"].get<std::string>();
@@ -121,14 +178,14 @@ TEST(ShaderExport, ExportFolderHoldsWhatTheManifestLists) {
   // Exactly the listed files plus the GLSL and the manifest; no temporary left beside.
   std::size_t present = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir)) present += e.is_regular_file();
-  EXPECT_EQ(present, files + 2);
+  EXPECT_EQ(present, files + s.uniformBlocks.size() + 2);
   std::size_t siblings = 0;
   for (const auto& e : std::filesystem::directory_iterator(tmp / "out")) siblings += 1, (void)e;
   EXPECT_EQ(siblings, 1u);
   // Exporting again replaces the folder.
   writeShaderExport(buildShaderDecoder(makeShaderPcaMaterial(), "pca.nbtf"), dir);
   EXPECT_EQ(nlohmann::json::parse(readText(dir + "/manifest.json"))["material"]["method"], "pca");
-  EXPECT_FALSE(std::filesystem::exists(dir + "/nbtf_weights.f32"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/NbtfWeights0.f32"));
 }
 
 TEST(ShaderExport, WhatTheShaderCannotExpressIsRefusedAndNothingIsWritten) {
@@ -179,6 +236,7 @@ TEST(ViewerPage, EmbedsTheDecoderAndRefusesALargeReference) {
   EXPECT_EQ(page.find("https://"), std::string::npos);
   EXPECT_EQ(page.find("@NBTF_DATA@"), std::string::npos);
   EXPECT_NE(page.find(base64Encode(s.textures[0].data.data(), 63)), std::string::npos);
+  EXPECT_NE(page.find(base64Encode(s.uniformBlocks[0].data.data(), 63)), std::string::npos);
   ViewerReference big;
   big.name = "stack";
   big.width = 2048, big.height = 1024;

@@ -67,12 +67,13 @@ nlohmann::json runPage(const std::string& chromium, const std::string& page, con
   return nlohmann::json::parse(text);
 }
 
-void checkInBrowser(const std::string& chromium, const CompressedBtf& material, const std::string& label) {
+void checkInBrowser(const std::string& chromium, const CompressedBtf& material, const std::string& label,
+                    const std::string& viewOptions = "") {
   SCOPED_TRACE(label);
   test::TempDir tmp;
   const std::string file = tmp / (label + ".nbtf"), page = tmp / "viewer.html";
   writeNbtf(file, material);
-  const auto made = test::runNbtf("view " + file + " -o " + page + " -q");
+  const auto made = test::runNbtf("view " + file + " -o " + page + " -q " + viewOptions);
   ASSERT_EQ(made.exitCode, 0) << made.output;
   const nlohmann::json r = runPage(chromium, page, tmp / "profile");
   ASSERT_EQ(r.value("status", ""), "ok") << r.dump().substr(0, 4000);
@@ -128,11 +129,11 @@ TEST_F(ViewerBrowser, ClusteredPageMatchesTheDecoder) {
   CompressedBtf m = testing::makeShaderClusteredMaterial();
   m.storage.decoderInt8 = m.storage.latentsHalf = m.storage.idsZstd = true;
   roundToStorage(m);
-  checkInBrowser(chromium_, m, "clustered");
+  checkInBrowser(chromium_, m, "clustered");  // weights in uniform blocks (they fit)
 }
 
 TEST_F(ViewerBrowser, PerTexelPageMatchesTheDecoder) {
-  checkInBrowser(chromium_, testing::makeShaderPerTexelMaterial(), "per-texel");
+  checkInBrowser(chromium_, testing::makeShaderPerTexelMaterial(), "per-texel", "--weights texture");
 }
 
 TEST_F(ViewerBrowser, PcaPageMatchesTheDecoder) {

@@ -180,7 +180,7 @@ std::string planesGlsl(int resolution, int features, int first) {
 
 // ---- The neural decoder -------------------------------------------------------------------
 
-void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
+void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& out) {
   ShaderDecoderDescription& d = out.description;
   const std::string& name = out.name;
   if (!isDirectionEncoding(static_cast<int>(m.directionEncoding)))
@@ -199,9 +199,10 @@ void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
     throw Error(name + ": " + std::to_string(m.latentRows) +
                 " clusters: the shader's id map holds ids as float32 (exact up to 2^24)");
 
-  // Layers: per output row its weights padded to whole vec4s, rows padded to a multiple of 4
-  // (zero rows), then the biases (padded with zeros).
-  std::vector<float> weights;
+  // Layers, in groups of 4 output rows: the rows' weights (each padded to whole vec4s; rows past
+  // `out` are zero), then the group's 4 biases. In the weights texture one after the other; in
+  // uniform blocks packed greedily, a group never split across two blocks.
+  std::vector<std::vector<float>> groups;  // every group's vec4s, layer by layer
   for (std::size_t li = 0; li < m.decoder.layers.size(); ++li) {
     const DenseLayer& l = m.decoder.layers[li];
     const std::string which = "decoder layer " + std::to_string(li);
@@ -212,19 +213,65 @@ void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
     activationGlsl(l.activation, name + ": " + which, "x");  // throws for an activation it has no form of
     ShaderLayer s;
     s.in = l.in, s.out = l.out, s.activation = l.activation;
-    const int in4 = s.inVec4s(), rows = 4 * vec4sOf(l.out);
-    s.weightOffset = static_cast<int>(weights.size() / 4);
-    std::vector<float> block(static_cast<std::size_t>(rows) * in4 * 4, 0.0f);
-    for (int o = 0; o < l.out; ++o)
-      std::copy_n(l.weight.data() + static_cast<std::size_t>(o) * l.in, l.in, block.begin() + static_cast<std::size_t>(o) * in4 * 4);
-    weights.insert(weights.end(), block.begin(), block.end());
-    s.biasOffset = static_cast<int>(weights.size() / 4);
-    std::vector<float> bias(rows, 0.0f);
-    std::copy(l.bias.begin(), l.bias.end(), bias.begin());
-    weights.insert(weights.end(), bias.begin(), bias.end());
+    const int in4 = s.inVec4s();
+    for (int g = 0; g < s.groups(); ++g) {
+      std::vector<float> group(static_cast<std::size_t>(s.groupVec4s()) * 4, 0.0f);
+      for (int r = 0; r < 4 && 4 * g + r < l.out; ++r) {
+        const int o = 4 * g + r;
+        std::copy_n(l.weight.data() + static_cast<std::size_t>(o) * l.in, l.in,
+                    group.begin() + static_cast<std::size_t>(r) * in4 * 4);
+        group[static_cast<std::size_t>(4) * in4 * 4 + r] = l.bias[o];
+      }
+      groups.push_back(std::move(group));
+    }
     d.layers.push_back(s);
   }
-  out.textures.push_back(makeTexture(name, "nbtf_weights", "decoder weights and biases", weights));
+  std::size_t totalVec4s = 0;
+  for (const auto& g : groups) totalVec4s += g.size() / 4;
+  // Blocks the greedy packing needs.
+  int blocksNeeded = 0;
+  {
+    std::size_t used = kShaderUniformBlockVec4s;
+    for (const auto& g : groups) {
+      if (used + g.size() / 4 > static_cast<std::size_t>(kShaderUniformBlockVec4s)) ++blocksNeeded, used = 0;
+      used += g.size() / 4;
+    }
+  }
+  if (weights == ShaderWeights::UniformBlocks && blocksNeeded > kMaxShaderUniformBlocks)
+    throw Error(name + ": the decoder's " + std::to_string(totalVec4s) + " vec4 of weights need " +
+                std::to_string(blocksNeeded) + " uniform blocks of 16 KiB, more than the " +
+                std::to_string(kMaxShaderUniformBlocks) + " a fragment shader is guaranteed; use textures");
+  d.weightsInUniformBlocks = weights == ShaderWeights::UniformBlocks ||
+                             (weights == ShaderWeights::Auto && blocksNeeded <= kMaxShaderUniformBlocks);
+  {
+    std::vector<float> flat;  // the texture, or the block being filled
+    std::size_t g = 0;
+    auto closeBlock = [&] {
+      ShaderUniformBlock b;
+      const int index = static_cast<int>(out.uniformBlocks.size());
+      b.block = "NbtfWeights" + std::to_string(index);
+      b.array = "nbtf_wb" + std::to_string(index);
+      b.file = b.block + ".f32";
+      b.vec4s = flat.size() / 4;
+      b.data = std::move(flat);
+      flat.clear();
+      out.uniformBlocks.push_back(std::move(b));
+    };
+    for (ShaderLayer& layer : d.layers) {
+      for (int k = 0; k < layer.groups(); ++k, ++g) {
+        const std::size_t size = groups[g].size() / 4;
+        if (d.weightsInUniformBlocks && flat.size() / 4 + size > static_cast<std::size_t>(kShaderUniformBlockVec4s))
+          closeBlock();
+        const int block = d.weightsInUniformBlocks ? static_cast<int>(out.uniformBlocks.size()) : -1;
+        if (layer.segments.empty() || layer.segments.back().block != block)
+          layer.segments.push_back({k, k, block, static_cast<int>(flat.size() / 4)});
+        layer.segments.back().endGroup = k + 1;
+        flat.insert(flat.end(), groups[g].begin(), groups[g].end());
+      }
+    }
+    if (d.weightsInUniformBlocks) closeBlock();
+    else out.textures.push_back(makeTexture(name, "nbtf_weights", "decoder weights and biases", flat));
+  }
   const int z4 = vec4sOf(m.latentDim);
   out.textures.push_back(makeTexture(name, "nbtf_latents",
                                      "latents (" + std::to_string(m.latentRows) + " rows x " + std::to_string(z4) + " vec4)",
@@ -251,7 +298,10 @@ void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
 
   // ---- GLSL
   std::ostringstream s;
-  s << fetchHelpers(out.textures) << "\n" << texelFunction(m.width, m.height);
+  s << fetchHelpers(out.textures);
+  for (const ShaderUniformBlock& b : out.uniformBlocks)
+    s << "layout(std140) uniform " << b.block << " { vec4 " << b.array << "[" << b.vec4s << "]; };  // decoder weights\n";
+  s << "\n" << texelFunction(m.width, m.height);
   s << "vec3 nbtf_decode(vec2 uv, vec3 light, vec3 view) {\n"
     << "  int t = nbtf_texel(uv);\n";
   if (d.idMap)
@@ -273,28 +323,34 @@ void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
   }
   s << encodingGlsl(d.encoding, m.latentDim);
   if (d.planeFeatures > 0) s << planesGlsl(d.planeResolution, d.planeFeatures, m.latentDim + d.encodingInputs);
-  // Dense layers: four output rows per step, a vec4 of inputs per fetch.
+  // Dense layers: four output rows per step, a vec4 of inputs per read.
   std::string input = "a";
   for (std::size_t li = 0; li < d.layers.size(); ++li) {
     const ShaderLayer& l = d.layers[li];
     const std::string outName = "h" + std::to_string(li);
-    const int in4 = l.inVec4s(), out4 = vec4sOf(l.out);
+    const int in4 = l.inVec4s();
     s << "  // Layer " << li << ": " << l.in << " -> " << l.out << "\n"
-      << "  vec4 " << outName << "[" << out4 << "];\n"
-      << "  for (int o = 0; o < " << out4 << "; ++o) {\n"
-      << "    int w = " << l.weightOffset << " + o * " << 4 * in4 << ";\n"
-      << "    vec4 s0 = vec4(0.0), s1 = vec4(0.0), s2 = vec4(0.0), s3 = vec4(0.0);\n"
-      << "    for (int j = 0; j < " << in4 << "; ++j) {\n"
-      << "      vec4 x = " << input << "[j];\n"
-      << "      s0 += nbtf_weights_at(w + j) * x;\n"
-      << "      s1 += nbtf_weights_at(w + " << in4 << " + j) * x;\n"
-      << "      s2 += nbtf_weights_at(w + " << 2 * in4 << " + j) * x;\n"
-      << "      s3 += nbtf_weights_at(w + " << 3 * in4 << " + j) * x;\n"
-      << "    }\n"
-      << "    vec4 v = vec4(dot(s0, vec4(1.0)), dot(s1, vec4(1.0)), dot(s2, vec4(1.0)), dot(s3, vec4(1.0)))"
-      << " + nbtf_weights_at(" << l.biasOffset << " + o);\n"
-      << "    " << outName << "[o] = " << activationGlsl(l.activation, name, "v") << ";\n"
-      << "  }\n";
+      << "  vec4 " << outName << "[" << l.groups() << "];\n";
+    for (const ShaderLayerSegment& seg : l.segments) {
+      auto at = [&](const std::string& index) {
+        return seg.block < 0 ? "nbtf_weights_at(" + index + ")"
+                             : out.uniformBlocks[seg.block].array + "[" + index + "]";
+      };
+      s << "  for (int o = " << seg.firstGroup << "; o < " << seg.endGroup << "; ++o) {\n"
+        << "    int w = " << seg.offset << " + (o - " << seg.firstGroup << ") * " << l.groupVec4s() << ";\n"
+        << "    vec4 s0 = vec4(0.0), s1 = vec4(0.0), s2 = vec4(0.0), s3 = vec4(0.0);\n"
+        << "    for (int j = 0; j < " << in4 << "; ++j) {\n"
+        << "      vec4 x = " << input << "[j];\n"
+        << "      s0 += " << at("w + j") << " * x;\n"
+        << "      s1 += " << at("w + " + std::to_string(in4) + " + j") << " * x;\n"
+        << "      s2 += " << at("w + " + std::to_string(2 * in4) + " + j") << " * x;\n"
+        << "      s3 += " << at("w + " + std::to_string(3 * in4) + " + j") << " * x;\n"
+        << "    }\n"
+        << "    vec4 v = vec4(dot(s0, vec4(1.0)), dot(s1, vec4(1.0)), dot(s2, vec4(1.0)), dot(s3, vec4(1.0)))"
+        << " + " << at("w + " + std::to_string(4 * in4)) << ";\n"
+        << "    " << outName << "[o] = " << activationGlsl(l.activation, name, "v") << ";\n"
+        << "  }\n";
+    }
     input = outName;
   }
   // Output: RGB, or R RGB terms mixed by the texel's coefficients (codec/texel_modulation.h).
@@ -332,9 +388,9 @@ void buildNeural(const CompressedBtf& m, ShaderDecoder& out) {
     c.multiplyAdds += 3 * 4 * 4 * f4;
   }
   for (const ShaderLayer& l : d.layers) {
-    const double rows = 4.0 * vec4sOf(l.out);
+    const double rows = 4.0 * l.groups();
     c.multiplyAdds += rows * 4 * l.inVec4s() + rows * 4;  // products, horizontal sums, biases
-    c.textureFetches += rows * l.inVec4s() + vec4sOf(l.out);
+    (d.weightsInUniformBlocks ? c.uniformLoads : c.textureFetches) += rows * l.inVec4s() + l.groups();
     c.otherOps += rows * (l.activation == Activation::None ? 0 : l.activation == Activation::Relu ? 1 : 3);
     c.transcendentals += l.activation == Activation::Sigmoid ? rows : 0;
   }
@@ -462,7 +518,22 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
 
 }  // namespace
 
-ShaderDecoder buildShaderDecoder(const CompressedBtf& material, const std::string& name) {
+std::string shaderWeightsName(ShaderWeights w) {
+  switch (w) {
+    case ShaderWeights::Auto: return "auto";
+    case ShaderWeights::Texture: return "texture";
+    case ShaderWeights::UniformBlocks: return "uniform-blocks";
+  }
+  return "unknown";
+}
+
+ShaderWeights parseShaderWeights(const std::string& text) {
+  for (ShaderWeights w : {ShaderWeights::Auto, ShaderWeights::Texture, ShaderWeights::UniformBlocks})
+    if (text == shaderWeightsName(w)) return w;
+  throw Error("unknown weight storage '" + text + "' (expected auto, texture or uniform-blocks)");
+}
+
+ShaderDecoder buildShaderDecoder(const CompressedBtf& material, const std::string& name, ShaderWeights weights) {
   material.validate(name);
   ShaderDecoder out;
   out.name = name;
@@ -478,7 +549,7 @@ ShaderDecoder buildShaderDecoder(const CompressedBtf& material, const std::strin
        << "// vec3 nbtf_decode(vec2 uv, vec3 light, vec3 view): linear RGB; light and view are unit\n"
        << "// vectors in the local frame (z = the normal). Bind the textures the manifest lists.\n\n";
   if (material.isPca()) buildPca(material, out);
-  else buildNeural(material, out);
+  else buildNeural(material, weights, out);
   out.glsl = head.str() + out.glsl;
   return out;
 }
@@ -537,8 +608,21 @@ std::string shaderManifestJson(const ShaderDecoder& shader) {
                         {"contents", t.contents}});
   }
   j["textures"] = textures;
+  ordered_json blocks = ordered_json::array();
+  for (std::size_t i = 0; i < shader.uniformBlocks.size(); ++i) {
+    const ShaderUniformBlock& b = shader.uniformBlocks[i];
+    blocks.push_back({{"block", b.block},
+                      {"file", b.file},
+                      {"layout", "std140"},
+                      {"vec4s", b.vec4s},
+                      {"bytes", b.data.size() * sizeof(float)},
+                      {"contents", "decoder weights and biases"}});
+  }
+  j["weights"] = d.method == CodecMethod::Pca ? "none" : d.weightsInUniformBlocks ? "uniform-blocks" : "texture";
+  j["uniform_blocks"] = blocks;
   j["cost_per_pixel"] = {{"multiply_adds", shader.cost.multiplyAdds},
                          {"texture_fetches", shader.cost.textureFetches},
+                         {"uniform_loads", shader.cost.uniformLoads},
                          {"other_ops", shader.cost.otherOps},
                          {"transcendentals", shader.cost.transcendentals},
                          {"operations", shader.cost.operations()}};
@@ -581,6 +665,8 @@ void writeShaderExport(const ShaderDecoder& shader, const std::string& dirText) 
       // Little-endian float32 (every platform this builds on); written as bytes.
       writeWhole(tmp / t.file, t.data.data(), t.data.size() * sizeof(float));
     }
+    for (const ShaderUniformBlock& b : shader.uniformBlocks)
+      writeWhole(tmp / b.file, b.data.data(), b.data.size() * sizeof(float));
     const std::string manifest = shaderManifestJson(shader);
     writeWhole(tmp / "manifest.json", manifest.data(), manifest.size());
     if (fs::exists(dir, ec)) {

@@ -126,6 +126,15 @@ D.textures.forEach((t, i) => {
   units.push([t.uniform, i]);
 });
 
+// The weights' uniform blocks (when the decoder keeps its weights there): binding i = block i.
+const blocks = (D.blocks || []).map((b, i) => {
+  const buffer = gl.createBuffer();
+  gl.bindBuffer(gl.UNIFORM_BUFFER, buffer);
+  gl.bufferData(gl.UNIFORM_BUFFER, bytesOf(b.data), gl.STATIC_DRAW);
+  gl.bindBufferBase(gl.UNIFORM_BUFFER, i, buffer);
+  return b.block;
+});
+
 function compile(type, source) {
   const s = gl.createShader(type);
   gl.shaderSource(s, source);
@@ -141,6 +150,11 @@ function program(vertex, fragment) {
   if (!gl.getProgramParameter(p, gl.LINK_STATUS)) fail('program does not link: ' + gl.getProgramInfoLog(p));
   gl.useProgram(p);
   for (const [name, unit] of units) gl.uniform1i(gl.getUniformLocation(p, name), unit);
+  blocks.forEach((name, i) => {
+    const index = gl.getUniformBlockIndex(p, name);
+    if (index === gl.INVALID_INDEX) fail('uniform block ' + name + ' not found in the program');
+    gl.uniformBlockBinding(p, index, i);
+  });
   p.u = (name) => gl.getUniformLocation(p, name);
   return p;
 }
@@ -371,7 +385,8 @@ function interactive() {
     lastMs = performance.now() - t0;
     stats.textContent = 'frame ' + lastMs.toFixed(1) + ' ms (draw until its pixels are read back, ' + canvas.width + ' x ' + canvas.height +
         ')\nlight (' + state.lightTheta.toFixed(0) + '\u00b0, ' + state.lightPhi.toFixed(0) + '\u00b0) from the up axis' +
-        '\n' + D.cost.operations.toFixed(0) + ' operations + ' + D.cost.texture_fetches.toFixed(0) + ' texture fetches per decode';
+        '\n' + D.cost.operations.toFixed(0) + ' operations, ' + D.cost.uniform_loads.toFixed(0) + ' uniform loads, ' +
+        D.cost.texture_fetches.toFixed(0) + ' texture fetches per decode';
     drawReference();
   };
   const redraw = () => { if (!pending) { pending = true; requestAnimationFrame(frame); } };
@@ -503,7 +518,12 @@ std::string buildViewerPage(const ShaderDecoder& shader, const CompressedBtf& ma
   d["testPairs"] = pairs;
   d["cost"] = {{"operations", shader.cost.operations()},
                {"multiply_adds", shader.cost.multiplyAdds},
-               {"texture_fetches", shader.cost.textureFetches}};
+               {"texture_fetches", shader.cost.textureFetches},
+               {"uniform_loads", shader.cost.uniformLoads}};
+  json blocks = json::array();
+  for (const ShaderUniformBlock& b : shader.uniformBlocks)
+    blocks.push_back({{"block", b.block}, {"data", base64Encode(b.data.data(), b.data.size() * sizeof(float))}});
+  d["blocks"] = blocks;
   d["reference"] = nullptr;
   if (const ViewerReference* r = options.reference) {
     const std::size_t expected = static_cast<std::size_t>(r->width) * r->height * 3 * r->lights.size() * r->views.size();
