@@ -88,7 +88,7 @@ std::string methodCheck(const CompressedBtf& m, const std::string& name) {
 
 // ---- GLSL pieces --------------------------------------------------------------------------
 
-std::string fetchHelpers(const std::vector<ShaderTexture>& textures) {
+std::string fetchFunctions(const std::vector<ShaderTexture>& textures) {
   std::ostringstream s;
   for (const ShaderTexture& t : textures) {
     s << "uniform highp sampler2D " << t.uniform << ";  // " << t.contents << ", " << t.width << " x " << t.height
@@ -298,7 +298,7 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
 
   // ---- GLSL
   std::ostringstream s;
-  s << fetchHelpers(out.textures);
+  s << fetchFunctions(out.textures);
   for (const ShaderUniformBlock& b : out.uniformBlocks)
     s << "layout(std140) uniform " << b.block << " { vec4 " << b.array << "[" << b.vec4s << "]; };  // decoder weights\n";
   s << "\n" << texelFunction(m.width, m.height);
@@ -446,7 +446,7 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
   const int nl = std::min(kPcaKeep, d.lights), nv = std::min(kPcaKeep, d.views);
   const int keep = std::min(kPcaKeep, nl * nv), used = std::min(kPcaNeighbours, keep);
   std::ostringstream s;
-  s << fetchHelpers(out.textures) << "\n" << texelFunction(m.width, m.height);
+  s << fetchFunctions(out.textures) << "\n" << texelFunction(m.width, m.height);
   s << "// PCA baseline (codec/pca_model.h): the mean and basis at an unmeasured pair are the\n"
     << "// modified Shepard interpolation of the " << kPcaNeighbours
     << " nearest measured pairs, d = sqrt(angle(l, l_i)^2 + angle(v, v_i)^2).\n"

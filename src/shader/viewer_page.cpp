@@ -75,7 +75,7 @@ function bytesOf(b64) {
   return a;
 }
 
-// ---- Small vector and matrix helpers (column-major 4 x 4)
+// ---- Small vector and matrix functions (column-major 4 x 4)
 const V = {
   sub: (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]],
   dot: (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2],
