@@ -74,10 +74,11 @@ int viewMain(int argc, char** argv) {
     if (!args.count("reference") && (args.count("crop") || args.count("layout")))
       throw Error("--crop and --layout apply to the --reference stack");
     const std::string path = args["file"].as<std::string>(), output = args["output"].as<std::string>();
+    const ShaderWeights weights = parseShaderWeights(args["weights"].as<std::string>());
+    createParentFolders(output);  // the rule of every command's outputs
     checkWritable(output);
     const CompressedBtf material = readNbtf(path);
-    const ShaderDecoder shader =
-        buildShaderDecoder(material, path, parseShaderWeights(args["weights"].as<std::string>()));
+    const ShaderDecoder shader = buildShaderDecoder(material, path, weights);
     ViewerOptions o;
     if (args.count("title")) o.title = args["title"].as<std::string>();
     ViewerReference reference;

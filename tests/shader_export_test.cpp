@@ -258,9 +258,9 @@ TEST(ViewerPage, CommandEmbedsTheReferenceStackAtTheFilesCrop) {
   const std::string file = tmp / "pt.nbtf", stack = tmp / "stack";
   writeNbtf(file, m);
   test::writeTestStack(stack, m.lights, m.views, m.sourceWidth, m.sourceHeight, Layout::Utia, ImageFormat::Png);
-  const auto r = test::runNbtf("view " + file + " -o " + tmp / "page.html --reference " + stack + " -q");
-  ASSERT_EQ(r.exitCode, 0) << r.output;
-  const std::string page = readText(tmp / "page.html");
+  const auto r = test::runNbtf("view " + file + " -o " + tmp / "new/page.html --reference " + stack + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;  // missing folders above the page are created
+  const std::string page = readText(tmp / "new/page.html");
   EXPECT_NE(page.find("\"reference\":{"), std::string::npos);
   EXPECT_NE(page.find("\"width\":8"), std::string::npos);
   // The wrong crop: refused, naming both sizes, and no page written.
