@@ -117,8 +117,19 @@ std::string texelFunction(int width, int height) {
   return s.str();
 }
 
-// The fixed direction inputs into layer 0's input array `a` from index `first`.
-std::string encodingGlsl(DirectionEncoding encoding, int first) {
+// The fixed direction inputs into layer 0's input array `a` from index `first`. An encoding
+// this generator has no stage for (one added to util/directions.h after it) is refused, never
+// half-written: the inputs emitted must be exactly directionInputCount(encoding).
+std::string encodingGlsl(DirectionEncoding encoding, int first, const std::string& name) {
+  switch (encoding) {
+    case DirectionEncoding::Stereographic:
+    case DirectionEncoding::StereographicHalf:
+    case DirectionEncoding::StereographicFourier:
+    case DirectionEncoding::StereographicFourier2: break;
+    default:
+      throw Error(name + ": direction encoding \"" + directionEncodingName(encoding) + "\" (code " +
+                  std::to_string(static_cast<int>(encoding)) + ") has no GLSL form in this build");
+  }
   std::ostringstream s;
   int i = first;
   auto put = [&](const std::string& value) { s << "  " << comp("a", i++) << " = " << value << ";\n"; };
@@ -145,6 +156,10 @@ std::string encodingGlsl(DirectionEncoding encoding, int first) {
       s << "  }\n";
     }
   }
+  if (i - first != directionInputCount(encoding))
+    throw Error(name + ": direction encoding \"" + directionEncodingName(encoding) + "\": the shader emits " +
+                std::to_string(i - first) + " inputs, the decoder takes " +
+                std::to_string(directionInputCount(encoding)) + "; it has no GLSL form in this build");
   return s.str();
 }
 
@@ -321,7 +336,7 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     }
     s << "  }\n";
   }
-  s << encodingGlsl(d.encoding, m.latentDim);
+  s << encodingGlsl(d.encoding, m.latentDim, name);
   if (d.planeFeatures > 0) s << planesGlsl(d.planeResolution, d.planeFeatures, m.latentDim + d.encodingInputs);
   // Dense layers: four output rows per step, a vec4 of inputs per read.
   std::string input = "a";
