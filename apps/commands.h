@@ -20,5 +20,7 @@ int evalMain(int argc, char** argv);
 int clusterMain(int argc, char** argv);
 int compressMain(int argc, char** argv);
 int renderMain(int argc, char** argv);
+int exportShaderMain(int argc, char** argv);
+int viewMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

@@ -14,11 +14,13 @@ const Command kCommands[] = {
     {"eval", evalMain, "Compare a .nbtf file with its reference: RMSE report (md, html, json)"},
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
     {"render", renderMain, "Ray trace a material on an object; --compare a stack with its .nbtf"},
+    {"export-shader", exportShaderMain, "The decoder as a GLSL ES 3.00 function, its data as textures"},
+    {"view", viewMain, "A self-contained WebGL2 page showing the material live"},
 };
 
 void printUsage() {
   std::cout << "usage: nbtf <command> [options]\n       nbtf help <command>\n       nbtf --version\n\ncommands:\n";
-  for (const auto& c : kCommands) std::printf("  %-10s %s\n", c.name, c.summary);
+  for (const auto& c : kCommands) std::printf("  %-13s %s\n", c.name, c.summary);
   std::cout << "\n'nbtf <command> --help' (or 'nbtf help <command>') shows a command's options.\n";
 }
 
