@@ -115,6 +115,32 @@ class Material {
     return d;
   }
 
+  // Runs f(i) for every query; an error names the query when there are several.
+  template <typename F>
+  static void forEachQuery(std::size_t n, F f) {
+    for (std::size_t i = 0; i < n; ++i) {
+      try {
+        f(i);
+      } catch (const Error& e) {
+        throw Error(n == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
+      }
+    }
+  }
+
+  // The batch, decoded with the GIL released (TexelQuery or UvQuery).
+  template <typename Query>
+  static FloatArray evaluateWithoutGil(const NbtfDecoder& dec, const std::vector<Query>& queries, bool normalized) {
+    const std::size_t n = queries.size();
+    FloatArray out = rgbArray(n);
+    float* rgb = out.mutable_data();
+    const OutputScale scale = normalized ? OutputScale::Normalized : OutputScale::Linear;
+    {
+      py::gil_scoped_release release;
+      dec.evaluate(queries.data(), n, rgb, scale);
+    }
+    return out;
+  }
+
   // Texels (x, y) or texture coordinates (u, v), angles in degrees: the path of `nbtf query`
   // (its single queries and --batch alike: the batch equals the single evaluations bit for bit).
   FloatArray queryAngles(std::optional<IntArray> texels, std::optional<FloatArray> uvs, const DoubleArray& light,
@@ -136,24 +162,12 @@ class Material {
     } else {
       if (rows(*uvs, 2, "uv") != n) throw Error("uv: a different number of queries than light and view");
       const float* uv = uvs->data();
-      for (std::size_t i = 0; i < n; ++i) {
-        int texel;
-        try {
-          texel = dec->texelOfUv(uv[2 * i], uv[2 * i + 1]);
-        } catch (const Error& e) {
-          throw Error(n == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
-        }
+      forEachQuery(n, [&](std::size_t i) {
+        const int texel = dec->texelOfUv(uv[2 * i], uv[2 * i + 1]);
         queries[i].x = texel % dec->width(), queries[i].y = texel / dec->width();
-      }
+      });
     }
-    FloatArray out = rgbArray(n);
-    float* rgb = out.mutable_data();
-    const OutputScale scale = normalized ? OutputScale::Normalized : OutputScale::Linear;
-    {
-      py::gil_scoped_release release;
-      dec->evaluate(queries.data(), n, rgb, scale);
-    }
-    return out;
+    return evaluateWithoutGil(*dec, queries, normalized);
   }
 
   // Texels or texture coordinates with unit vectors in the local frame (z = the normal): the
@@ -173,28 +187,17 @@ class Material {
     if (texels) {
       if (rows(*texels, 2, "texel") != n) throw Error("texel: a different number of queries than light and view");
       const std::int32_t* t = texels->data();
-      for (std::size_t i = 0; i < n; ++i) {
-        try {
-          dec->checkTexel(t[2 * i], t[2 * i + 1]);
-        } catch (const Error& e) {
-          throw Error(n == 1 ? std::string(e.what()) : "query " + std::to_string(i) + ": " + e.what());
-        }
+      forEachQuery(n, [&](std::size_t i) {
+        dec->checkTexel(t[2 * i], t[2 * i + 1]);
         queries[i].u = static_cast<float>((t[2 * i] + 0.5) / dec->width());
         queries[i].v = static_cast<float>((t[2 * i + 1] + 0.5) / dec->height());
-      }
+      });
     } else {
       if (rows(*uvs, 2, "uv") != n) throw Error("uv: a different number of queries than light and view");
       const float* uv = uvs->data();
       for (std::size_t i = 0; i < n; ++i) queries[i].u = uv[2 * i], queries[i].v = uv[2 * i + 1];
     }
-    FloatArray out = rgbArray(n);
-    float* rgb = out.mutable_data();
-    const OutputScale scale = normalized ? OutputScale::Normalized : OutputScale::Linear;
-    {
-      py::gil_scoped_release release;
-      dec->evaluate(queries.data(), n, rgb, scale);
-    }
-    return out;
+    return evaluateWithoutGil(*dec, queries, normalized);
   }
 
   FloatArray decodeImage(const std::vector<double>& light, const std::vector<double>& view, int width, int height,
