@@ -271,7 +271,19 @@ TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
   nlohmann::json j = nlohmann::json::parse(compressStatsJson(stats));
   for (const char* key : {"rmse_train", "rmse_holdout", "ratio", "bytes", "seconds"}) EXPECT_TRUE(j.contains(key)) << key;
   for (const char* key : {"decoder", "latents", "ids", "total", "raw_float32"}) EXPECT_TRUE(j["bytes"].contains(key)) << key;
-  for (const char* key : {"load", "preprocess", "cluster", "train", "write"}) EXPECT_TRUE(j["seconds"].contains(key)) << key;
+  for (const char* key : {"load", "preprocess", "cluster", "train", "assemble", "write"})
+    EXPECT_TRUE(j["seconds"].contains(key)) << key;
+  // The cluster stage's parts are measured inside it: each is positive and they fit in it.
+  double parts = 0;
+  for (const char* key : {"pca", "kmeans", "medians", "coefficients"}) {
+    ASSERT_TRUE(j["seconds"]["cluster_parts"].contains(key)) << key;
+    EXPECT_GT(j["seconds"]["cluster_parts"][key].get<double>(), 0) << key;
+    parts += j["seconds"]["cluster_parts"][key].get<double>();
+  }
+  EXPECT_LE(parts, j["seconds"]["cluster"].get<double>());
+  EXPECT_GT(j["seconds"]["assemble"].get<double>(), 0);
+  EXPECT_GE(j["kmeans_iterations"].get<int>(), 1);
+  EXPECT_EQ(j["kmeans_iterations"].get<int>(), stats.kmeansIterations);
   EXPECT_TRUE(j["rmse_holdout"].is_null());  // no hold-out set
   EXPECT_EQ(j["bytes"]["total"].get<std::uint64_t>(), stats.sizes.total);
   EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), stats.sizes.ratio);

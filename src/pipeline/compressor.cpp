@@ -366,6 +366,10 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
       return detail::compressAdaptive(stack, o, *source, std::move(clustering), alpha, pcaComponents, stats);
     }
     source.reset();  // the encoder sees only the k representatives
+    stats.seconds.clusterParts.pca = clustering.pcaSeconds;
+    stats.seconds.clusterParts.kmeans = clustering.kmeansSeconds;
+    stats.seconds.clusterParts.medians = clustering.representativeSeconds;
+    stats.kmeansIterations = clustering.iterations;
     stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
     stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
     inputs.encoderInputs = &clustering.representatives;
@@ -384,6 +388,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   const ModulationConfig& mc = o.train.modulation;
   const bool modulated = o.clusters > 0 && mc.mode != "none";
   stats.modulationMode = o.clusters > 0 ? mc.mode : "none";
+  const auto tCoefficients = Clock::now();
   if (modulated) {
     // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
     // the stored ones are refit to the trained terms afterwards.
@@ -397,6 +402,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
                           .floorRmse(trainImages, texels);
   }
+  stats.seconds.clusterParts.coefficients = secondsSince(tCoefficients);
   stats.seconds.cluster = secondsSince(t);
   if (stopRequested(o)) {
     stats.interrupted = true;
@@ -438,6 +444,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   }
 
   // ---- Assemble the compressed material (storage rounding, modulation refit, decoded RMSE)
+  t = Clock::now();
   CompressedBtf b = detail::assembleCompressed(stack, config, stats.method, alpha, train, std::move(inputs.ids),
                                                o.clusters, inputs.texelCoefficients, trainImages, holdout, o.progress);
   stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
@@ -447,6 +454,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
                                         pcaComponents, stats, "");
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
+  stats.seconds.assemble = secondsSince(t);
   return b;
 }
 
@@ -641,10 +649,18 @@ std::string formatCompressSummary(const CompressStats& s) {
     out += line;
   }
   std::snprintf(line, sizeof line,
-                "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | write %.2f | total "
-                "%.2f\n",
-                t.load, t.preprocess, t.cluster, t.train, t.write, t.total());
+                "time (wall clock, s): load %.2f | preprocess %.2f | cluster %.2f | train %.2f | assemble %.2f | "
+                "write %.2f | total %.2f\n",
+                t.load, t.preprocess, t.cluster, t.train, t.assemble, t.write, t.total());
   out += line;
+  if (s.clusters > 0 && s.adaptiveStages.empty()) {
+    std::snprintf(line, sizeof line,
+                  "  cluster: pca %.2f | k-means %.2f (%d rounds) | medians %.2f | modulation coefficients and floor "
+                  "%.2f\n",
+                  t.clusterParts.pca, t.clusterParts.kmeans, s.kmeansIterations, t.clusterParts.medians,
+                  t.clusterParts.coefficients);
+    out += line;
+  }
   out += formatMemoryLine(s);
   return out;
 }
@@ -655,6 +671,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["method"] = codecMethodName(s.method);
   j["clusters"] = s.clusters;
   j["pca_components"] = s.pcaComponents;
+  j["kmeans_iterations"] = s.kmeansIterations;
   j["texels"] = s.texels;
   j["images"] = s.images;
   j["holdout_images"] = s.holdoutImages;
@@ -683,7 +700,12 @@ std::string compressStatsJson(const CompressStats& s) {
   if (s.sizes.planes) j["bytes"]["planes"] = s.sizes.planes;
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
                   {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
-                  {"total", s.seconds.total()}};
+                  {"assemble", s.seconds.assemble}, {"total", s.seconds.total()}};
+  if (s.clusters > 0 && s.adaptiveStages.empty())
+    j["seconds"]["cluster_parts"] = {{"pca", s.seconds.clusterParts.pca},
+                                     {"kmeans", s.seconds.clusterParts.kmeans},
+                                     {"medians", s.seconds.clusterParts.medians},
+                                     {"coefficients", s.seconds.clusterParts.coefficients}};
   j["epochs"] = s.epochs;
   j["steps"] = s.steps;
   j["samples_per_second"] = s.samplesPerSecond;

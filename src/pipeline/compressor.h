@@ -65,11 +65,17 @@ struct CompressOptions {
   std::string memoryLimitText;
 };
 
-// Wall-clock seconds per stage.
+// Wall-clock seconds per stage. The cluster stage's parts (clustered runs without --adaptive)
+// let the cost model (docs/model.md) follow each one as the material grows.
 struct StageSeconds {
   double load = 0, preprocess = 0, cluster = 0, train = 0, write = 0;
   double pca = 0;  // PCA baseline: fit, coefficients, hold-out interpolation and the RMSE measurement
-  double total() const { return load + preprocess + cluster + train + write + pca; }
+  double assemble = 0;  // after training: storage rounding, the modulation refit, the decoded RMSE
+  struct {
+    double pca = 0, kmeans = 0, medians = 0;
+    double coefficients = 0;  // per-texel modulation coefficients and the floor RMSE
+  } clusterParts;
+  double total() const { return load + preprocess + cluster + train + assemble + write + pca; }
 };
 
 struct CompressStats {
@@ -77,6 +83,7 @@ struct CompressStats {
   CodecMethod method = CodecMethod::ClusteredNeural;
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
   int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
+  int kmeansIterations = 0;   // Lloyd rounds of the initial clustering (clustered only)
   int texels = 0, images = 0, holdoutImages = 0;
   float alpha = 1;
   // RMSE of eq. (10) over texels x images x channels, on linear RGB divided by alpha.
