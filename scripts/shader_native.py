@@ -163,6 +163,15 @@ class Gles:
         if error:
             raise DriverError(f"{what}: GL error 0x{error:04x}")
 
+    def _require(self, name, status, get_status, get_log, failure):
+        """Raises DriverError(failure + the driver's log) unless get_status(name, status) is set."""
+        ok = ctypes.c_int()
+        get_status(name, status, ctypes.byref(ok))
+        if not ok.value:
+            log = ctypes.create_string_buffer(65536)
+            get_log(name, len(log), None, log)
+            raise DriverError(f"{failure}: {log.value.decode(errors='replace')[:4000]}")
+
     def shader(self, kind, source, what):
         gl = self.gl
         gl.glCreateShader.restype = ctypes.c_uint
@@ -170,12 +179,7 @@ class Gles:
         text = ctypes.c_char_p(source.encode())
         gl.glShaderSource(s, 1, ctypes.byref(text), None)
         gl.glCompileShader(s)
-        ok = ctypes.c_int()
-        gl.glGetShaderiv(s, GL_COMPILE_STATUS, ctypes.byref(ok))
-        if not ok.value:
-            log = ctypes.create_string_buffer(65536)
-            gl.glGetShaderInfoLog(s, len(log), None, log)
-            raise DriverError(f"{what} does not compile: {log.value.decode(errors='replace')[:4000]}")
+        self._require(s, GL_COMPILE_STATUS, gl.glGetShaderiv, gl.glGetShaderInfoLog, f"{what} does not compile")
         return s
 
     def program(self, stages):
@@ -186,14 +190,8 @@ class Gles:
         for kind, source, what in stages:
             gl.glAttachShader(p, self.shader(kind, source, what))
         gl.glLinkProgram(p)
-        ok = ctypes.c_int()
-        gl.glGetProgramiv(p, GL_LINK_STATUS, ctypes.byref(ok))
-        if not ok.value:
-            log = ctypes.create_string_buffer(65536)
-            gl.glGetProgramInfoLog(p, len(log), None, log)
-            raise DriverError(f"the program does not link: {log.value.decode(errors='replace')[:4000]}")
+        self._require(p, GL_LINK_STATUS, gl.glGetProgramiv, gl.glGetProgramInfoLog, "the program does not link")
         return p
-
 
 VERTEX = """#version 300 es
 void main() { vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0); gl_Position = vec4(p, 0.0, 1.0); }"""

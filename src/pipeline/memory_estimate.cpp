@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "cluster/cluster_values.h"
 #include "preprocess/abrdf_source.h"
 #include "util/error.h"
 #include "util/memory.h"
@@ -37,7 +38,7 @@ Stage clusteringStage(const StackShape& shape, int components, int oversampling,
 Stage modulationStage(const StackShape& shape, int clusters, int coefficientsPerTexel, int workers) {
   const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
   const std::size_t large = std::min(m, 8 * m / static_cast<std::size_t>(std::max(1, clusters)) + 1);
-  const std::size_t side = std::min<std::size_t>(std::min(large, d), 1024);  // exact SVD only up to 1024 (cluster_values.h)
+  const std::size_t side = std::min<std::size_t>(std::min(large, d), kExactSvdUpTo);  // the exact SVD's Gram matrix
   const std::size_t perWorker = large * d * kFloat + side * side * 8 * 2;
   const std::size_t perTexel = m * static_cast<std::size_t>(std::max(1, coefficientsPerTexel)) * kFloat * 4 + m * 3 * kFloat * 2;
   return {static_cast<std::size_t>(std::max(1, workers)) * perWorker + perTexel, "per-texel modulation coefficients"};

@@ -51,3 +51,13 @@ def test_a_wrong_reference_fails_the_check(tmp_path):
     summary = json.load(open(tmp_path / "summary.json"))
     assert not summary["pass"]
     assert summary["max_abs_difference"] == pytest.approx(0.01 * summary["reference_max"], rel=1e-3)
+
+
+def test_a_shader_that_does_not_compile_is_reported_with_the_drivers_log(tmp_path):
+    assert script("prepare", FILE, tmp_path).returncode == 0
+    with open(tmp_path / "export" / "nbtf_decoder.glsl", "a") as f:
+        f.write("\nthis is not GLSL\n")
+    r = run_or_skip(tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "the decoder's fragment shader does not compile" in r.stderr
+    assert "error" in r.stderr.lower()
