@@ -116,6 +116,17 @@ TEST_F(DecodeSafety, AnInterruptedDecodeIsRefusedByTheLoaderAndCleanedByTheNextD
   writeFileAtomic(dir_ / (".out.nbtf-decoding/" + std::string(kDecodeDescriptionName)), std::string(R"({"complete": false})"));
   ASSERT_EQ(decode(b_, out).exitCode, 0);
   EXPECT_FALSE(fs::exists(dir_ / ".out.nbtf-decoding"));
+  // So is one killed before its description was written: empty, or holding only the
+  // description's temporary file.
+  for (bool temporaryFile : {false, true}) {
+    fs::create_directories(dir_ / ".out.nbtf-decoding");
+    if (temporaryFile)
+      writeFileAtomic(dir_ / (".out.nbtf-decoding/." + std::string(kDecodeDescriptionName) + ".tmp4242_1"),
+                      std::string("{"));
+    const test::RunResult again = decode(a_, out);
+    ASSERT_EQ(again.exitCode, 0) << again.output;
+    EXPECT_FALSE(fs::exists(dir_ / ".out.nbtf-decoding"));
+  }
   // One that is not ours is left alone, and the decode says so.
   fs::create_directories(dir_ / ".out.nbtf-decoding");
   writeFileAtomic(dir_ / ".out.nbtf-decoding/precious.txt", std::string("x"));
@@ -178,11 +189,15 @@ TEST_F(DecodeSafety, AKilledDecodeLeavesTheEarlierDecodeOrTheNewOneNeverAMixture
         EXPECT_THROW(loadBtfStack(dir_ / ".out.nbtf-decoding", quietLoad()), Error);
     }
     // Back to the earlier decode for the next round.
-    if (!isOld) ASSERT_EQ(decode(a_, out, size).exitCode, 0);
+    if (!isOld) {
+      const test::RunResult back = decode(a_, out, size);
+      ASSERT_EQ(back.exitCode, 0) << back.output;
+    }
   }
   // Which moments the kills hit depends on the machine; both outcomes are fine, each counted.
   std::printf("kills that left the earlier decode: %d, the new one: %d\n", sawOld, sawNew);
-  ASSERT_EQ(decode(b_, out, size).exitCode, 0);
+  const test::RunResult last = decode(b_, out, size);
+  ASSERT_EQ(last.exitCode, 0) << last.output;
   EXPECT_EQ(snapshot(out), newDecode) << "a decode after the kills finishes";
 }
 

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "io/btf_names.h"
 #include "util/atomic_file.h"
@@ -64,6 +65,26 @@ bool exchangeFolders(const std::string& a, const std::string& b) {
 #endif
 }
 
+// A staging folder killed between its creation and its description's atomic write: empty, or
+// holding only that write's temporary file (".nbtf_decode.json.tmp...").
+bool describedNotYet(const fs::path& folder) {
+  std::error_code ec;
+  const std::string temporary = "." + std::string(kDecodeDescriptionName) + ".tmp";
+  for (const auto& e : fs::directory_iterator(folder, ec))
+    if (e.path().filename().string().rfind(temporary, 0) != 0) return false;
+  return !ec;
+}
+
+// Removes one of our decode folders with its description last, so that a kill during the
+// removal leaves a folder the next decode still recognises as its own.
+void removeDecodeFolder(const fs::path& folder, std::error_code& ec) {
+  std::vector<fs::path> entries;
+  for (const auto& e : fs::directory_iterator(folder, ec))
+    if (e.path().filename() != kDecodeDescriptionName) entries.push_back(e.path());
+  for (const fs::path& e : entries) fs::remove_all(e, ec);
+  fs::remove_all(folder, ec);
+}
+
 void writeDescription(const std::string& folder, nlohmann::json description, bool complete) {
   description["complete"] = complete;
   writeFileAtomic((fs::path(folder) / kDecodeDescriptionName).string(), description.dump(2) + "\n");
@@ -91,11 +112,14 @@ DecodeFolder::DecodeFolder(const std::string& destination, const std::string& de
   if (ec) throw fileError(destination, "cannot create the folder '" + dest.parent_path().string() + "': " + ec.message());
   staging_ = (dest.parent_path() / ("." + dest.filename().string() + ".nbtf-decoding")).string();
   if (fs::exists(staging_, ec)) {
-    // Left by a decode that was killed: ours if it has our description.
-    if (!fs::is_directory(staging_, ec) || !hasDescription(staging_) || !foreignEntry(staging_).empty())
+    // Left by a decode that was killed: ours if it has our description (or was killed before
+    // writing it).
+    const bool ours = fs::is_directory(staging_, ec) &&
+                      ((hasDescription(staging_) && foreignEntry(staging_).empty()) || describedNotYet(staging_));
+    if (!ours)
       throw fileError(staging_, "is in the way of the decode's staging folder and was not written by nbtf decode; "
                                 "remove it or choose another output folder");
-    fs::remove_all(staging_, ec);
+    removeDecodeFolder(staging_, ec);
     if (ec) throw fileError(staging_, "cannot remove an interrupted decode: " + ec.message());
   }
   fs::create_directory(staging_, ec);
@@ -104,7 +128,7 @@ DecodeFolder::DecodeFolder(const std::string& destination, const std::string& de
     description_ = descriptionJson;
     writeDescription(staging_, nlohmann::json::parse(description_), false);
   } catch (...) {
-    fs::remove_all(staging_, ec);
+    removeDecodeFolder(staging_, ec);
     throw;
   }
 }
@@ -112,7 +136,7 @@ DecodeFolder::DecodeFolder(const std::string& destination, const std::string& de
 DecodeFolder::~DecodeFolder() {
   if (committed_) return;
   std::error_code ec;
-  fs::remove_all(staging_, ec);
+  removeDecodeFolder(staging_, ec);
 }
 
 void DecodeFolder::commit() {
@@ -122,15 +146,15 @@ void DecodeFolder::commit() {
     if (std::rename(staging_.c_str(), destination_.c_str()) != 0)
       throw fileError(destination_, std::string("cannot move the decoded folder into place: ") + std::strerror(errno));
   } else if (exchangeFolders(staging_, destination_)) {
-    fs::remove_all(staging_, ec);  // now the earlier decode
+    removeDecodeFolder(staging_, ec);  // now the earlier decode
   } else {
     // Two renames: a kill between them leaves the destination missing and both decodes whole
     // under hidden names, never a mixture.
     const std::string old = staging_ + "-old";
-    fs::remove_all(old, ec);
+    if (fs::exists(old, ec)) removeDecodeFolder(old, ec);
     if (std::rename(destination_.c_str(), old.c_str()) != 0 || std::rename(staging_.c_str(), destination_.c_str()) != 0)
       throw fileError(destination_, std::string("cannot move the decoded folder into place: ") + std::strerror(errno));
-    fs::remove_all(old, ec);
+    removeDecodeFolder(old, ec);
   }
   committed_ = true;
 }
