@@ -24,6 +24,15 @@ TEST(AtomicFile, WritesAndReplaces) {
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
 }
 
+// The temporary names are recognisable for their target (decode folders rely on it).
+TEST(AtomicFile, TemporaryNamesAreRecognisedForTheirTargetOnly) {
+  const std::string tmp = std::filesystem::path(temporaryPathFor("/some/folder/nbtf_decode.json")).filename().string();
+  EXPECT_TRUE(isTemporaryNameFor(tmp, "nbtf_decode.json")) << tmp;
+  EXPECT_FALSE(isTemporaryNameFor(tmp, "other.json")) << tmp;
+  EXPECT_FALSE(isTemporaryNameFor("nbtf_decode.json", "nbtf_decode.json"));
+  EXPECT_FALSE(isTemporaryNameFor("tl000_pl000_tv000_pv000.png", "nbtf_decode.json"));
+}
+
 TEST(AtomicFile, FailedWriterKeepsThePreviousFile) {
   TempDir dir;
   writeFileAtomic(dir / "a.bin", std::string("complete"));

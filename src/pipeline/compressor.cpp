@@ -560,6 +560,9 @@ std::string formatMemoryLine(const CompressStats& s) {
             "computed from the factors when read\n";
   return line;
 }
+
+// The cluster stage's parts are timed for one fixed-k clustering (not PCA, per-texel or adaptive).
+bool hasClusterParts(const CompressStats& s) { return s.clusters > 0 && s.adaptiveStages.empty(); }
 }  // namespace
 
 std::string formatCompressSummary(const CompressStats& s) {
@@ -653,7 +656,7 @@ std::string formatCompressSummary(const CompressStats& s) {
                 "write %.2f | total %.2f\n",
                 t.load, t.preprocess, t.cluster, t.train, t.assemble, t.write, t.total());
   out += line;
-  if (s.clusters > 0 && s.adaptiveStages.empty()) {
+  if (hasClusterParts(s)) {
     std::snprintf(line, sizeof line,
                   "  cluster: pca %.2f | k-means %.2f (%d rounds) | medians %.2f | modulation coefficients and floor "
                   "%.2f\n",
@@ -701,7 +704,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
                   {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
                   {"assemble", s.seconds.assemble}, {"total", s.seconds.total()}};
-  if (s.clusters > 0 && s.adaptiveStages.empty())
+  if (hasClusterParts(s))
     j["seconds"]["cluster_parts"] = {{"pca", s.seconds.clusterParts.pca},
                                      {"kmeans", s.seconds.clusterParts.kmeans},
                                      {"medians", s.seconds.clusterParts.medians},

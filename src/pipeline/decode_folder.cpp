@@ -69,9 +69,8 @@ bool exchangeFolders(const std::string& a, const std::string& b) {
 // holding only that write's temporary file (".nbtf_decode.json.tmp...").
 bool describedNotYet(const fs::path& folder) {
   std::error_code ec;
-  const std::string temporary = "." + std::string(kDecodeDescriptionName) + ".tmp";
   for (const auto& e : fs::directory_iterator(folder, ec))
-    if (e.path().filename().string().rfind(temporary, 0) != 0) return false;
+    if (!isTemporaryNameFor(e.path().filename().string(), kDecodeDescriptionName)) return false;
   return !ec;
 }
 
@@ -151,7 +150,7 @@ void DecodeFolder::commit() {
     // Two renames: a kill between them leaves the destination missing and both decodes whole
     // under hidden names, never a mixture.
     const std::string old = staging_ + "-old";
-    if (fs::exists(old, ec)) removeDecodeFolder(old, ec);
+    removeDecodeFolder(old, ec);  // an earlier fallback's leftover, if any
     if (std::rename(destination_.c_str(), old.c_str()) != 0 || std::rename(staging_.c_str(), destination_.c_str()) != 0)
       throw fileError(destination_, std::string("cannot move the decoded folder into place: ") + std::strerror(errno));
     removeDecodeFolder(old, ec);

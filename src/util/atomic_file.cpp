@@ -32,6 +32,10 @@ std::string temporaryPathFor(const std::string& path) {
   return (p.parent_path() / name).string();
 }
 
+bool isTemporaryNameFor(const std::string& fileName, const std::string& targetName) {
+  return fileName.rfind("." + targetName + ".tmp", 0) == 0;
+}
+
 namespace {
 void syncAndRename(const std::string& tmp, const std::string& path) {
   int fd = ::open(tmp.c_str(), O_RDONLY);

@@ -29,6 +29,9 @@ bool isStreamOutput(const std::string& path);
 
 // The temporary name used for `path` (same folder, so rename stays atomic).
 std::string temporaryPathFor(const std::string& path);
+// Whether `fileName` (a name, no folder) is one of temporaryPathFor's names for a file named
+// `targetName`: what a kill during writeFileAtomic(targetName) leaves.
+bool isTemporaryNameFor(const std::string& fileName, const std::string& targetName);
 
 // Reads a whole file; throws nbtf::Error naming the path if it cannot.
 std::vector<std::uint8_t> readFileBytes(const std::string& path);
