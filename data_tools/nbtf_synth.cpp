@@ -9,6 +9,7 @@
 #include "synth/synth_material.h"
 #include "synth/synth_ubo2014.h"
 #include "util/error.h"
+#include "util/memory.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -38,6 +39,12 @@ int run(int argc, char** argv) {
       cxxopts::value<std::string>()->default_value("ubo2003"))(
       "components", "ubo2014: SVD components per colour channel", cxxopts::value<int>()->default_value("32"))(
       "color-model", "ubo2014: 11 (log Y, U/Y, V/Y) or 0 (RGB)", cxxopts::value<int>()->default_value("11"))(
+      "power-iterations", "ubo2014: power iterations of the randomized SVD (each one more 2 passes when streamed)",
+      cxxopts::value<int>()->default_value("2"))(
+      "memory-limit",
+      "ubo2014: hold the rendered material (images x texels x 12 bytes) up to half this size, else render it "
+      "again for each pass of the factorization (default: 75% of physical memory)",
+      cxxopts::value<std::string>())(
       "format", "jpg (ubo2003), png or exr (utia); default: jpg for ubo2003, png for utia", cxxopts::value<std::string>())(
       "seed", "Random seed: the same seed gives the same material", cxxopts::value<std::uint64_t>()->default_value("1"))(
       "o,output", "Output folder (new, empty, or an earlier nbtf-synth output to replace); ubo2014: the .btf file",
@@ -75,7 +82,7 @@ int run(int argc, char** argv) {
   parseSize(args["size"].as<std::string>(), o.width, o.height);
   o.layout = parseLayout(args["layout"].as<std::string>());
   if (o.layout != Layout::Ubo2014)
-    for (const char* only : {"components", "color-model"})
+    for (const char* only : {"components", "color-model", "power-iterations", "memory-limit"})
       if (args.count(only)) throw Error(std::string("--") + only + " applies to --layout ubo2014 only");
   if (o.layout == Layout::Ubo2014) {
     for (const char* imagesOnly : {"format", "no-ground-truth"})
@@ -87,6 +94,9 @@ int run(int argc, char** argv) {
     Ubo2014FactorizeOptions f;
     f.components = args["components"].as<int>();
     f.colorModel = args["color-model"].as<int>();
+    f.powerIterations = args["power-iterations"].as<int>();
+    if (args.count("memory-limit"))
+      f.memoryLimit = parseByteSize(args["memory-limit"].as<std::string>(), "--memory-limit") / 2;
     const std::string out = args["output"].as<std::string>();
     synth::SynthUbo2014Summary s = synth::writeSynthUbo2014(o, out, f);
     std::printf("wrote %s (ubo2014, !DFMF08FCR, %d images = 151 x 151, %d x %d texels, %d components per channel, "
@@ -96,6 +106,10 @@ int run(int argc, char** argv) {
     std::printf("factorization (stored half floats vs the rendered values, linear sRGB): RMSE %.4g (mean value %.4g), "
                 "max abs error %.4g\n",
                 s.factorization.rmseLinear, s.factorization.inputMean, s.factorization.maxAbsError);
+    if (s.factorization.streamed)
+      std::printf("streamed: the material (%s in float32) was rendered %d times instead of held; peak %s resident\n",
+                  formatBytes(ubo2014MatrixBytes(s.images, o.width * o.height)).c_str(), s.factorization.passes,
+                  formatBytes(peakResidentBytes()).c_str());
     return 0;
   }
   o.format = args.count("format") ? parseImageFormat(args["format"].as<std::string>())

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include "test_util.h"
 #include "util/error.h"
 #include "util/half.h"
+#include "util/parallel.h"
 
 namespace nbtf {
 namespace {
@@ -18,15 +20,15 @@ namespace {
 namespace fs = std::filesystem;
 
 // A small material: 3 lights x 2 views, 4 x 3 texels, k components, values already half-exact.
-Ubo2014Btf smallMaterial(std::int32_t colorModel = 0, int k = 2, bool abrdfsInU = true) {
+Ubo2014Btf smallMaterial(std::int32_t colorModel = 0, int k = 2, bool abrdfsInU = true, int width = 4, int height = 3) {
   Ubo2014Meta m;
   m.lights = {{0, 0}, {30, 90}, {60, 210}};
   m.views = {{11, 15}, {45, 300}};
-  m.width = 4, m.height = 3;
+  m.width = width, m.height = height;
   m.colorModel = colorModel;
   m.measurementSetup = "test";
   m.xml = "<material/>";
-  const int pairs = 6, texels = 12;
+  const int pairs = 6, texels = width * height;
   std::vector<Ubo2014Channel> channels(3);
   for (int c = 0; c < 3; ++c) {
     Ubo2014Channel& ch = channels[c];
@@ -168,6 +170,74 @@ TEST(Ubo2014Btf, LoaderExpandsOnlyTheCrop) {
   }
 }
 
+// Images made together, a tile of texels at a time, are valueLinear's values bit for bit:
+// tiles of 64 texels and a last partial one, components in blocks of 8 and a remainder.
+TEST(Ubo2014Btf, ImagesLinearIsValueLinearBitForBit) {
+  for (bool abrdfsInU : {true, false})
+    for (std::int32_t model : {0, 11}) {
+      SCOPED_TRACE("colour model " + std::to_string(model) + (abrdfsInU ? "" : ", U with texel rows"));
+      const Ubo2014Btf btf = smallMaterial(model, 11, abrdfsInU, 10, 9);
+      for (Crop crop : {Crop{0, 0, 10, 9}, Crop{1, 2, 7, 5}}) {
+        const int texels = crop.width * crop.height;
+        std::vector<float> out(static_cast<std::size_t>(texels) * 3 * 4);
+        btf.imagesLinear(2, 4, crop, out.data());
+        for (int i = 0; i < 4; ++i)
+          for (int t = 0; t < texels; ++t) {
+            float want[3];
+            btf.valueLinear(2 + i, (crop.y + t / crop.width) * 10 + crop.x + t % crop.width, want);
+            for (int c = 0; c < 3; ++c)
+              ASSERT_EQ(out[(static_cast<std::size_t>(i) * texels + t) * 3 + c], want[c]) << "image " << 2 + i << " texel " << t;
+          }
+      }
+      // every image at texels in any order: as ABRDFs and gathered
+      std::vector<int> texels;
+      for (int t = 89; t >= 0; t -= 2) texels.push_back(t);
+      const int count = static_cast<int>(texels.size()), images = btf.numImages();
+      std::vector<float> abrdfs(static_cast<std::size_t>(count) * images * 3), gathered(abrdfs.size());
+      btf.abrdfsLinear(texels.data(), count, abrdfs.data());
+      btf.gatherLinear(nullptr, 0, texels.data(), count, gathered.data());
+      for (int k = 0; k < count; ++k)
+        for (int i = 0; i < images; ++i) {
+          float want[3];
+          btf.valueLinear(i, texels[k], want);
+          for (int c = 0; c < 3; ++c) {
+            ASSERT_EQ(abrdfs[(static_cast<std::size_t>(k) * images + i) * 3 + c], want[c]);
+            ASSERT_EQ(gathered[static_cast<std::size_t>(3 * i + c) * count + k], want[c]);
+          }
+        }
+    }
+}
+
+// Several threads reading images of a computed stack in any order, one image per block: every
+// image is the expanded one (a thread finding its block being made makes another meanwhile).
+TEST(Ubo2014Btf, ComputedStackGivesEveryImageFromManyThreads) {
+  auto btf = std::make_shared<const Ubo2014Btf>(smallMaterial(11, 11, true, 10, 9));
+  const BtfStack stored = btf->toStack({}, false);
+  const int before = threadCount();
+  setThreadCount(4);
+  const BtfStack computed = Ubo2014Btf::computedStack(btf, {}, /*blockBytes=*/1);
+  const int images = stored.numImages(), values = stored.numTexels() * 3;
+  std::vector<int> order;
+  for (int round = 0; round < 20; ++round)
+    for (int i = 0; i < images; ++i) order.push_back(round % 2 ? images - 1 - i : (i * 5 + round) % images);
+  std::atomic<int> wrong{0};
+  parallelForDynamic(order.size(), [&](std::size_t j, int) {
+    std::vector<float> a(values), b(values);
+    stored.imageLinear(order[j], a.data());
+    computed.imageLinear(order[j], b.data());
+    if (a != b) ++wrong;
+    // much of one image, gathered: from its block
+    std::vector<int> texels;
+    for (int t = stored.numTexels() - 1; t >= 0; t -= 3) texels.push_back(t);
+    std::vector<float> ga(texels.size() * 3), gb(texels.size() * 3);
+    stored.gatherLinear(&order[j], 1, texels.data(), static_cast<int>(texels.size()), ga.data());
+    computed.gatherLinear(&order[j], 1, texels.data(), static_cast<int>(texels.size()), gb.data());
+    if (ga != gb) ++wrong;
+  });
+  setThreadCount(before);
+  EXPECT_EQ(wrong.load(), 0);
+}
+
 // A stack computed from the factors holds exactly what the expanded one stores, through every
 // accessor; the loader keeps a file factorized when its expansion passes LoadOptions::expandUpTo.
 TEST(Ubo2014Btf, ComputedStackHoldsTheExpandedValues) {
@@ -184,7 +254,8 @@ TEST(Ubo2014Btf, ComputedStackHoldsTheExpandedValues) {
       EXPECT_EQ(computed.sourceWidth, 4);
       EXPECT_EQ(computed.layout, Layout::Ubo2014);
       EXPECT_EQ(computed.sampleType(), SampleType::Half);
-      EXPECT_EQ(computed.bytesInMemory(), btf->factorBytes());
+      EXPECT_EQ(computed.bytesInMemory(),
+                btf->factorBytes() + ubo2014ComputedBlockBytes(computed.numTexels(), computed.numImages()));
       const int texels = stored.numTexels(), images = stored.numImages();
       std::vector<float> a(texels * 3), b(texels * 3);
       for (int i = 0; i < images; ++i) {
@@ -219,7 +290,7 @@ TEST(Ubo2014Btf, ComputedStackHoldsTheExpandedValues) {
   EXPECT_EQ(stackShape(path, o).computedBytes, 0u);
   o.expandUpTo = 12 * 6 * 6 - 1;  // one byte less than the half-float expansion
   EXPECT_TRUE(loadBtfStack(path, o).isComputed());
-  EXPECT_EQ(stackShape(path, o).stackBytes(), Ubo2014Btf::read(path).factorBytes());
+  EXPECT_EQ(stackShape(path, o).stackBytes(), Ubo2014Btf::read(path).factorBytes() + ubo2014ComputedBlockBytes(12, 6));
   o.crop = {0, 0, 2, 2};  // a crop small enough is expanded
   EXPECT_FALSE(loadBtfStack(path, o).isComputed());
 }

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 
 #include "io/btf_loader.h"
@@ -80,6 +81,60 @@ TEST(Ubo2014Factorize, TruncationKeepsTheLeadingComponents) {
   }
   // the input is rank 2 per channel (plus the constant): 4 components reproduce it
   EXPECT_LT(previous, 1e-3);
+}
+
+// Over its memory limit the factorization holds nothing of the material's size: it asks for
+// every image again in each pass, and gives the factors of the held matrices.
+TEST(Ubo2014Factorize, StreamedPassesGiveTheHeldFactorization) {
+  BtfStack stack = lowRankStack(40, 30);  // 1200 texels: more than one slice of texels
+  std::atomic<int> calls{0};
+  auto image = [&](int i, float* rgb) {
+    ++calls;
+    stack.imageLinear(i, rgb);
+  };
+  for (std::int32_t model : {0, 11}) {
+    Ubo2014FactorizeOptions held;
+    held.progress = false;
+    held.colorModel = model;
+    held.components = 6;
+    Ubo2014FactorizeReport heldReport;
+    calls = 0;
+    const Ubo2014Btf a = factorizeUbo2014(stack.lights(), stack.views(), 40, 30, image, held, &heldReport);
+    EXPECT_EQ(calls.load(), 20);
+    EXPECT_FALSE(heldReport.streamed);
+    EXPECT_EQ(heldReport.passes, 1);
+
+    Ubo2014FactorizeOptions streamed = held;
+    streamed.memoryLimit = ubo2014MatrixBytes(20, 1200) - 1;
+    streamed.blockBytes = 1;  // two images per thread in each block: several blocks
+    Ubo2014FactorizeReport report;
+    calls = 0;
+    const Ubo2014Btf b = factorizeUbo2014(stack.lights(), stack.views(), 40, 30, image, streamed, &report);
+    EXPECT_TRUE(report.streamed);
+    EXPECT_EQ(report.passes, 2 + 2 * streamed.powerIterations + 1);
+    EXPECT_EQ(calls.load(), 20 * report.passes);
+    EXPECT_NEAR(report.rmseLinear, heldReport.rmseLinear, 1e-3 * heldReport.rmseLinear + 1e-7) << "model " << model;
+    EXPECT_NEAR(report.inputMean, heldReport.inputMean, 1e-6 * heldReport.inputMean);
+
+    // the same values (half-float factors of the same SVD, summed in another order)
+    std::vector<float> va(1200 * 3), vb(1200 * 3);
+    double worst = 0;
+    for (int i = 0; i < 20; ++i) {
+      a.imageLinear(i, va.data());
+      b.imageLinear(i, vb.data());
+      for (std::size_t j = 0; j < va.size(); ++j) worst = std::max(worst, static_cast<double>(std::abs(va[j] - vb[j])));
+    }
+    EXPECT_LT(worst, 2e-3 * heldReport.inputMean) << "model " << model;
+
+    // deterministic: the same factors again, bit for bit; without a report one pass less
+    calls = 0;
+    const Ubo2014Btf c = factorizeUbo2014(stack.lights(), stack.views(), 40, 30, image, streamed);
+    EXPECT_EQ(calls.load(), 20 * (report.passes - 1));
+    for (int ch = 0; ch < 3; ++ch) {
+      EXPECT_EQ(c.channels()[ch].u, b.channels()[ch].u);
+      EXPECT_EQ(c.channels()[ch].sxv, b.channels()[ch].sxv);
+    }
+  }
 }
 
 TEST(Ubo2014Factorize, RefusesWhatItCannotWrite) {

@@ -222,7 +222,8 @@ StackShape stackShape(const std::string& path, const LoadOptions& options) {
     shape.lights = btf.numLights(), shape.views = btf.numViews();
     shape.width = crop.width, shape.height = crop.height;
     shape.type = SampleType::Half;  // the crop's values as half floats, stored or computed
-    if (keepFactorized(btf, options)) shape.computedBytes = btf.factorBytes();
+    if (keepFactorized(btf, options))
+      shape.computedBytes = btf.factorBytes() + ubo2014ComputedBlockBytes(crop.width * crop.height, btf.numImages());
     return shape;
   }
   StackListing listing = listBtfStack(path, options.layout);

@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <set>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -243,8 +247,8 @@ void Ubo2014Btf::toRgb(float* v, int lightIndex) const {
 
 namespace {
 // Eight independent partial sums (a fixed order, so the same bits everywhere): the compiler
-// vectorizes them, where one running sum waits on every addition. A computed stack
-// (computedStack) calls this three times per value it reads.
+// vectorizes them, where one running sum waits on every addition. valueLinear calls it three
+// times per value; dotsK gives the same bits for a tile of texels.
 float dotK(const float* a, const float* b, int k) {
   float lane[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   int j = 0;
@@ -253,38 +257,96 @@ float dotK(const float* a, const float* b, int k) {
   for (int l = 0; j < k; ++j, ++l) lane[l] += a[j] * b[j];
   return ((lane[0] + lane[4]) + (lane[1] + lane[5])) + ((lane[2] + lane[6]) + (lane[3] + lane[7]));
 }
+
+constexpr int kTile = 64;  // texels whose factors computeValues keeps at hand
+
+// dotK(a, b_t) for the n <= kTile texels t of a tile, whose factors tileT holds component-major
+// (b_t[j] = tileT[j * kTile + t]): the same eight partial sums, added in the same order, so the
+// same bits as dotK, but vectorized across texels.
+void dotsK(const float* a, const float* tileT, int k, int n, float* out) {
+  float lane[8][kTile];
+  for (auto& l : lane) std::fill(l, l + n, 0.0f);
+  auto add = [&](int l, int j) {
+    const float aj = a[j];
+    const float* b = tileT + static_cast<std::size_t>(j) * kTile;
+    float* sum = lane[l];
+    for (int t = 0; t < n; ++t) sum[t] += aj * b[t];
+  };
+  int j = 0;
+  for (; j + 8 <= k; j += 8)
+    for (int l = 0; l < 8; ++l) add(l, j + l);
+  for (int l = 0; j < k; ++j, ++l) add(l, j);
+  for (int t = 0; t < n; ++t)
+    out[t] = ((lane[0][t] + lane[4][t]) + (lane[1][t] + lane[5][t])) + ((lane[2][t] + lane[6][t]) + (lane[3][t] + lane[7][t]));
+}
 }  // namespace
 
-void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
-  const int pairs = numImages();
-  for (int k = 0; k < count; ++k) {
-    const std::size_t texel = static_cast<std::size_t>(texels[k]);
-    const float* spatial[3];
-    const float* angular[3];
-    for (int c = 0; c < 3; ++c) {
-      const Ubo2014Channel& ch = channels_[c];
-      angular[c] = abrdfsInU_ ? ch.u.data() : ch.sxv.data();
-      spatial[c] = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + texel * ch.components;
+void Ubo2014Btf::abrdfLinear(int texel, float* out) const { abrdfsLinear(&texel, 1, out); }
+
+void Ubo2014Btf::imageLinear(int image, float* out) const { imagesLinear(image, 1, Crop{0, 0, width(), height()}, out); }
+
+template <class ImageAt, class TexelAt, class Store>
+void Ubo2014Btf::computeValues(int numImages, ImageAt imageAt, int count, TexelAt texelAt, Store store) const {
+  const float* angular[3];
+  const float* spatial[3];
+  int k[3];
+  for (int c = 0; c < 3; ++c) {
+    const Ubo2014Channel& ch = channels_[c];
+    angular[c] = abrdfsInU_ ? ch.u.data() : ch.sxv.data();
+    spatial[c] = abrdfsInU_ ? ch.sxv.data() : ch.u.data();
+    k[c] = ch.components;
+  }
+  std::vector<float> tiles[3];
+  for (int c = 0; c < 3; ++c) tiles[c].resize(static_cast<std::size_t>(k[c]) * kTile);
+  float v[3][kTile];
+  for (int t0 = 0; t0 < count; t0 += kTile) {
+    const int n = std::min(kTile, count - t0);
+    for (int t = 0; t < n; ++t) {
+      const std::size_t texel = static_cast<std::size_t>(texelAt(t0 + t));
+      for (int c = 0; c < 3; ++c)
+        for (int j = 0; j < k[c]; ++j) tiles[c][static_cast<std::size_t>(j) * kTile + t] = spatial[c][texel * k[c] + j];
     }
-    for (int image = 0; image < pairs; ++image) {
+    for (int i = 0; i < numImages; ++i) {
+      const int image = imageAt(i);
       const std::size_t row = static_cast<std::size_t>(fileRow(image));
-      float v[3];
-      for (int c = 0; c < 3; ++c) {
-        const int kc = channels_[c].components;
-        v[c] = dotK(angular[c] + row * kc, spatial[c], kc);
+      for (int c = 0; c < 3; ++c) dotsK(angular[c] + row * k[c], tiles[c].data(), k[c], n, v[c]);
+      for (int t = 0; t < n; ++t) {
+        float rgb[3] = {v[0][t], v[1][t], v[2][t]};
+        toRgb(rgb, image / numViews());
+        store(i, t0 + t, rgb);
       }
-      toRgb(v, image / numViews());
-      float* o = out + (static_cast<std::size_t>(k) * pairs + image) * 3;
-      o[0] = v[0], o[1] = v[1], o[2] = v[2];
     }
   }
 }
 
-void Ubo2014Btf::abrdfLinear(int texel, float* out) const { abrdfsLinear(&texel, 1, out); }
+void Ubo2014Btf::imagesLinear(int first, int count, const Crop& crop, float* out) const {
+  const int texels = crop.width * crop.height;
+  computeValues(
+      count, [&](int i) { return first + i; }, texels,
+      [&](int t) { return (crop.y + t / crop.width) * width() + crop.x + t % crop.width; },
+      [&](int i, int t, const float* rgb) {
+        float* o = out + (static_cast<std::size_t>(i) * texels + t) * 3;
+        o[0] = rgb[0], o[1] = rgb[1], o[2] = rgb[2];
+      });
+}
 
-void Ubo2014Btf::imageLinear(int image, float* out) const {
-  const int texels = numTexels();
-  for (int t = 0; t < texels; ++t) valueLinear(image, t, out + static_cast<std::size_t>(t) * 3);
+void Ubo2014Btf::gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const {
+  if (!images) numImages = this->numImages();
+  computeValues(
+      numImages, [&](int j) { return images ? images[j] : j; }, count, [&](int t) { return texels[t]; },
+      [&](int j, int t, const float* rgb) {
+        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(3 * j + c) * count + t] = rgb[c];
+      });
+}
+
+void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
+  const int pairs = numImages();
+  computeValues(
+      pairs, [](int image) { return image; }, count, [&](int k) { return texels[k]; },
+      [&](int image, int k, const float* rgb) {
+        float* o = out + (static_cast<std::size_t>(k) * pairs + image) * 3;
+        o[0] = rgb[0], o[1] = rgb[1], o[2] = rgb[2];
+      });
 }
 
 void Ubo2014Btf::valueLinear(int image, int texel, float* rgb) const {
@@ -331,40 +393,127 @@ namespace {
 inline float storedValue(float v) { return halfToFloat(floatToHalf(std::max(0.0f, v))); }
 
 // A crop of a factorized material, its values computed on demand (BtfStack::isComputed).
+//
+// Whole images are made a block of consecutive images at a time (imagesLinear), so that each
+// texel's factors are read from memory once per block, not once per image; a few blocks are
+// kept. A thread that finds its block being made by another one makes a block after it
+// meanwhile: the passes read images in order from several threads, and all of them stay busy.
 class FactorizedValues : public ComputedStackValues {
  public:
-  FactorizedValues(std::shared_ptr<const Ubo2014Btf> btf, Crop crop) : btf_(std::move(btf)), crop_(crop) {}
+  FactorizedValues(std::shared_ptr<const Ubo2014Btf> btf, Crop crop, std::size_t blockBytes)
+      : btf_(std::move(btf)),
+        crop_(crop),
+        imagesPerBlock_(ubo2014ImagesPerBlock(crop.width * crop.height, btf_->numImages(), blockBytes)),
+        blocks_((btf_->numImages() + imagesPerBlock_ - 1) / imagesPerBlock_),
+        capacity_(ubo2014BlocksKept()) {}
   void image(int image, float* out) const override {
-    const int texels = crop_.width * crop_.height;
-    for (int t = 0; t < texels; ++t) value(image, t, out + static_cast<std::size_t>(t) * 3);
+    const std::size_t values = static_cast<std::size_t>(crop_.width) * crop_.height * 3;
+    std::shared_ptr<const Block> b = block(image / imagesPerBlock_);
+    std::copy_n(b->rgb.data() + static_cast<std::size_t>(image % imagesPerBlock_) * values, values, out);
   }
   void value(int image, int texel, float rgb[3]) const override {
     btf_->valueLinear(image, fileTexel(texel), rgb);
     for (int c = 0; c < 3; ++c) rgb[c] = storedValue(rgb[c]);
   }
   void gather(const int* images, int numImages, const int* texels, int count, float* out) const override {
-    for (int k = 0; k < count; ++k)
-      for (int j = 0; j < numImages; ++j) {
-        float rgb[3];
-        value(images ? images[j] : j, texels[k], rgb);
-        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(3 * j + c) * count + k] = rgb[c];
-      }
+    const int cropTexels = crop_.width * crop_.height;
+    if (images && numImages == 1 && count * 16 >= cropTexels) {  // much of one image: its block
+      std::shared_ptr<const Block> b = block(images[0] / imagesPerBlock_);
+      const float* rgb = b->rgb.data() + static_cast<std::size_t>(images[0] % imagesPerBlock_) * cropTexels * 3;
+      for (int k = 0; k < count; ++k)
+        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(c) * count + k] = rgb[3 * static_cast<std::size_t>(texels[k]) + c];
+      return;
+    }
+    std::vector<int> file(count);
+    for (int k = 0; k < count; ++k) file[k] = fileTexel(texels[k]);
+    btf_->gatherLinear(images, numImages, file.data(), count, out);
+    const std::size_t n = static_cast<std::size_t>(images ? numImages : btf_->numImages()) * 3 * count;
+    for (std::size_t i = 0; i < n; ++i) out[i] = storedValue(out[i]);
   }
-  std::size_t bytes() const override { return btf_->factorBytes(); }
+  std::size_t bytes() const override {
+    return btf_->factorBytes() + static_cast<std::size_t>(capacity_) * imagesPerBlock_ * crop_.width * crop_.height * 3 *
+                                     sizeof(float);
+  }
 
  private:
+  struct Block {
+    int index = 0;
+    std::vector<float> rgb;  // its images, one after the other, as image() gives them
+  };
+
+  std::shared_ptr<const Block> cached(int index) const {
+    for (const auto& b : cache_)
+      if (b->index == index) return b;
+    return nullptr;
+  }
+  std::shared_ptr<const Block> block(int index) const {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      if (auto b = cached(index)) return b;
+      if (!making_.count(index)) break;
+      bool helped = false;
+      for (int next = index + 1; next < blocks_ && next <= index + capacity_ - 2 && !helped; ++next)
+        if (!cached(next) && !making_.count(next)) make(next, lock), helped = true;
+      if (!helped) made_.wait(lock);
+    }
+    make(index, lock);
+    return cached(index);
+  }
+  // Makes block `index` with the lock released, then keeps it (dropping the oldest).
+  void make(int index, std::unique_lock<std::mutex>& lock) const {
+    making_.insert(index);
+    lock.unlock();
+    auto b = std::make_shared<Block>();
+    try {
+      b->index = index;
+      const int first = index * imagesPerBlock_;
+      const int count = std::min(imagesPerBlock_, btf_->numImages() - first);
+      b->rgb.resize(static_cast<std::size_t>(count) * crop_.width * crop_.height * 3);
+      btf_->imagesLinear(first, count, crop_, b->rgb.data());
+      for (float& v : b->rgb) v = storedValue(v);
+    } catch (...) {
+      lock.lock();
+      making_.erase(index);
+      made_.notify_all();
+      throw;
+    }
+    lock.lock();
+    making_.erase(index);
+    cache_.push_back(std::move(b));
+    if (static_cast<int>(cache_.size()) > capacity_) cache_.pop_front();
+    made_.notify_all();
+  }
   int fileTexel(int t) const { return (crop_.y + t / crop_.width) * btf_->width() + crop_.x + t % crop_.width; }
+
   std::shared_ptr<const Ubo2014Btf> btf_;
   Crop crop_;
+  int imagesPerBlock_, blocks_, capacity_;
+  mutable std::mutex mutex_;
+  mutable std::condition_variable made_;
+  mutable std::deque<std::shared_ptr<const Block>> cache_;
+  mutable std::set<int> making_;
 };
 
 }  // namespace
 
-BtfStack Ubo2014Btf::computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& requested) {
+int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes) {
+  const std::size_t bytesPerImage = static_cast<std::size_t>(std::max(1, texels)) * 3 * sizeof(float);
+  // at most 1/64 of the images: the blocks kept stay small beside a small material's factors
+  const std::size_t most = std::max(1, (images + 63) / 64);
+  return static_cast<int>(std::clamp<std::size_t>(blockBytes / bytesPerImage, 1, most));
+}
+int ubo2014BlocksKept() { return threadCount() + 2; }
+std::size_t ubo2014ComputedBlockBytes(int texels, int images, std::size_t blockBytes) {
+  return static_cast<std::size_t>(ubo2014BlocksKept()) * ubo2014ImagesPerBlock(texels, images, blockBytes) * texels * 3 *
+         sizeof(float);
+}
+
+BtfStack Ubo2014Btf::computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& requested,
+                                   std::size_t blockBytes) {
   const Crop crop = btf->checkedCrop(requested);
   const Ubo2014Btf& b = *btf;
   BtfStack stack(b.meta_.lights, b.meta_.views, crop.width, crop.height, SampleType::Half,
-                 std::make_shared<FactorizedValues>(btf, crop));
+                 std::make_shared<FactorizedValues>(btf, crop, blockBytes));
   b.setProvenance(stack, requested.empty() ? Crop{} : crop);
   return stack;
 }

@@ -24,6 +24,8 @@
 
 namespace nbtf {
 
+inline constexpr std::size_t kUbo2014BlockBytes = std::size_t{64} << 20;
+
 // The signatures Bonn's reader knows (ubo_btf_signatures.m), and what nbtf does with them.
 constexpr const char* kDfmfSignature = "!DFMF08FCR";
 // Returns the known signature `bytes` starts with ("" if none).
@@ -112,6 +114,13 @@ class Ubo2014Btf {
   void abrdfsLinear(const int* texels, int count, float* out) const;
   // One image, linear RGB, width * height * 3 floats.
   void imageLinear(int image, float* out) const;
+  // Images [first, first + count) at the texels of `crop` (y * crop.width + x), linear RGB:
+  // out[(i * crop texels + texel) * 3 + channel]. Each texel's factors are read once for all
+  // the images. The same bits as valueLinear.
+  void imagesLinear(int first, int count, const Crop& crop, float* out) const;
+  // Texels texels[k] (of the whole material) in images[j] (nullptr: every image, j = image),
+  // linear RGB: out[(3 j + c) * count + k]. The same bits as valueLinear.
+  void gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const;
   // One texel in one image, linear RGB (the same arithmetic as the two above).
   void valueLinear(int image, int texel, float* rgb) const;
 
@@ -128,7 +137,9 @@ class Ubo2014Btf {
   // The same stack, value for value (clamped at zero and rounded to half floats as toStack
   // stores them), computed on demand: it keeps `btf` (its factors) instead of crop texels x
   // images x 6 bytes. Slower to read: each value is three dot products of the components.
-  static BtfStack computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& crop);
+  // Whole images are made blockBytes of them at a time (see ubo2014ComputedBlockBytes).
+  static BtfStack computedStack(std::shared_ptr<const Ubo2014Btf> btf, const Crop& crop,
+                                std::size_t blockBytes = kUbo2014BlockBytes);
   // The crop a load applies (empty = the whole material); throws naming the file when it lies
   // outside the material.
   Crop checkedCrop(const Crop& requested) const;
@@ -137,6 +148,10 @@ class Ubo2014Btf {
   // Undecorrelates one light/view pair's channel values (in place) into linear RGB.
   void toRgb(float* v, int lightIndex) const;
   int fileRow(int image) const;  // nbtf image -> the file's light/view row (light fastest)
+  // The values of texels texelAt(k), k < count, in images imageAt(j), j < numImages, a tile of
+  // texels at a time (their factors read once for all the images): store(j, k, rgb).
+  template <class ImageAt, class TexelAt, class Store>
+  void computeValues(int numImages, ImageAt imageAt, int count, TexelAt texelAt, Store store) const;
   void setProvenance(BtfStack& stack, const Crop& crop) const;
 
   Ubo2014Meta meta_;
@@ -145,6 +160,13 @@ class Ubo2014Btf {
   bool abrdfsInU_ = true;
   std::array<float, 9> rgbFromYuv_{};
 };
+
+// A computed stack (Ubo2014Btf::computedStack) makes whole images a block at a time, about
+// blockBytes of floats (at least one image, at most 1/64 of them), and keeps
+// ubo2014BlocksKept() blocks: it holds ubo2014ComputedBlockBytes besides the factors.
+int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
+int ubo2014BlocksKept();
+std::size_t ubo2014ComputedBlockBytes(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
 
 // A path the loaders treat as a UBO2014 file: a regular file named *.btf or starting with '!'.
 bool looksLikeUbo2014(const std::string& path);

@@ -5,7 +5,9 @@
 // The SVD is randomized (range finder with power iterations, Halko et al.); with at least
 // as many columns in the sketch as the matrix's smaller side it is exact up to rounding.
 // Memory: the three channel matrices in float32, pairs x texels x 12 bytes (e.g. 22,801
-// images of 32 x 32 texels: 280 MB), besides the caller's images.
+// images of 32 x 32 texels: 280 MB), besides the caller's images; or, above
+// Ubo2014FactorizeOptions::memoryLimit, streamed: blocks of about 64 MB of images and the
+// sketches (texels x (components + oversampling) x 12 bytes, a few times).
 #pragma once
 #include <cstdint>
 #include <functional>
@@ -26,6 +28,11 @@ struct Ubo2014FactorizeOptions {
   std::uint64_t seed = 1;
   bool progress = true;
   std::string xml;           // stored in the header's XML field (a description of the source)
+  // The channel matrices (ubo2014MatrixBytes) are held in memory up to this size (0: half of
+  // defaultMemoryLimit()). Above it nothing of that size is held: every pass of the SVD asks
+  // for the images again, 2 + 2 x powerIterations passes, and one more for the report.
+  std::size_t memoryLimit = 0;
+  std::size_t blockBytes = std::size_t{64} << 20;  // images made at a time, about this many bytes
 };
 
 struct Ubo2014FactorizeReport {
@@ -34,7 +41,12 @@ struct Ubo2014FactorizeReport {
   double inputMean = 0;      // mean linear value of the input
   int components = 0;        // per channel, as stored
   double seconds = 0;
+  bool streamed = false;     // the images were asked for once per pass instead of held
+  int passes = 1;            // times each image was asked for
 };
+
+// Bytes of the three channel matrices in float32: images x texels x 12.
+std::size_t ubo2014MatrixBytes(int images, int texels);
 
 // Throws nbtf::Error for options the writer cannot use (colour model, components, scalar
 // size): callers check before rendering or decoding anything.
