@@ -137,6 +137,33 @@ TEST(Ubo2014Factorize, StreamedPassesGiveTheHeldFactorization) {
   }
 }
 
+// A bright material's largest singular value passes half's range: it is stored as the largest
+// half (decoding does not use it), so that the file reads back; the values are unchanged.
+TEST(Ubo2014Factorize, SingularValuesOverTheHalfRangeAreStoredAsTheLargestHalf) {
+  test::TempDir dir;
+  BtfStack stack = lowRankStack(40, 30);
+  BtfStack bright(stack.lights(), stack.views(), 40, 30, SampleType::Half);
+  std::vector<float> img(1200 * 3);
+  for (int i = 0; i < stack.numImages(); ++i) {
+    stack.imageLinear(i, img.data());
+    for (float& v : img) v *= 1e4f;
+    bright.setImageLinear(i, img.data());
+  }
+  Ubo2014FactorizeOptions o;
+  o.progress = false;
+  o.colorModel = 0;
+  o.components = 4;
+  Ubo2014FactorizeReport report;
+  const Ubo2014Btf btf = factorizeUbo2014(bright, o, &report);
+  EXPECT_EQ(btf.channels()[0].s[0], 65504.0f);
+  EXPECT_LT(btf.channels()[0].s[3], 65504.0f);
+  const std::string path = dir / "bright.btf";
+  btf.write(path);
+  const Ubo2014Btf back = Ubo2014Btf::read(path);
+  EXPECT_EQ(back.channels()[0].s, btf.channels()[0].s);
+  EXPECT_LT(report.rmseLinear, 2e-3 * report.inputMean);
+}
+
 TEST(Ubo2014Factorize, RefusesWhatItCannotWrite) {
   BtfStack stack = lowRankStack(2, 2);
   Ubo2014FactorizeOptions o;

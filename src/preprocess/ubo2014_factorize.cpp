@@ -320,7 +320,15 @@ Ubo2014Btf factorizeUbo2014(const std::vector<Direction>& lights, const std::vec
       for (int j = 0; j < k; ++j) ch.u[static_cast<std::size_t>(r) * k + j] = stored(u(r, j));
     for (int t = 0; t < texels; ++t)
       for (int j = 0; j < k; ++j) ch.sxv[static_cast<std::size_t>(t) * k + j] = stored(sxv(t, j));
-    for (float& s : ch.s) s = stored(s);
+    // Decoding never reads the singular values (SxV holds them); a whole material's largest
+    // can pass half's range (65504), and is then stored as the largest half, not infinity.
+    constexpr float kLargestHalf = 65504.0f;
+    for (float& s : ch.s) s = stored(o.scalarSize == 2 ? std::min(s, kLargestHalf) : s);
+    for (const std::vector<float>* part : {&ch.u, &ch.sxv})
+      for (float f : *part)
+        if (!std::isfinite(f))
+          throw Error("UBO2014 writer: channel " + std::to_string(c) + ": a factor is not finite (over the " +
+                      (o.scalarSize == 2 ? std::string("half-float range, 65504") : std::string("float range")) + ")");
     bar.advance();
   }
   bar.finish();
