@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <condition_variable>
-#include <deque>
-#include <mutex>
-#include <set>
 #include <cstring>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <mutex>
+#include <set>
 #include <sstream>
 
 #include "util/atomic_file.h"
@@ -258,6 +258,11 @@ float dotK(const float* a, const float* b, int k) {
   return ((lane[0] + lane[4]) + (lane[1] + lane[5])) + ((lane[2] + lane[6]) + (lane[3] + lane[7]));
 }
 
+// Texel t of a crop (y * crop.width + x) in a material `width` texels wide.
+int materialTexel(const Crop& crop, int width, int t) {
+  return (crop.y + t / crop.width) * width + crop.x + t % crop.width;
+}
+
 constexpr int kTile = 64;  // texels whose factors computeValues keeps at hand
 
 // dotK(a, b_t) for the n <= kTile texels t of a tile, whose factors tileT holds component-major
@@ -323,7 +328,7 @@ void Ubo2014Btf::imagesLinear(int first, int count, const Crop& crop, float* out
   const int texels = crop.width * crop.height;
   computeValues(
       count, [&](int i) { return first + i; }, texels,
-      [&](int t) { return (crop.y + t / crop.width) * width() + crop.x + t % crop.width; },
+      [&](int t) { return materialTexel(crop, width(), t); },
       [&](int i, int t, const float* rgb) {
         float* o = out + (static_cast<std::size_t>(i) * texels + t) * 3;
         o[0] = rgb[0], o[1] = rgb[1], o[2] = rgb[2];
@@ -403,6 +408,7 @@ class FactorizedValues : public ComputedStackValues {
   FactorizedValues(std::shared_ptr<const Ubo2014Btf> btf, Crop crop, std::size_t blockBytes)
       : btf_(std::move(btf)),
         crop_(crop),
+        blockBytes_(blockBytes),
         imagesPerBlock_(ubo2014ImagesPerBlock(crop.width * crop.height, btf_->numImages(), blockBytes)),
         blocks_((btf_->numImages() + imagesPerBlock_ - 1) / imagesPerBlock_),
         capacity_(ubo2014BlocksKept()) {}
@@ -431,8 +437,7 @@ class FactorizedValues : public ComputedStackValues {
     for (std::size_t i = 0; i < n; ++i) out[i] = storedValue(out[i]);
   }
   std::size_t bytes() const override {
-    return btf_->factorBytes() + static_cast<std::size_t>(capacity_) * imagesPerBlock_ * crop_.width * crop_.height * 3 *
-                                     sizeof(float);
+    return btf_->factorBytes() + ubo2014ComputedBlockBytes(crop_.width * crop_.height, btf_->numImages(), blockBytes_);
   }
 
  private:
@@ -483,10 +488,11 @@ class FactorizedValues : public ComputedStackValues {
     if (static_cast<int>(cache_.size()) > capacity_) cache_.pop_front();
     made_.notify_all();
   }
-  int fileTexel(int t) const { return (crop_.y + t / crop_.width) * btf_->width() + crop_.x + t % crop_.width; }
+  int fileTexel(int t) const { return materialTexel(crop_, btf_->width(), t); }
 
   std::shared_ptr<const Ubo2014Btf> btf_;
   Crop crop_;
+  std::size_t blockBytes_;
   int imagesPerBlock_, blocks_, capacity_;
   mutable std::mutex mutex_;
   mutable std::condition_variable made_;
@@ -530,10 +536,7 @@ BtfStack Ubo2014Btf::toStack(const Crop& requested, bool progress) const {
   parallelForDynamic(blocks, [&](std::size_t b, int) {
     const int first = static_cast<int>(b) * kBlock, count = std::min(kBlock, texels - first);
     int fileTexels[kBlock];
-    for (int k = 0; k < count; ++k) {
-      int t = first + k;
-      fileTexels[k] = (crop.y + t / crop.width) * width() + crop.x + t % crop.width;
-    }
+    for (int k = 0; k < count; ++k) fileTexels[k] = materialTexel(crop, width(), first + k);
     std::vector<float> rows(static_cast<std::size_t>(count) * pairs * 3);
     abrdfsLinear(fileTexels, count, rows.data());
     for (int k = 0; k < count; ++k)

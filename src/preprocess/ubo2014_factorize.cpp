@@ -129,19 +129,26 @@ class ChannelMatrices {
   std::size_t blockBytes_;
 };
 
-// Renders the rows of one block: image(i, rgb) for each of its pairs, decorrelated.
-void makeRows(const ChannelMatrices& a, const std::function<void(int, float*)>& image, const Decorrelation& colour,
-              int first, Channels& block) {
-  const int n = static_cast<int>(block[0].rows()), texels = a.texels();
-  parallelForDynamic(n, [&](std::size_t r, int) {
-    std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
-    image(a.imageOfRow(first + static_cast<int>(r)), rgb.data());
-    float v[3];
-    for (int t = 0; t < texels; ++t) {
-      colour.forward(rgb.data() + static_cast<std::size_t>(t) * 3, v);
-      for (int c = 0; c < 3; ++c) block[c](static_cast<Eigen::Index>(r), t) = v[c];
-    }
-  });
+// Renders the rows block by block, in order, each image(i, rgb) decorrelated:
+// visit(first row, the block's rows).
+void renderBlocks(const ChannelMatrices& a, const std::function<void(int, float*)>& image, const Decorrelation& colour,
+                  const std::function<void(int, const RowBlock&)>& visit) {
+  const int step = a.rowsPerBlock(), texels = a.texels();
+  Channels block;
+  for (int first = 0; first < a.rows(); first += step) {
+    const int n = std::min(step, a.rows() - first);
+    for (MatrixF& m : block) m.resize(n, texels);
+    parallelForDynamic(n, [&](std::size_t r, int) {
+      std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
+      image(a.imageOfRow(first + static_cast<int>(r)), rgb.data());
+      float v[3];
+      for (int t = 0; t < texels; ++t) {
+        colour.forward(rgb.data() + static_cast<std::size_t>(t) * 3, v);
+        for (int c = 0; c < 3; ++c) block[c](static_cast<Eigen::Index>(r), t) = v[c];
+      }
+    });
+    visit(first, RowBlock{block[0], block[1], block[2]});
+  }
 }
 
 // Made once and held: products are whole-matrix products.
@@ -151,16 +158,11 @@ class HeldMatrices : public ChannelMatrices {
                const Decorrelation& colour, std::size_t blockBytes, bool progress)
       : ChannelMatrices(lights, views, texels, blockBytes) {
     for (MatrixF& m : a_) m.resize(rows(), texels);
-    const int step = rowsPerBlock();
     Progress bar("images", rows(), progress);
-    Channels block;
-    for (int first = 0; first < rows(); first += step) {
-      const int n = std::min(step, rows() - first);
-      for (MatrixF& m : block) m.resize(n, texels);
-      makeRows(*this, image, colour, first, block);
-      for (int c = 0; c < 3; ++c) a_[c].middleRows(first, n) = block[c];
-      bar.advance(n);
-    }
+    renderBlocks(*this, image, colour, [&](int first, const RowBlock& block) {
+      for (int c = 0; c < 3; ++c) a_[c].middleRows(first, block[c].rows()) = block[c];
+      bar.advance(static_cast<std::size_t>(block[0].rows()));
+    });
     bar.finish();
   }
   void forEachBlock(const std::function<void(int, const RowBlock&)>& visit) override {
@@ -195,15 +197,10 @@ class StreamedMatrices : public ChannelMatrices {
         colour_(colour),
         bar_("images, " + std::to_string(passes) + " passes", static_cast<std::size_t>(passes) * rows(), progress) {}
   void forEachBlock(const std::function<void(int, const RowBlock&)>& visit) override {
-    const int step = rowsPerBlock();
-    Channels block;
-    for (int first = 0; first < rows(); first += step) {
-      const int n = std::min(step, rows() - first);
-      for (MatrixF& m : block) m.resize(n, texels());
-      makeRows(*this, image_, colour_, first, block);
-      visit(first, RowBlock{block[0], block[1], block[2]});
-      bar_.advance(n);
-    }
+    renderBlocks(*this, image_, colour_, [&](int first, const RowBlock& block) {
+      visit(first, block);
+      bar_.advance(static_cast<std::size_t>(block[0].rows()));
+    });
     ++passes_;
   }
   int passes() const { return passes_; }
