@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "util/error.h"
+#include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -81,6 +83,30 @@ TEST_F(AbrdfMatrixTest, TinyValuesKeepTheirLogPrecision) {
   MatrixXfCol back = x;
   s.invert(back);
   EXPECT_NEAR(back(36, 0), original(36, 0), 1e-3 * original(36, 0));
+}
+
+// log1pRun looks halves up in a table: the same bits as the formula, for every half >= 0,
+// and other values (not halves, negative, -0) still computed.
+TEST_F(AbrdfMatrixTest, Log1pOfHalvesIsTheFormulaBitForBit) {
+  auto formula = [](float x) {
+    const float u = x + 1.0f;
+    return u == 1.0f ? x : std::log(u) * (x / (u - 1.0f));
+  };
+  std::vector<float> values;
+  for (std::uint32_t h = 0; h < 0x7C00; ++h) values.push_back(halfToFloat(static_cast<std::uint16_t>(h)));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> any(-0.99f, 70000.0f);
+  for (int i = 0; i < 100000; ++i) values.push_back(any(rng));
+  for (float v : {-0.0f, 1e-30f, 3e-8f, 65504.0f, 65505.0f, 1e30f}) values.push_back(v);
+  std::vector<float> logs = values;
+  log1pRun(logs.data(), static_cast<Eigen::Index>(logs.size()));
+  int halves = 0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const float expected = formula(values[i]);
+    ASSERT_EQ(std::memcmp(&logs[i], &expected, 4), 0) << values[i] << ": " << logs[i] << " vs " << expected;
+    halves += roundToHalf(values[i]) == values[i];
+  }
+  EXPECT_GE(halves, 0x7C00);
 }
 
 TEST_F(AbrdfMatrixTest, ConstantDimensionsBecomeZeroNotNan) {

@@ -61,7 +61,9 @@ TEST_F(AbrdfSourceTest, FitStandardizationMatchesTheInMemoryStatisticsBitForBit)
     BtfStack stack = structuredStack(37, 29, 4, 3, type, 1);
     Standardization dense;
     standardizedMatrix(stack, dense);
-    Standardization streamed = fitStandardization(stack, false);
+    float alpha = 0;
+    Standardization streamed = fitStandardization(stack, false, &alpha);
+    EXPECT_EQ(alpha, targetAlpha(stack)) << sampleTypeName(type);  // from the same pass
     ASSERT_EQ(streamed.mean.size(), dense.mean.size());
     EXPECT_TRUE((streamed.mean.array() == dense.mean.array()).all()) << sampleTypeName(type);
     EXPECT_TRUE((streamed.stddev.array() == dense.stddev.array()).all()) << sampleTypeName(type);

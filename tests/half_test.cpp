@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 
 namespace nbtf {
@@ -42,6 +44,37 @@ TEST(Half, OverflowSubnormalsAndSpecials) {
   float sub = 3 * 5.9604645e-08f;  // three subnormal steps
   EXPECT_EQ(halfToFloat(floatToHalf(sub)), sub);
   EXPECT_EQ(floatToHalf(sub), 3);
+}
+
+std::uint32_t bitsOf(float v) {
+  std::uint32_t b;
+  std::memcpy(&b, &v, 4);
+  return b;
+}
+float floatOf(std::uint32_t b) {
+  float v;
+  std::memcpy(&v, &b, 4);
+  return v;
+}
+
+// roundToHalf (branch-free) against the two conversions, bit for bit: at and around every
+// half and every midpoint between neighbouring halves (where rounding decides), both signs,
+// and a sample of all floats.
+TEST(Half, RoundToHalfIsTheConversionsBitForBit) {
+  auto expectSame = [](std::uint32_t b) {
+    const float v = floatOf(b);
+    ASSERT_EQ(bitsOf(roundToHalf(v)), bitsOf(halfToFloat(floatToHalf(v)))) << std::hex << b;
+  };
+  int checked = 0;
+  for (std::uint32_t h = 0; h < 0x7C00u; ++h) {  // finite positive halves and the next one up
+    const float lo = halfToFloat(static_cast<std::uint16_t>(h)), hi = halfToFloat(static_cast<std::uint16_t>(h + 1));
+    for (std::uint32_t centre : {bitsOf(lo), bitsOf((lo + hi) / 2)})  // (lo + hi) / 2 is exact
+      for (std::uint32_t b = centre - 2; b != centre + 3; ++b)
+        for (std::uint32_t sign : {0u, 0x80000000u}) expectSame((b & 0x7FFFFFFFu) | sign), ++checked;
+  }
+  for (std::uint64_t b = 0; b <= 0xFFFFFFFFull; b += 9973) expectSame(static_cast<std::uint32_t>(b)), ++checked;
+  for (std::uint32_t b : {0x7F800000u, 0xFF800000u, 0x7FC00000u, 0x7F800001u, 0xFFFFFFFFu}) expectSame(b), ++checked;
+  EXPECT_GT(checked, 1000000);
 }
 
 }  // namespace

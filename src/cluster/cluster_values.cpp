@@ -225,13 +225,18 @@ void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const s
   y.resize(last - first);
   for (std::size_t g = first; g < last; ++g) y[g - first].resize(static_cast<Eigen::Index>(members[g].size()), dims);
   const int count = static_cast<int>(texels.size());
-  parallelFor(used.size(), [&](std::size_t begin, std::size_t end) {
-    std::vector<float> values(3 * static_cast<std::size_t>(count));
-    for (std::size_t j = begin; j < end; ++j) {
-      stack.gatherLinear(&used[j], 1, texels.data(), count, values.data());
-      for (int i = 0; i < count; ++i)
-        for (int c = 0; c < 3; ++c)
-          y[slots[i].cluster](slots[i].row, static_cast<Eigen::Index>(3 * j + c)) = values[static_cast<std::size_t>(c) * count + i];
+  // A few images per gather: a computed stack reads each texel's factors once per gather.
+  constexpr std::size_t kImages = 16;
+  parallelFor((used.size() + kImages - 1) / kImages, [&](std::size_t begin, std::size_t end) {
+    std::vector<float> values(3 * kImages * static_cast<std::size_t>(count));
+    for (std::size_t j0 = begin * kImages; j0 < std::min(end * kImages, used.size()); j0 += kImages) {
+      const std::size_t m = std::min(kImages, used.size() - j0);
+      stack.gatherLinear(&used[j0], static_cast<int>(m), texels.data(), count, values.data());
+      for (std::size_t j = 0; j < m; ++j)
+        for (int i = 0; i < count; ++i)
+          for (int c = 0; c < 3; ++c)
+            y[slots[i].cluster](slots[i].row, static_cast<Eigen::Index>(3 * (j0 + j) + c)) =
+                values[(3 * j + c) * count + i];
     }
   });
 }

@@ -19,6 +19,7 @@
 #include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/simd.h"
 
 namespace nbtf {
 namespace fs = std::filesystem;
@@ -265,24 +266,43 @@ int materialTexel(const Crop& crop, int width, int t) {
 
 constexpr int kTile = 64;  // texels whose factors computeValues keeps at hand
 
-// dotK(a, b_t) for the n <= kTile texels t of a tile, whose factors tileT holds component-major
-// (b_t[j] = tileT[j * kTile + t]): the same eight partial sums, added in the same order, so the
-// same bits as dotK, but vectorized across texels.
-void dotsK(const float* a, const float* tileT, int k, int n, float* out) {
-  float lane[8][kTile];
-  for (auto& l : lane) std::fill(l, l + n, 0.0f);
+// dotK(a, b_t) for the texels t0 .. t0 + lanes(V) - 1 of a tile, whose factors tileT holds
+// component-major (b_t[j] = tileT[j * kTile + t]): the same eight partial sums, added in the
+// same order, so the same bits as dotK, but one vector V of texels at a time, its eight
+// partial sums in registers.
+template <class V>
+inline void dotsGroup(const float* a, const float* tileT, int k, int t0, float* out) {
+  V lane[8] = {};
   auto add = [&](int l, int j) {
-    const float aj = a[j];
-    const float* b = tileT + static_cast<std::size_t>(j) * kTile;
-    float* sum = lane[l];
-    for (int t = 0; t < n; ++t) sum[t] += aj * b[t];
+    V b;
+    std::memcpy(&b, tileT + static_cast<std::size_t>(j) * kTile + t0, sizeof(V));
+    lane[l] += a[j] * b;
   };
   int j = 0;
-  for (; j + 8 <= k; j += 8)
+  for (; j + 8 <= k; j += 8) {
+#pragma GCC unroll 8
     for (int l = 0; l < 8; ++l) add(l, j + l);
-  for (int l = 0; j < k; ++j, ++l) add(l, j);
-  for (int t = 0; t < n; ++t)
-    out[t] = ((lane[0][t] + lane[4][t]) + (lane[1][t] + lane[5][t])) + ((lane[2][t] + lane[6][t]) + (lane[3][t] + lane[7][t]));
+  }
+#pragma GCC unroll 8
+  for (int l = 0; l < 8; ++l)
+    if (j + l < k) add(l, j + l);
+  const V sum = ((lane[0] + lane[4]) + (lane[1] + lane[5])) + ((lane[2] + lane[6]) + (lane[3] + lane[7]));
+  std::memcpy(out + t0, &sum, sizeof(V));
+}
+
+typedef float Floats4 __attribute__((vector_size(16)));
+typedef float Floats8 __attribute__((vector_size(32)));
+
+// dotsGroup over the texels t < n of a tile (whole groups: out holds kTile floats).
+void dotsK4(const float* a, const float* tileT, int k, int n, float* out) {
+  for (int t0 = 0; t0 < n; t0 += 4) dotsGroup<Floats4>(a, tileT, k, t0, out);
+}
+NBTF_AVX void dotsK8(const float* a, const float* tileT, int k, int n, float* out) {
+  for (int t0 = 0; t0 < n; t0 += 8) dotsGroup<Floats8>(a, tileT, k, t0, out);
+}
+void dotsK(const float* a, const float* tileT, int k, int n, float* out) {
+  static const bool wide = hasAvx();
+  (wide ? dotsK8 : dotsK4)(a, tileT, k, n, out);
 }
 }  // namespace
 
@@ -395,7 +415,7 @@ namespace {
 
 // What toStack stores for a computed value, read back: reflectances (a truncated SVD can dip
 // below zero) rounded to half floats.
-inline float storedValue(float v) { return halfToFloat(floatToHalf(std::max(0.0f, v))); }
+inline float storedValue(float v) { return roundToHalf(std::max(0.0f, v)); }
 
 // A crop of a factorized material, its values computed on demand (BtfStack::isComputed).
 //
@@ -467,8 +487,9 @@ class FactorizedValues : public ComputedStackValues {
   // Makes block `index` with the lock released, then keeps it (dropping the oldest).
   void make(int index, std::unique_lock<std::mutex>& lock) const {
     making_.insert(index);
-    lock.unlock();
     auto b = std::make_shared<Block>();
+    if (!spare_.empty()) b->rgb = std::move(spare_.back()), spare_.pop_back();
+    lock.unlock();
     try {
       b->index = index;
       const int first = index * imagesPerBlock_;
@@ -485,7 +506,12 @@ class FactorizedValues : public ComputedStackValues {
     lock.lock();
     making_.erase(index);
     cache_.push_back(std::move(b));
-    if (static_cast<int>(cache_.size()) > capacity_) cache_.pop_front();
+    if (static_cast<int>(cache_.size()) > capacity_) {
+      // Its buffer serves the next block unless a reader still holds it: a fresh 64 MB buffer
+      // costs more to zero and fault in than its values cost to compute.
+      if (cache_.front().use_count() == 1 && spare_.empty()) spare_.push_back(std::move(cache_.front()->rgb));
+      cache_.pop_front();
+    }
     made_.notify_all();
   }
   int fileTexel(int t) const { return materialTexel(crop_, btf_->width(), t); }
@@ -496,8 +522,9 @@ class FactorizedValues : public ComputedStackValues {
   int imagesPerBlock_, blocks_, capacity_;
   mutable std::mutex mutex_;
   mutable std::condition_variable made_;
-  mutable std::deque<std::shared_ptr<const Block>> cache_;
+  mutable std::deque<std::shared_ptr<Block>> cache_;
   mutable std::set<int> making_;
+  mutable std::vector<std::vector<float>> spare_;  // at most one dropped block's buffer
 };
 
 }  // namespace
@@ -509,8 +536,9 @@ int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes) {
   return static_cast<int>(std::clamp<std::size_t>(blockBytes / bytesPerImage, 1, most));
 }
 int ubo2014BlocksKept() { return threadCount() + 2; }
+int ubo2014BlocksHeld() { return ubo2014BlocksKept() + threadCount() + 1; }
 std::size_t ubo2014ComputedBlockBytes(int texels, int images, std::size_t blockBytes) {
-  return static_cast<std::size_t>(ubo2014BlocksKept()) * ubo2014ImagesPerBlock(texels, images, blockBytes) * texels * 3 *
+  return static_cast<std::size_t>(ubo2014BlocksHeld()) * ubo2014ImagesPerBlock(texels, images, blockBytes) * texels * 3 *
          sizeof(float);
 }
 

@@ -163,9 +163,11 @@ class Ubo2014Btf {
 
 // A computed stack (Ubo2014Btf::computedStack) makes whole images a block at a time, about
 // blockBytes of floats (at least one image, at most 1/64 of them), and keeps
-// ubo2014BlocksKept() blocks: it holds ubo2014ComputedBlockBytes besides the factors.
+// ubo2014BlocksKept() blocks. At most ubo2014BlocksHeld() exist at once (those kept, one in
+// the making on each thread, one spare buffer): ubo2014ComputedBlockBytes besides the factors.
 int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
 int ubo2014BlocksKept();
+int ubo2014BlocksHeld();
 std::size_t ubo2014ComputedBlockBytes(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
 
 // A path the loaders treat as a UBO2014 file: a regular file named *.btf or starting with '!'.

@@ -320,16 +320,17 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   // (preprocess/abrdf_source.h) and never exists whole. Per-texel: the matrix itself, the
   // encoder's input.
   auto t = Clock::now();
-  const float alpha = targetAlpha(stack);
-  stats.alpha = alpha;
+  float alpha = 0;
   MatrixXfCol x;
   std::unique_ptr<StackAbrdfSource> source;
   if (o.clusters > 0) {
-    source = std::make_unique<StackAbrdfSource>(stack, fitStandardization(stack, o.progress));
+    source = std::make_unique<StackAbrdfSource>(stack, fitStandardization(stack, o.progress, &alpha));
   } else {
+    alpha = targetAlpha(stack);
     x = abrdfMatrix(stack, o.progress);
     standardizeInPlace(x);
   }
+  stats.alpha = alpha;
   stats.seconds.preprocess = secondsSince(t);
 
   // ---- Cluster (PCA + k-means++ + per-cluster medians), or per-texel: X itself

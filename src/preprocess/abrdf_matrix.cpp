@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <vector>
 
 #include "util/error.h"
+#include "util/half.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -65,13 +68,41 @@ void checkLogDomain(const float* column, Eigen::Index rows, Eigen::Index dim) {
   }
 }
 
-// log(1 + x) for a run of values, vectorized: Eigen's log1p falls back to scalar code on
-// SSE2, 3x slower. With u = 1 + x (rounded), log(u) * x / (u - 1) cancels the rounding of u
+// log(1 + x). With u = 1 + x (rounded), log(u) * x / (u - 1) cancels the rounding of u
 // (Goldberg's formula) and keeps log1p's accuracy for tiny x.
+float log1pValue(float x) {
+  const float u = x + 1.0f;
+  return u == 1.0f ? x : std::log(u) * (x / (u - 1.0f));
+}
+
+// log1pValue of every finite half >= 0, indexed by its bits: half and computed stacks hold
+// halves only, and a look-up costs a tenth of the logarithm and the division.
+const std::vector<float>& log1pOfHalves() {
+  static const std::vector<float> table = [] {
+    std::vector<float> t(0x7C00);
+    for (std::uint32_t h = 0; h < t.size(); ++h) t[h] = log1pValue(halfToFloat(static_cast<std::uint16_t>(h)));
+    return t;
+  }();
+  return table;
+}
+
+// log1pValue of a run of values, in place: x's half bits index the table when x is a half
+// >= 0 (the same bits as computing it), otherwise computed.
 void log1pInPlace(float* values, Eigen::Index n) {
-  auto x = Eigen::Map<Eigen::ArrayXf>(values, n);
-  Eigen::ArrayXf u = x + 1.0f;
-  x = (u == 1.0f).select(x, u.log() * (x / (u - 1.0f)));
+  const float* table = log1pOfHalves().data();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const float x = values[i];
+    std::uint32_t f;
+    std::memcpy(&f, &x, 4);
+    std::uint32_t h = 0x7C00;  // not a half >= 0
+    if (f >= 0x38800000u && f <= 0x477FE000u && (f & 0x1FFFu) == 0) {
+      h = (f >> 13) - 0x1C000u;  // normal: rebias the exponent from 127 to 15
+    } else if (f < 0x38800000u) {  // below 2^-14: subnormal halves are multiples of 2^-24
+      const float steps = x * 16777216.0f;
+      if (steps == static_cast<float>(static_cast<std::uint32_t>(steps))) h = static_cast<std::uint32_t>(steps);
+    }
+    values[i] = h < 0x7C00 ? table[h] : log1pValue(x);
+  }
 }
 
 // exp(y) - 1, the inverse, with Kahan's correction (u - 1) * y / log(u), u = exp(y), for
@@ -172,7 +203,16 @@ Standardization standardizeInPlace(MatrixXfCol& x) {
   return s;
 }
 
-Standardization fitStandardization(const BtfStack& stack, bool progress) {
+namespace {
+float alphaFromMaximum(const BtfStack& stack, float hi) {
+  if (!(hi > 0))
+    throw fileError(stack.source.empty() ? std::string("BTF stack") : stack.source,
+                    "every value is zero: no maximum to normalize the targets by");
+  return hi;
+}
+}  // namespace
+
+Standardization fitStandardization(const BtfStack& stack, bool progress, float* alpha) {
   const Eigen::Index texels = stack.numTexels(), dims = 3 * static_cast<Eigen::Index>(stack.numImages());
   if (texels == 0 || dims == 0) throw fileError(stack.source, "empty BTF stack: nothing to cluster");
   Standardization s;
@@ -185,6 +225,7 @@ Standardization fitStandardization(const BtfStack& stack, bool progress) {
   const int workers = threadCount();
   std::vector<Eigen::VectorXf> buffers(workers);
   std::vector<std::vector<float>> images(workers);
+  std::vector<float> highest(workers, -std::numeric_limits<float>::infinity());
   Progress bar("standardize", stack.numImages(), progress);
   parallelForDynamic(stack.numImages(), [&](std::size_t image, int worker) {
     Eigen::VectorXf& buffer = buffers[worker];
@@ -192,6 +233,7 @@ Standardization fitStandardization(const BtfStack& stack, bool progress) {
     if (buffer.size() == 0) buffer.resize(texels + kAlign);
     if (rgb.empty()) rgb.resize(static_cast<std::size_t>(texels) * 3);
     stack.imageLinear(static_cast<int>(image), rgb.data());
+    if (alpha) highest[worker] = std::max(highest[worker], *std::max_element(rgb.begin(), rgb.end()));
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
       float* column = buffer.data() + (d * texels) % kAlign;
@@ -201,6 +243,7 @@ Standardization fitStandardization(const BtfStack& stack, bool progress) {
     bar.advance();
   });
   bar.finish();
+  if (alpha) *alpha = alphaFromMaximum(stack, *std::max_element(highest.begin(), highest.end()));
   return s;
 }
 
@@ -211,10 +254,7 @@ void log1pRun(float* values, Eigen::Index n) { log1pInPlace(values, n); }
 float targetAlpha(const BtfStack& stack) {
   float lo, hi;
   stack.valueRange(lo, hi);
-  if (!(hi > 0))
-    throw fileError(stack.source.empty() ? std::string("BTF stack") : stack.source,
-                    "every value is zero: no maximum to normalize the targets by");
-  return hi;
+  return alphaFromMaximum(stack, hi);
 }
 
 }  // namespace nbtf

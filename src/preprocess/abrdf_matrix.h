@@ -31,8 +31,10 @@ struct Standardization {
 Standardization standardizeInPlace(MatrixXfCol& x);
 
 // The same statistics (bit for bit) from the stack, streaming: one image's three columns at a
-// time per thread, never the M x 3N matrix. Progress in images.
-Standardization fitStandardization(const BtfStack& stack, bool progress = true);
+// time per thread, never the M x 3N matrix. Progress in images. With `alpha`, also
+// targetAlpha's value from the same pass (a computed stack's pass costs much more than a look
+// at its maximum).
+Standardization fitStandardization(const BtfStack& stack, bool progress = true, float* alpha = nullptr);
 
 // log(x + 1) elementwise, in place: the transform standardization applies (value by value,
 // so any layout of the values gives the same results).

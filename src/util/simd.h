@@ -23,6 +23,9 @@
 #define NBTF_AVX512 __attribute__((target("avx512f")))
 // The same for 8-float registers: AVX2 with FMA, called only where hasAvx2Fma().
 #define NBTF_AVX2_FMA __attribute__((target("avx2,fma")))
+// 8-float registers without FMA, for loops whose bits must match the baseline build's.
+#define NBTF_AVX __attribute__((target("avx")))
+inline bool hasAvx() { return __builtin_cpu_supports("avx"); }
 inline bool hasAvx512() { return __builtin_cpu_supports("avx512f"); }
 inline bool hasAvx512Vl() { return hasAvx512() && __builtin_cpu_supports("avx512vl"); }
 inline bool hasAvx2Fma() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"); }
@@ -30,6 +33,8 @@ inline bool hasAvx2Fma() { return __builtin_cpu_supports("avx2") && __builtin_cp
 #define NBTF_SIMD_CLONES
 #define NBTF_AVX512
 #define NBTF_AVX2_FMA
+#define NBTF_AVX
+inline bool hasAvx() { return false; }
 inline bool hasAvx512() { return false; }
 inline bool hasAvx512Vl() { return false; }
 inline bool hasAvx2Fma() { return false; }
