@@ -94,7 +94,9 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.matrixSeconds = secondsSince(step);
   const int width = stack.width(), height = stack.height(), images = stack.numImages();
   step = std::chrono::steady_clock::now();
-  StackAbrdfSource source(stack, fitStandardization(stack, !Progress::quiet()));
+  ColumnMoments moments;  // spare PCA a pass over the stack
+  Standardization standardization = fitStandardization(stack, !Progress::quiet(), nullptr, &moments);
+  StackAbrdfSource source(stack, std::move(standardization), std::move(moments));
   info.standardizeSeconds = secondsSince(step);
 
   ClusteringResult result = clusterAbrdfs(source, options);

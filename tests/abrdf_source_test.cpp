@@ -128,6 +128,36 @@ TEST_F(AbrdfSourceTest, StreamingPcaEqualsTheInMemoryPca) {
   }
 }
 
+// The standardization pass also gives the moments of the standardized columns, bit for bit
+// those of X, so that PCA skips its own pass over the stack and still gives the same result.
+TEST_F(AbrdfSourceTest, MomentsFromTheStandardizationPassSparePcaAPass) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    BtfStack stack = structuredStack(41, 27, 6, 5, type, 5);  // odd sizes: every column offset
+    Standardization s;
+    const MatrixXfCol x = standardizedMatrix(stack, s);
+    ColumnMoments moments;
+    Standardization streamed = fitStandardization(stack, false, nullptr, &moments);
+    ASSERT_EQ(moments.mean.size(), x.cols());
+    for (Eigen::Index d = 0; d < x.cols(); ++d) {
+      double mean, variance;
+      columnMoments(x.col(d).data(), x.rows(), mean, variance);
+      ASSERT_EQ(moments.mean[d], static_cast<float>(mean)) << sampleTypeName(type) << " dimension " << d;
+      ASSERT_EQ(moments.variance[d], variance) << sampleTypeName(type) << " dimension " << d;
+    }
+    StackAbrdfSource plain(stack, streamed), known(stack, streamed, moments);
+    EXPECT_EQ(plain.knownMoments(), nullptr);
+    ASSERT_NE(known.knownMoments(), nullptr);
+    PcaOptions o;
+    o.components = 6;
+    o.progress = false;
+    PcaResult a = randomizedPca(plain, o), b = randomizedPca(known, o);
+    EXPECT_TRUE(a.mean == b.mean) << sampleTypeName(type);
+    EXPECT_EQ(a.totalVariance, b.totalVariance) << sampleTypeName(type);
+    EXPECT_TRUE(a.basis == b.basis) << sampleTypeName(type);
+    EXPECT_TRUE(a.scores == b.scores) << sampleTypeName(type);
+  }
+}
+
 TEST_F(AbrdfSourceTest, StreamingClusteringGivesTheSameLabelsAndMedians) {
   BtfStack stack = structuredStack(33, 35, 6, 5, SampleType::Srgb8, 4);  // 1,155 texels
   Standardization s;

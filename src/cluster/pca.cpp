@@ -21,39 +21,32 @@ double PcaResult::explainedRatio() const {
 
 namespace {
 
-constexpr Eigen::Index kRun = 1024;
-
 int checkedInt(Eigen::Index v) {
   if (v > INT_MAX) throw Error("PCA: a matrix size exceeds the BLAS index range");
   return static_cast<int>(v);
 }
 
-// Column means and the total (population) variance; one pass over X, column slice by slice.
+// Column means and the total (population) variance; one pass over X, column slice by slice
+// (or none, when the source knows them).
 void columnStatistics(const AbrdfSource& x, Eigen::VectorXf& mean, double& totalVariance, const std::string& label) {
+  if (const ColumnMoments* known = x.knownMoments()) {
+    mean = known->mean;
+    totalVariance = known->variance.sum();
+    return;
+  }
   mean.resize(x.cols());
   Eigen::VectorXd variance(x.cols());
   const Eigen::Index rows = x.rows();
-  const double n = static_cast<double>(rows);
   x.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
     for (Eigen::Index d = c0; d < c1; ++d) {
-      // Two passes over one column (it stays in cache): float sums over short runs, which
-      // Eigen vectorizes, accumulated in double.
-      const float* col = data + (d - c0) * rows;
-      double sum = 0;
-      for (Eigen::Index b = 0; b < rows; b += kRun)
-        sum += Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, rows - b)).sum();
-      const double m = sum / n;
-      const float mf = static_cast<float>(m);
-      double squares = 0;
-      for (Eigen::Index b = 0; b < rows; b += kRun)
-        squares += (Eigen::Map<const Eigen::ArrayXf>(col + b, std::min(kRun, rows - b)) - mf).square().sum();
-      if (!std::isfinite(m) || !std::isfinite(squares)) {
+      double m;
+      columnMoments(data + (d - c0) * rows, rows, m, variance[d]);
+      if (!std::isfinite(m) || !std::isfinite(variance[d])) {
         std::ostringstream s;
         s << "PCA: dimension " << d << " holds NaN or Inf values";
         throw Error(s.str());
       }
       mean[d] = static_cast<float>(m);
-      variance[d] = squares / n;
     }
   }, label);
   totalVariance = variance.sum();
@@ -115,15 +108,16 @@ PcaResult randomizedPca(const AbrdfSource& x, const PcaOptions& options) {
   const Eigen::Index sketch = std::min<Eigen::Index>(components + options.oversampling, rank);
 
   PcaResult result;
-  // One read of X for the statistics, 2 q + 2 for the products; a progress bar for each.
-  const int passes = 2 * options.powerIterations + 3;
+  // One read of X for the statistics (unless the source knows them), 2 q + 2 for the
+  // products; a progress bar for each.
+  const int passes = 2 * options.powerIterations + 2 + (x.knownMoments() ? 0 : 1);
   int pass = 0;
   auto label = [&](const char* what) {
     ++pass;
     return options.progress ? "pca pass " + std::to_string(pass) + "/" + std::to_string(passes) + " (" + what + ")"
                             : std::string();
   };
-  columnStatistics(x, result.mean, result.totalVariance, label("statistics, dimensions"));
+  columnStatistics(x, result.mean, result.totalVariance, x.knownMoments() ? "" : label("statistics, dimensions"));
 
   // Range finder: a Gaussian sketch of the column space, sharpened by power iterations
   // (each one squares the decay of the singular values the sketch must separate).

@@ -324,7 +324,9 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   MatrixXfCol x;
   std::unique_ptr<StackAbrdfSource> source;
   if (o.clusters > 0) {
-    source = std::make_unique<StackAbrdfSource>(stack, fitStandardization(stack, o.progress, &alpha));
+    ColumnMoments moments;  // spare PCA a pass over the stack
+    Standardization standardization = fitStandardization(stack, o.progress, &alpha, &moments);
+    source = std::make_unique<StackAbrdfSource>(stack, std::move(standardization), std::move(moments));
   } else {
     alpha = targetAlpha(stack);
     x = abrdfMatrix(stack, o.progress);

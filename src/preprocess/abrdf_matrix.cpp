@@ -114,21 +114,20 @@ void expm1InPlace(float* values, Eigen::Index n) {
   y = (u == 1.0f).select(y, (u - 1.0f == -1.0f || u == std::numeric_limits<float>::infinity()).select(u - 1.0f, corrected));
 }
 
-// Float sums over short runs (vectorized), accumulated in double.
-constexpr Eigen::Index kRun = 1024;
-double columnSum(const float* column, Eigen::Index rows) {
+}  // namespace
+
+void columnMoments(const float* column, Eigen::Index rows, double& mean, double& variance) {
+  constexpr Eigen::Index kRun = 1024;
+  const double n = static_cast<double>(rows);
   double sum = 0;
   for (Eigen::Index b = 0; b < rows; b += kRun) sum += Eigen::Map<const Eigen::ArrayXf>(column + b, std::min(kRun, rows - b)).sum();
-  return sum;
-}
-double columnSquares(const float* column, Eigen::Index rows, float mean) {
-  double sum = 0;
+  mean = sum / n;
+  const float meanF = static_cast<float>(mean);
+  double squares = 0;
   for (Eigen::Index b = 0; b < rows; b += kRun)
-    sum += (Eigen::Map<const Eigen::ArrayXf>(column + b, std::min(kRun, rows - b)) - mean).square().sum();
-  return sum;
+    squares += (Eigen::Map<const Eigen::ArrayXf>(column + b, std::min(kRun, rows - b)) - meanF).square().sum();
+  variance = squares / n;
 }
-
-}  // namespace
 
 void Standardization::apply(MatrixXfCol& x) const {
   if (x.cols() != mean.size())
@@ -177,8 +176,9 @@ void standardizeColumn(float* column, Eigen::Index rows, Eigen::Index d, float& 
   checkLogDomain(column, rows, d);
   auto col = Eigen::Map<Eigen::ArrayXf>(column, rows);
   log1pInPlace(column, rows);
-  double mean = columnSum(column, rows) / static_cast<double>(rows);
-  double stddev = std::sqrt(columnSquares(column, rows, static_cast<float>(mean)) / static_cast<double>(rows));
+  double mean, variance;
+  columnMoments(column, rows, mean, variance);
+  double stddev = std::sqrt(variance);
   if (isConstantDimension(mean, stddev)) stddev = 0;
   meanOut = static_cast<float>(mean);
   stddevOut = static_cast<float>(stddev);
@@ -212,7 +212,7 @@ float alphaFromMaximum(const BtfStack& stack, float hi) {
 }
 }  // namespace
 
-Standardization fitStandardization(const BtfStack& stack, bool progress, float* alpha) {
+Standardization fitStandardization(const BtfStack& stack, bool progress, float* alpha, ColumnMoments* standardized) {
   const Eigen::Index texels = stack.numTexels(), dims = 3 * static_cast<Eigen::Index>(stack.numImages());
   if (texels == 0 || dims == 0) throw fileError(stack.source, "empty BTF stack: nothing to cluster");
   Standardization s;
@@ -226,6 +226,7 @@ Standardization fitStandardization(const BtfStack& stack, bool progress, float* 
   std::vector<Eigen::VectorXf> buffers(workers);
   std::vector<std::vector<float>> images(workers);
   std::vector<float> highest(workers, -std::numeric_limits<float>::infinity());
+  if (standardized) standardized->mean.resize(dims), standardized->variance.resize(dims);
   Progress bar("standardize", stack.numImages(), progress);
   parallelForDynamic(stack.numImages(), [&](std::size_t image, int worker) {
     Eigen::VectorXf& buffer = buffers[worker];
@@ -239,6 +240,11 @@ Standardization fitStandardization(const BtfStack& stack, bool progress, float* 
       float* column = buffer.data() + (d * texels) % kAlign;
       for (Eigen::Index t = 0; t < texels; ++t) column[t] = rgb[3 * t + c];
       standardizeColumn(column, texels, d, s.mean[d], s.stddev[d]);
+      if (standardized) {  // the standardized column, where X would hold it: PCA's moments
+        double mean;
+        columnMoments(column, texels, mean, standardized->variance[d]);
+        standardized->mean[d] = static_cast<float>(mean);
+      }
     }
     bar.advance();
   });

@@ -30,11 +30,24 @@ struct Standardization {
 // Fits the standardization on X (linear values) and applies it in place (no second copy).
 Standardization standardizeInPlace(MatrixXfCol& x);
 
+// The mean and population variance of one column: float sums over runs of 1024 values
+// (vectorized, so they depend on the column's address modulo the SIMD width), accumulated in
+// double; the squares taken about the mean rounded to float.
+void columnMoments(const float* column, Eigen::Index rows, double& mean, double& variance);
+
+// The moments (columnMoments) of every column of the standardized X: what PCA centres by.
+struct ColumnMoments {
+  Eigen::VectorXf mean;      // D, rounded to float
+  Eigen::VectorXd variance;  // D
+};
+
 // The same statistics (bit for bit) from the stack, streaming: one image's three columns at a
-// time per thread, never the M x 3N matrix. Progress in images. With `alpha`, also
-// targetAlpha's value from the same pass (a computed stack's pass costs much more than a look
-// at its maximum).
-Standardization fitStandardization(const BtfStack& stack, bool progress = true, float* alpha = nullptr);
+// time per thread, never the M x 3N matrix. Progress in images. From the same pass (a
+// computed stack's pass costs much more than the arithmetic): with `alpha`, targetAlpha's
+// value; with `standardized`, the moments of the standardized columns, bit for bit what a
+// pass over X would give (each column is laid out where X would hold it).
+Standardization fitStandardization(const BtfStack& stack, bool progress = true, float* alpha = nullptr,
+                                   ColumnMoments* standardized = nullptr);
 
 // log(x + 1) elementwise, in place: the transform standardization applies (value by value,
 // so any layout of the values gives the same results).

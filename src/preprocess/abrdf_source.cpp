@@ -89,8 +89,8 @@ void AbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
 
 // ---- From the stack
 
-StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standardization)
-    : stack_(stack), s_(std::move(standardization)) {
+StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standardization, ColumnMoments moments)
+    : stack_(stack), s_(std::move(standardization)), moments_(std::move(moments)) {
   const Eigen::Index d = cols();
   if (s_.mean.size() != d || s_.stddev.size() != d)
     throw Error("ABRDF source: the standardization has " + std::to_string(s_.mean.size()) + " dimensions, the stack " +

@@ -53,6 +53,8 @@ class AbrdfSource {
 
   // Bytes of working memory the slices take on `workers` threads (0 for an in-memory X).
   virtual std::size_t sliceBytes(int /*workers*/) const { return 0; }
+  // The columns' moments when known without a pass over X (PCA then skips its first pass).
+  virtual const ColumnMoments* knownMoments() const { return nullptr; }
 
  protected:
   // An in-memory X returns its data (column-major, leading dimension rows()); others nullptr
@@ -80,11 +82,13 @@ class DenseAbrdfSource : public AbrdfSource {
 // The standardized log ABRDFs of a stack, made on demand. Keeps a reference to the stack.
 class StackAbrdfSource : public AbrdfSource {
  public:
-  StackAbrdfSource(const BtfStack& stack, Standardization standardization);
+  // `moments`: those of the standardized columns (fitStandardization), or empty.
+  StackAbrdfSource(const BtfStack& stack, Standardization standardization, ColumnMoments moments = {});
   Eigen::Index rows() const override { return stack_.numTexels(); }
   Eigen::Index cols() const override { return 3 * static_cast<Eigen::Index>(stack_.numImages()); }
   const Standardization& standardization() const { return s_; }
   std::size_t sliceBytes(int workers) const override;
+  const ColumnMoments* knownMoments() const override { return moments_.mean.size() == cols() ? &moments_ : nullptr; }
   // Working memory for a stack of this shape (tables + per-worker slices), before it exists.
   static std::size_t workingBytes(std::int64_t texels, int images, SampleType type, int workers);
 
@@ -95,6 +99,7 @@ class StackAbrdfSource : public AbrdfSource {
  private:
   const BtfStack& stack_;
   Standardization s_;
+  ColumnMoments moments_;
   std::vector<float> table_;  // 8-bit stacks: D x 256 standardized values (dimension-major)
 };
 
