@@ -51,6 +51,28 @@ TEST(ClusterValues, PlainFloorMatchesADirectComputation) {
   EXPECT_NEAR(cv.means[(static_cast<std::size_t>(cluster) * m.stack.numImages() + image) * 3 + 1], sum / count, 1e-6);
 }
 
+// The plain floor from the modulated pass (plainFloorToo) is the plain pass's, bit for bit, and
+// leaves the modulated values as they were.
+TEST(ClusterValues, PlainFloorBesideTheModulatedOneIsThePlainPasses) {
+  auto m = makeTestMaterial();
+  std::vector<float> raw(static_cast<std::size_t>(m.stack.numTexels()) * 3);
+  std::mt19937 rng(5);
+  std::normal_distribution<float> u(1.0f, 0.5f);
+  for (float& x : raw) x = u(rng);
+  std::vector<float> e = orthonormalizeTexelCoefficients(raw, 1, m.ids, m.clusters, 3);
+  ClusterValues plain = clusterValues(m.stack, m.alpha, m.ids, m.clusters, nullptr, 1, false, false);
+  ClusterValues alone = clusterValues(m.stack, m.alpha, m.ids, m.clusters, e.data(), 1, true, false, 3);
+  ClusterValues both = clusterValues(m.stack, m.alpha, m.ids, m.clusters, e.data(), 1, true, false, 3, true);
+  EXPECT_TRUE(alone.plainWithinSse.empty());
+  ASSERT_EQ(both.plainWithinSse.size(), plain.withinSse.size());
+  EXPECT_EQ(both.plainWithinSse, plain.withinSse);
+  EXPECT_EQ(both.withinSse, alone.withinSse);
+  EXPECT_EQ(both.means, alone.means);
+  const std::vector<int> images = allImages(m.stack.numImages());
+  EXPECT_EQ(both.plainFloorRmse(images, m.stack.numTexels()), plain.floorRmse(images, m.stack.numTexels()));
+  EXPECT_NE(both.plainFloorRmse(images, m.stack.numTexels()), both.floorRmse(images, m.stack.numTexels()));
+}
+
 // The identity training relies on: with orthonormal coefficients e (R terms), the per-texel
 // loss of any cluster terms f equals n_c |f - T|^2 + the floor's leftover, checked by brute force.
 TEST(ClusterValues, ModulatedTargetsGiveTheExactPerTexelLoss) {

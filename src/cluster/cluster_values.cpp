@@ -14,67 +14,108 @@
 
 namespace nbtf {
 
-double ClusterValues::floorRmse(const std::vector<int>& images, std::int64_t texels) const {
+namespace {
+double rmseOf(const std::vector<double>& perImageSse, const std::vector<int>& images, std::int64_t texels) {
   double sse = 0;
-  for (int i : images) sse += withinSse.at(static_cast<std::size_t>(i));
+  for (int i : images) sse += perImageSse.at(static_cast<std::size_t>(i));
   const double count = static_cast<double>(images.size()) * static_cast<double>(texels) * 3.0;
   return count > 0 ? std::sqrt(sse / count) : 0.0;
 }
+}  // namespace
+
+double ClusterValues::floorRmse(const std::vector<int>& images, std::int64_t texels) const {
+  return rmseOf(withinSse, images, texels);
+}
+double ClusterValues::plainFloorRmse(const std::vector<int>& images, std::int64_t texels) const {
+  return rmseOf(plainWithinSse, images, texels);
+}
+
+namespace {
+
+// One image's cluster values: the (modulated) means of every cluster and the leftover, the sum
+// over texels and channels of the squared difference between a value and its model.
+class ImageFit {
+ public:
+  ImageFit(const std::vector<std::int32_t>& ids, const std::vector<int>& sizes, const float* coef, int terms, int channels)
+      : ids_(ids), sizes_(sizes), coef_(coef), terms_(terms), channels_(channels), columns_(terms * channels),
+        outputs_(3 * terms), sums_(sizes.size() * outputs_), mean_(sizes.size() * outputs_) {}
+  // values: the image's linear RGB (texels x 3), times invAlpha. means: clusters x outputs, or nullptr.
+  double fit(const float* rgb, float invAlpha, float* means) {
+    const std::int64_t texels = static_cast<std::int64_t>(ids_.size());
+    std::fill(sums_.begin(), sums_.end(), 0.0);
+    // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
+    for (std::int64_t t = 0; t < texels; ++t) {
+      double* s = &sums_[static_cast<std::size_t>(ids_[t]) * outputs_];
+      for (int r = 0; r < terms_; ++r)
+        for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coefficient(t, r, c);
+    }
+    for (std::size_t g = 0; g < sizes_.size(); ++g)
+      for (int o = 0; o < outputs_; ++o) {
+        const std::size_t at = g * outputs_ + o;
+        const float m = sizes_[g] ? static_cast<float>(sums_[at] / sizes_[g]) : 0.0f;
+        mean_[at] = m;
+        if (means) means[at] = m;
+      }
+    double sse = 0;
+    for (std::int64_t t = 0; t < texels; ++t) {
+      const float* m = &mean_[static_cast<std::size_t>(ids_[t]) * outputs_];
+      for (int c = 0; c < 3; ++c) {
+        double model = 0;
+        for (int r = 0; r < terms_; ++r) model += coefficient(t, r, c) * m[3 * r + c];
+        double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
+        sse += d * d;
+      }
+    }
+    return sse;
+  }
+
+ private:
+  // Texel t's coefficient of term r in channel c (channels 1: the same for all three).
+  double coefficient(std::int64_t t, int r, int c) const {
+    return coef_ ? coef_[t * columns_ + r * channels_ + (channels_ > 1 ? c : 0)] : 1.0;
+  }
+  const std::vector<std::int32_t>& ids_;
+  const std::vector<int>& sizes_;
+  const float* coef_;
+  int terms_, channels_, columns_, outputs_;
+  std::vector<double> sums_;
+  std::vector<float> mean_;
+};
+
+}  // namespace
 
 ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
-                            const float* coef, int terms, bool keepMeans, bool progress, int channels) {
+                            const float* coef, int terms, bool keepMeans, bool progress, int channels,
+                            bool plainFloorToo) {
   const int images = stack.numImages();
   const std::int64_t texels = stack.numTexels();
   if (static_cast<std::int64_t>(ids.size()) != texels)
     throw Error("cluster values: " + std::to_string(ids.size()) + " ids for " + std::to_string(texels) + " texels");
   if (terms < 1 || (!coef && terms != 1)) throw Error("cluster values: " + std::to_string(terms) + " terms");
   if (channels != 1 && channels != 3) throw Error("cluster values: " + std::to_string(channels) + " channels");
-  const int columns = terms * channels;
-  // Texel t's coefficient of term r in channel c (channels 1: the same for all three).
-  auto coefficient = [&](std::int64_t t, int r, int c) -> double {
-    return coef ? coef[t * columns + r * channels + (channels > 1 ? c : 0)] : 1.0;
-  };
   std::vector<int> sizes(clusters, 0);
   for (std::int32_t id : ids) {
     if (id < 0 || id >= clusters) throw Error("cluster values: cluster id " + std::to_string(id) + " out of range");
     ++sizes[id];
   }
-  const int outputs = 3 * terms;
+  const std::size_t outputs = 3 * static_cast<std::size_t>(terms);
   ClusterValues out;
   if (keepMeans) out.means.assign(static_cast<std::size_t>(clusters) * images * outputs, 0.0f);
   out.withinSse.assign(images, 0.0);
+  if (plainFloorToo) out.plainWithinSse.assign(images, 0.0);
   Progress bar("cluster means", images, progress);
   const float invAlpha = 1.0f / alpha;
   parallelFor(images, [&](std::size_t begin, std::size_t end) {
     std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
-    std::vector<double> sums(static_cast<std::size_t>(clusters) * outputs);
-    std::vector<float> mean(static_cast<std::size_t>(clusters) * outputs);
+    std::vector<float> means(keepMeans ? clusters * outputs : 0);
+    ImageFit model(ids, sizes, coef, terms, channels), plain(ids, sizes, nullptr, 1, 1);
     for (std::size_t i = begin; i < end; ++i) {
       stack.imageLinear(static_cast<int>(i), rgb.data());
-      std::fill(sums.begin(), sums.end(), 0.0);
-      // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
-      for (std::int64_t t = 0; t < texels; ++t) {
-        double* s = &sums[static_cast<std::size_t>(ids[t]) * outputs];
-        for (int r = 0; r < terms; ++r)
-          for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coefficient(t, r, c);
-      }
-      for (int g = 0; g < clusters; ++g)
-        for (int o = 0; o < outputs; ++o) {
-          float m = sizes[g] ? static_cast<float>(sums[static_cast<std::size_t>(g) * outputs + o] / sizes[g]) : 0.0f;
-          mean[static_cast<std::size_t>(g) * outputs + o] = m;
-          if (keepMeans) out.means[(static_cast<std::size_t>(g) * images + i) * outputs + o] = m;
-        }
-      double sse = 0;
-      for (std::int64_t t = 0; t < texels; ++t) {
-        const float* m = &mean[static_cast<std::size_t>(ids[t]) * outputs];
-        for (int c = 0; c < 3; ++c) {
-          double model = 0;
-          for (int r = 0; r < terms; ++r) model += coefficient(t, r, c) * m[3 * r + c];
-          double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
-          sse += d * d;
-        }
-      }
-      out.withinSse[i] = sse;
+      out.withinSse[i] = model.fit(rgb.data(), invAlpha, keepMeans ? means.data() : nullptr);
+      if (keepMeans)
+        for (int g = 0; g < clusters; ++g)
+          std::copy_n(&means[g * outputs], outputs, &out.means[(static_cast<std::size_t>(g) * images + i) * outputs]);
+      if (plainFloorToo) out.plainWithinSse[i] = plain.fit(rgb.data(), invAlpha, nullptr);
       bar.advance();
     }
   });

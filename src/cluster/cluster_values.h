@@ -18,16 +18,20 @@ namespace nbtf {
 struct ClusterValues {
   std::vector<float> means;       // clusters x images x (3 terms): term r, channel c at 3 r + c (when kept)
   std::vector<double> withinSse;  // per image: sum over texels and channels of the leftover squared
+  std::vector<double> plainWithinSse;  // the same for the plain cluster means (plainFloorToo)
   // RMSE of the leftover over the given images (eq. 10: texels x images x 3), the floor.
   double floorRmse(const std::vector<int>& images, std::int64_t texels) const;
+  double plainFloorRmse(const std::vector<int>& images, std::int64_t texels) const;
 };
 
 // Parallel over images; each image's sums run in texel order, so the result does not depend
 // on the thread count. `coefficients`: texels x terms x channels orthonormalized coefficients
 // (term r, channel c at r x channels + c; channels 3: channel c's values mix only its own), or
 // nullptr (terms must be 1: plain cluster means).
+// `plainFloorToo`: also the plain cluster means' leftover from the same pass (plainWithinSse).
 ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids, int clusters,
-                            const float* coefficients, int terms, bool keepMeans, bool progress, int channels = 1);
+                            const float* coefficients, int terms, bool keepMeans, bool progress, int channels = 1,
+                            bool plainFloorToo = false);
 
 // Per-texel coefficients of the best rank-`terms` model of each cluster, from the images in
 // `useImage`: the cluster's texels (ABRDFs of 3 x images values, linear / alpha) are

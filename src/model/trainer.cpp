@@ -662,6 +662,12 @@ TrainResult TrainingRun::finish() {
     result.rmseTrain = rmse.train;
     result.rmseHoldout = rmse.holdout;
     if (!set_.perTexel()) result.rmseFloor = std::sqrt(withinTrain_);
+    if (!set_.plainWithinSse().empty()) {
+      double sse = 0;
+      for (int i : set_.trainImages()) sse += set_.plainWithinSse()[i];
+      result.rmsePlainFloor = std::sqrt(sse / (static_cast<double>(set_.trainImages().size()) *
+                                               static_cast<double>(set_.texels()) * 3.0));
+    }
   }
   result.seconds = secondsSince(callStart_);
   return result;

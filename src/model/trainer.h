@@ -223,6 +223,8 @@ struct TrainResult {
   // Clustered: the floor, the RMSE of the best one-latent-per-cluster model (the cluster
   // means, with the per-texel factors when given) on the training images; -1 per-texel.
   double rmseFloor = -1;
+  // Modulated: the floor of the plain cluster means (without the per-texel factors); -1 else.
+  double rmsePlainFloor = -1;
   double seconds = 0;                   // whole call: setup, training, evaluation
   double trainSeconds = 0;              // the optimization loop only
   int epochsRun = 0;                    // completed epochs

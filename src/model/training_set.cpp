@@ -96,9 +96,13 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
       }
       coefficientHash_ = h;
     }
-    ClusterValues values = clusterValues(stack, alpha_, in.ids, groups_, coefficients, terms_, true, progress, channels);
+    // With coefficients, the plain cluster means' leftover too: the floor the summary reports
+    // beside the modulated one, from the same pass over the stack.
+    ClusterValues values =
+        clusterValues(stack, alpha_, in.ids, groups_, coefficients, terms_, true, progress, channels, coefficients);
     means_ = std::move(values.means);
     withinSse_ = std::move(values.withinSse);
+    plainWithinSse_ = std::move(values.plainWithinSse);
   } else if (!in.texelCoefficients.empty()) {
     throw Error("training: per-texel modulation needs the clustered mode");
   }

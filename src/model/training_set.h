@@ -43,6 +43,8 @@ class TrainingSet {
   bool isHoldout(int image) const { return holdout_[image] != 0; }
   // Sum over texels and channels of |y_t - ybar_c|^2 for one image (0 per texel).
   double withinSse(int image) const { return withinSse_.empty() ? 0.0 : withinSse_[image]; }
+  // The same for the plain cluster means, when the model is modulated (else empty).
+  const std::vector<double>& plainWithinSse() const { return plainWithinSse_; }
   // The decoder's direction input of every image (images x directionWidth(); util/directions.h):
   // the fixed encoding, then the direction planes' features (util/direction_planes.h) as the
   // last setPlaneFeatures gave them (zero before).
@@ -77,6 +79,7 @@ class TrainingSet {
   std::vector<std::uint8_t> holdout_;
   std::vector<float> means_;      // groups x images x outputs() (clustered only)
   std::vector<double> withinSse_; // images (clustered only)
+  std::vector<double> plainWithinSse_;  // images (modulated only)
   std::vector<float> directions_; // images x directionWidth_
   int directionWidth_ = 4;
   int planeInputs_ = 0;

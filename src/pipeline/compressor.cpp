@@ -402,8 +402,6 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
     stats.modulationTerms = mc.terms;
     stats.modulationChannels = mc.channels;
     stats.modulationBits = mc.bits;
-    stats.rmseFloor = clusterValues(stack, alpha, inputs.ids, o.clusters, nullptr, 1, false, false)
-                          .floorRmse(trainImages, texels);
   }
   stats.seconds.clusterParts.coefficients = secondsSince(tCoefficients);
   stats.seconds.cluster = secondsSince(t);
@@ -442,8 +440,12 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.rmseTrain = train.rmseTrain;
   stats.rmseHoldout = train.rmseHoldout;
   if (o.clusters > 0) {
-    if (!modulated) stats.rmseFloor = train.rmseFloor;
-    else stats.rmseFloorModulated = train.rmseFloor;
+    if (!modulated) {
+      stats.rmseFloor = train.rmseFloor;
+    } else {
+      stats.rmseFloor = train.rmsePlainFloor;  // from training's pass over the stack
+      stats.rmseFloorModulated = train.rmseFloor;
+    }
   }
 
   // ---- Assemble the compressed material (storage rounding, modulation refit, decoded RMSE)
