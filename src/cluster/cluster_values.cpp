@@ -39,8 +39,8 @@ class ImageFit {
   ImageFit(const std::vector<std::int32_t>& ids, const std::vector<int>& sizes, const float* coef, int terms, int channels)
       : ids_(ids), sizes_(sizes), coef_(coef), terms_(terms), channels_(channels), columns_(terms * channels),
         outputs_(3 * terms), sums_(sizes.size() * outputs_), mean_(sizes.size() * outputs_) {}
-  // values: the image's linear RGB (texels x 3), times invAlpha. means: clusters x outputs, or nullptr.
-  double fit(const float* rgb, float invAlpha, float* means) {
+  // The image's linear RGB (texels x 3), times invAlpha: the leftover; means() holds the means.
+  double fit(const float* rgb, float invAlpha) {
     const std::int64_t texels = static_cast<std::int64_t>(ids_.size());
     std::fill(sums_.begin(), sums_.end(), 0.0);
     // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
@@ -52,9 +52,7 @@ class ImageFit {
     for (std::size_t g = 0; g < sizes_.size(); ++g)
       for (int o = 0; o < outputs_; ++o) {
         const std::size_t at = g * outputs_ + o;
-        const float m = sizes_[g] ? static_cast<float>(sums_[at] / sizes_[g]) : 0.0f;
-        mean_[at] = m;
-        if (means) means[at] = m;
+        mean_[at] = sizes_[g] ? static_cast<float>(sums_[at] / sizes_[g]) : 0.0f;
       }
     double sse = 0;
     for (std::int64_t t = 0; t < texels; ++t) {
@@ -68,6 +66,7 @@ class ImageFit {
     }
     return sse;
   }
+  const std::vector<float>& means() const { return mean_; }  // clusters x outputs, of the last fit
 
  private:
   // Texel t's coefficient of term r in channel c (channels 1: the same for all three).
@@ -107,15 +106,14 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
   const float invAlpha = 1.0f / alpha;
   parallelFor(images, [&](std::size_t begin, std::size_t end) {
     std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
-    std::vector<float> means(keepMeans ? clusters * outputs : 0);
     ImageFit model(ids, sizes, coef, terms, channels), plain(ids, sizes, nullptr, 1, 1);
     for (std::size_t i = begin; i < end; ++i) {
       stack.imageLinear(static_cast<int>(i), rgb.data());
-      out.withinSse[i] = model.fit(rgb.data(), invAlpha, keepMeans ? means.data() : nullptr);
+      out.withinSse[i] = model.fit(rgb.data(), invAlpha);
       if (keepMeans)
         for (int g = 0; g < clusters; ++g)
-          std::copy_n(&means[g * outputs], outputs, &out.means[(static_cast<std::size_t>(g) * images + i) * outputs]);
-      if (plainFloorToo) out.plainWithinSse[i] = plain.fit(rgb.data(), invAlpha, nullptr);
+          std::copy_n(&model.means()[g * outputs], outputs, &out.means[(static_cast<std::size_t>(g) * images + i) * outputs]);
+      if (plainFloorToo) out.plainWithinSse[i] = plain.fit(rgb.data(), invAlpha);
       bar.advance();
     }
   });
