@@ -236,7 +236,7 @@ TEST_F(CmdCompress, BuiltInConfigsAreNamedAndRecorded) {
   r = run("compress " + stack + " -o " + path("e.nbtf") + " --clusters 4 -q --config compactt");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, compact, "
-                                 "converged, default, paper, paper-clustered)"))
+                                 "converged, default, high_fidelity, paper, paper-clustered)"))
       << r.output;
   EXPECT_FALSE(fs::exists(path("e.nbtf")));
 }

@@ -93,6 +93,21 @@ TEST(CompressConfig, ShippedCompactConfigIsTheDefaultWithASmallerDecoderAndModul
   EXPECT_EQ(trainConfigJson(compact), trainConfigJson(expected));
 }
 
+// configs/high_fidelity.json is the default recipe with cluster planes, three modulation terms
+// and 128 images per encoder input (each cluster's planes visited 4x as often): the large end
+// of the rate-distortion curve, nothing else changed.
+TEST(CompressConfig, ShippedHighFidelityConfigIsTheDefaultWithClusterPlanesAndThreeTerms) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  TrainConfig fidelity = loadTrainConfig(dir + "high_fidelity.json");
+  EXPECT_EQ(fidelity.model.clusterPlaneFeatures, 4);
+  TrainConfig expected = loadTrainConfig(dir + "default.json");
+  expected.model.clusterPlaneFeatures = 4;
+  expected.model.clusterPlaneResolution = 6;
+  expected.modulation.terms = 3;
+  expected.imagesPerInput = 128;
+  EXPECT_EQ(trainConfigJson(fidelity), trainConfigJson(expected));
+}
+
 TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
   test::TempDir dir;
   const std::vector<std::pair<std::string, std::string>> cases = {
@@ -105,7 +120,7 @@ TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
       {R"({"adaptive": {"growth_fraction": 1}})", "'adaptive.growth_fraction' must be in (0, 1)"},
       {R"({"adaptive": {"merge_tolerance": -1}})", "'adaptive.merge_tolerance' must be a number >= 0"},
       {R"({"adaptive": 5})", "'adaptive' must be an object"},
-      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, direction_planes, optimizer, training, modulation, storage, adaptive)"},
+      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, direction_planes, cluster_planes, optimizer, training, modulation, storage, adaptive)"},
       {R"({"model": {"latent_dim": 0}, "adaptive": {}})", "'model.latent_dim' must be in 1..4096"},
   };
   for (const auto& [text, message] : cases) {
@@ -115,7 +130,7 @@ TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
   // The training recipe's own loader knows no "adaptive" object: it says which objects it reads.
   const std::string path = writeConfig(dir, R"({"adaptive": {"enabled": true}})");
   test::expectErrorContaining([&] { loadTrainConfig(path); },
-                              {path, "'adaptive' unknown key (expected model, direction_planes, optimizer, training, modulation, storage)"});
+                              {path, "'adaptive' unknown key (expected model, direction_planes, cluster_planes, optimizer, training, modulation, storage)"});
 }
 
 TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {

@@ -29,6 +29,13 @@ inline std::array<double, 3> referenceOutput(const CompressedBtf& b, int texel, 
     directionPlanePoints(light.unitVector(), view.unitVector(), points);
     sampleDirectionPlanes(b.planes, points, d + directionInputCount(b.directionEncoding));
   }
+  if (!b.clusterPlanes.empty()) {  // then the texel's latent row's own planes
+    float points[6];
+    directionPlanePoints(light.unitVector(), view.unitVector(), points);
+    sampleDirectionPlanes(b.clusterPlanes.resolution, b.clusterPlanes.features,
+                          b.clusterPlanes.rowValues(b.latentRowOfTexel(texel)), points,
+                          d + directionInputCount(b.directionEncoding) + b.planes.inputCount());
+  }
   x.insert(x.end(), d, d + b.directionInputs());
   for (double xi : x) m.push_back(std::fabs(xi));
   for (const DenseLayer& layer : b.decoder.layers) {
@@ -59,7 +66,7 @@ inline double decoderTolerance(double magnitude) { return 1e-6 + 2e-6 * magnitud
 inline CompressedBtf makeDecoderMaterial(int k, std::vector<int> widths = {37, 21}, int width = 7, int height = 5,
                                          unsigned seed = 11,
                                          DirectionEncoding encoding = DirectionEncoding::Stereographic,
-                                         int planeFeatures = 0) {
+                                         int planeFeatures = 0, int clusterPlaneFeatures = 0) {
   CompressedBtf b = makeBtf(k, width, height, 8, seed);
   std::mt19937 rng(seed + 1);
   b.directionEncoding = encoding;
@@ -69,6 +76,14 @@ inline CompressedBtf makeDecoderMaterial(int k, std::vector<int> widths = {37, 2
     std::normal_distribution<float> value(0, 0.5f);
     b.planes.values.resize(b.planes.valueCount());
     for (float& v : b.planes.values) v = value(rng);
+  }
+  if (clusterPlaneFeatures > 0) {  // random cluster planes of 4 x 4 points, one set per latent row
+    b.clusterPlanes.resolution = 4;
+    b.clusterPlanes.features = clusterPlaneFeatures;
+    b.clusterPlanes.rows = b.latentRows;
+    std::normal_distribution<float> value(0, 0.5f);
+    b.clusterPlanes.values.resize(b.clusterPlanes.valueCount());
+    for (float& v : b.clusterPlanes.values) v = value(rng);
   }
   b.decoder = makeDecoder(b.latentDim, std::move(widths), rng, b.directionInputs());
   // He-style scale (makeDecoder draws N(0, 0.5)), so activations stay of order 1.

@@ -327,6 +327,18 @@ TEST(Decoder, CommittedFormat18FileDecodesAsBefore) {
   EXPECT_EQ(b.planes.features, 4);
 }
 
+// Format 1.9 (cluster planes, CPLN; configs/high_fidelity.json), written on 2026-11-26 when the
+// format was introduced, by `nbtf compress` of the same satin with the same options and
+// `--config configs/high_fidelity.json` (cluster planes 6 x 6 x 4, three modulation terms).
+TEST(Decoder, CommittedFormat19FileDecodesAsBefore) {
+  expectCommittedFourierFile("compact_v1_9", 9, DirectionEncoding::StereographicFourier2, 20 + 12 + 12);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_9.nbtf");
+  EXPECT_EQ(b.clusterPlanes.rows, 8);
+  EXPECT_EQ(b.clusterPlanes.resolution, 6);
+  EXPECT_EQ(b.clusterPlanes.features, 4);
+  EXPECT_EQ(b.modulation.terms, 3);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);
@@ -685,6 +697,82 @@ TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
     NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
     EXPECT_EQ(a, c);
   }
+}
+
+// Cluster planes (format 1.9, CPLN): each latent row's own planes. Images (decoded per latent
+// row), texel queries, UV queries and single evaluations agree with the naive reference, which
+// samples the texel's own row; a round trip through the file decodes bit for bit the same
+// (float32 and half storage), for a clustered and a per-texel material.
+TEST(Decoder, ClusterPlanesServeEveryQueryFormAndRoundTrip) {
+  using testing::decoderTolerance;
+  using testing::referenceOutput;
+  for (int k : {5, 0}) {
+    CompressedBtf b =
+        testing::makeDecoderMaterial(k, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 3, 2);
+    NbtfDecoder dec(b);
+    EXPECT_EQ(dec.directionInputs(), 20 + 9 + 6);
+    const std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}},
+                                                                {{75, 345}, {60, 18}}};
+    for (const auto& [l, v] : pairs) {
+      std::vector<float> img(3 * b.numTexels()), byTexel(3 * b.numTexels()), byUv(3 * b.numTexels());
+      dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
+      std::vector<TexelQuery> tq;
+      std::vector<UvQuery> uq;
+      const auto lu = l.unitVector(), vu = v.unitVector();
+      for (int t = 0; t < b.numTexels(); ++t) {
+        tq.push_back({t % b.width, t / b.width, l, v});
+        uq.push_back({(t % b.width + 0.5f) / b.width, (t / b.width + 0.5f) / b.height,
+                      {float(lu[0]), float(lu[1]), float(lu[2])}, {float(vu[0]), float(vu[1]), float(vu[2])}});
+      }
+      dec.evaluate(tq.data(), tq.size(), byTexel.data(), OutputScale::Normalized);
+      dec.evaluate(uq.data(), uq.size(), byUv.data(), OutputScale::Normalized);
+      for (int t = 0; t < b.numTexels(); ++t) {
+        std::array<double, 3> mag;
+        const std::array<double, 3> want = referenceOutput(b, t, l, v, &mag);
+        const Rgb one = dec.evaluate(t % b.width, t / b.width, l, v, OutputScale::Normalized);
+        EXPECT_EQ(one.r, byTexel[3 * t]) << "texel " << t;
+        for (int c = 0; c < 3; ++c) {
+          EXPECT_NEAR(img[3 * t + c], want[c], 2 * decoderTolerance(mag[c])) << "k " << k << " texel " << t;
+          EXPECT_EQ(byTexel[3 * t + c], img[3 * t + c]) << "texel " << t;
+          EXPECT_NEAR(byUv[3 * t + c], want[c], 1e-4 + 1e-4 * mag[c]) << "texel " << t;
+        }
+      }
+    }
+    for (bool half : {false, true}) {
+      CompressedBtf stored = b;
+      stored.storage.decoderHalf = half;
+      roundToStorage(stored);
+      const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
+      EXPECT_EQ(bytes[10], 9);  // format 1.9
+      CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+      EXPECT_EQ(back.clusterPlanes.rows, b.latentRows);
+      EXPECT_EQ(back.clusterPlanes.values, stored.clusterPlanes.values);
+      EXPECT_EQ(serializeNbtf(back), bytes);
+      EXPECT_EQ(computeSizes(back).clusterPlanes,
+                static_cast<std::uint64_t>(b.latentRows) * 3 * 4 * 4 * 2 * (half ? 2 : 4));
+      std::vector<float> a(3 * b.numTexels()), c(3 * b.numTexels());
+      NbtfDecoder(stored).decodeImage({37.5, 200}, {10, 45}, a.data(), OutputScale::Normalized);
+      NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
+      EXPECT_EQ(a, c);
+    }
+  }
+}
+
+TEST(Decoder, ClusterPlanesContentIsCheckedByName) {
+  const CompressedBtf b =
+      testing::makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 0, 2);
+  CompressedBtf bad = b;
+  bad.clusterPlanes.values.pop_back();
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"m.nbtf", "cluster planes hold 479 values, expected 480"});
+  bad = b;
+  bad.clusterPlanes.values[7] = std::nanf("");
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"cluster planes contain non-finite values"});
+  bad = b;
+  bad.clusterPlanes.rows = 4;
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"cluster planes have 4 rows, expected one per latent row (5)"});
+  bad = b;
+  bad.clusterPlanes = RowPlanes{};  // the decoder still takes their inputs
+  test::expectErrorContaining([&] { bad.validate("m.nbtf"); }, {"decoder layer 0 takes 34 inputs, expected 28"});
 }
 
 TEST(Decoder, DirectionPlanesContentIsCheckedByName) {

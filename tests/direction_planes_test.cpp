@@ -88,6 +88,37 @@ TEST(DirectionPlanes, GradientMatchesFiniteDifferences) {
   EXPECT_EQ(touched, 3 * 4 * 2);  // 4 corners per plane, 2 features, 3 planes
 }
 
+// Cluster planes: row r's values are a DirectionPlanes block of their own, sampled and
+// differentiated by the same functions (the raw overloads the training and the decoder call).
+TEST(RowPlanes, EachRowIsADirectionPlanesBlock) {
+  RowPlanes rows;
+  rows.resolution = 5, rows.features = 3, rows.rows = 4;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1);
+  rows.values.resize(rows.valueCount());
+  for (float& v : rows.values) v = u(rng);
+  EXPECT_EQ(rows.valuesPerRow(), 3u * 5 * 5 * 3);
+  EXPECT_EQ(rows.inputCount(), 9);
+  const float points[6] = {0.3f, -0.2f, 0.85f, 0.1f, -0.6f, -0.95f};
+  for (int r = 0; r < rows.rows; ++r) {
+    DirectionPlanes block;
+    block.resolution = 5, block.features = 3;
+    block.values.assign(rows.rowValues(r), rows.rowValues(r) + rows.valuesPerRow());
+    float want[9], got[9];
+    sampleDirectionPlanes(block, points, want);
+    sampleDirectionPlanes(rows.resolution, rows.features, rows.rowValues(r), points, got);
+    for (int i = 0; i < 9; ++i) EXPECT_EQ(got[i], want[i]) << "row " << r << " input " << i;
+    for (int p = 0; p < 3; ++p)
+      for (int f = 0; f < 3; ++f)
+        EXPECT_NEAR(got[p * 3 + f], referenceSample(block, p, f, points[2 * p], points[2 * p + 1]), 1e-5);
+    const float dOut[9] = {1, -2, 0.5f, 0.25f, 3, -1, 0.1f, 0.2f, -0.3f};
+    std::vector<float> a(block.valueCount(), 0.0f), b(block.valueCount(), 0.0f);
+    scatterDirectionPlanesGradient(block, points, dOut, a.data());
+    scatterDirectionPlanesGradient(rows.resolution, rows.features, points, dOut, b.data());
+    EXPECT_EQ(a, b);
+  }
+}
+
 TEST(DirectionPlanes, PointsAreTheStereographicProjectionsOfLightViewAndHalfVector) {
   float out[6];
   directionPlanePoints({0, 0, 1}, {0, 0, 1}, out);

@@ -136,7 +136,8 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
   // The direction encoding the decoder was trained with: the one whose input count fits.
   DirectionEncoding encoding = DirectionEncoding::Stereographic;
   for (DirectionEncoding e : directionEncodings())
-    if (latent + directionInputCount(e) + r.planes.inputCount() == r.decoder.inputSize()) encoding = e;
+    if (latent + directionInputCount(e) + r.planes.inputCount() + r.clusterPlanes.inputCount() == r.decoder.inputSize())
+      encoding = e;
   const int dirInputs = directionInputCount(encoding);
   double sse = 0;
   RowMatrix in(static_cast<Eigen::Index>(imageSet.size()), r.decoder.inputSize());
@@ -154,7 +155,14 @@ inline double decodedRmse(const TestMaterial& m, const TrainResult& r, const std
         directionPlanePoints(light.unitVector(), view.unitVector(), points);
         sampleDirectionPlanes(r.planes, points, d + dirInputs);
       }
-      for (int q = 0; q < dirInputs + r.planes.inputCount(); ++q) in(j, latent + q) = d[q];
+      if (!r.clusterPlanes.empty()) {  // then the texel's cluster's own planes
+        float points[6];
+        directionPlanePoints(light.unitVector(), view.unitVector(), points);
+        sampleDirectionPlanes(r.clusterPlanes.resolution, r.clusterPlanes.features, r.clusterPlanes.rowValues(g),
+                              points, d + dirInputs + r.planes.inputCount());
+      }
+      const int inputs = dirInputs + r.planes.inputCount() + r.clusterPlanes.inputCount();
+      for (int q = 0; q < inputs; ++q) in(j, latent + q) = d[q];
     }
     RowMatrix out = mlpForward(r.decoder, in);
     for (std::size_t j = 0; j < imageSet.size(); ++j)

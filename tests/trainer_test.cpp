@@ -351,6 +351,51 @@ TEST(Trainer, DirectionPlanesTrainAndAgreeWithAutograd) {
   }
 }
 
+// Cluster planes (ModelConfig::clusterPlaneFeatures): every encoder input's own planes. Training
+// with them lowers the error below the run without them, the RMSE the trainer reports is what
+// the exported decoder, latents and planes give texel by texel, the torch backend (autograd's
+// input gradient, scattered by the same code) reaches the fused backend's RMSE, and a resume
+// restores them (they are a decoder parameter, so checkpoints keep them).
+TEST(Trainer, ClusterPlanesTrainAgreeWithAutogradAndResume) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 200;
+  c.model.planeFeatures = 0;
+  TrainResult without = trainModel(m.clustered(), c);
+  c.model.clusterPlaneFeatures = 2;
+  c.model.clusterPlaneResolution = 4;
+  c.planeLearningRate = 1e-2;
+  TrainResult fused = trainModel(m.clustered(), c);
+  ASSERT_EQ(fused.clusterPlanes.features, 2);
+  ASSERT_EQ(fused.clusterPlanes.rows, fused.latentRows);
+  ASSERT_EQ(fused.clusterPlanes.values.size(), static_cast<std::size_t>(fused.latentRows) * 3 * 4 * 4 * 2);
+  EXPECT_EQ(fused.decoder.inputSize(), 8 + 20 + 6);
+  EXPECT_LT(fused.rmseTrain, without.rmseTrain);
+  EXPECT_NEAR(testing::decodedRmse(m, fused, asInts(m.ids), allImages(m)), fused.rmseTrain,
+              1e-4 + 1e-3 * fused.rmseTrain);
+  float largest = 0;  // they moved from their initial values (uniform in [-0.1, 0.1])
+  for (float v : fused.clusterPlanes.values) largest = std::max(largest, std::abs(v));
+  EXPECT_GT(largest, 0.1f);
+  TrainConfig stockConfig = c;
+  stockConfig.backend = "torch";
+  TrainResult stock = trainModel(m.clustered(), stockConfig);
+  EXPECT_NEAR(stock.rmseTrain, fused.rmseTrain, 0.03 * fused.rmseTrain)
+      << "fused " << fused.rmseTrain << ", torch " << stock.rmseTrain;
+
+  const std::string ckpt = tempPath("cluster_planes.ckpt");
+  std::filesystem::remove(ckpt);
+  c.checkpointPath = ckpt;
+  c.stopAtStep = fused.steps / 2;
+  ASSERT_TRUE(trainModel(m.clustered(), c).interrupted);
+  c.resume = true;
+  c.stopAtStep = 0;
+  TrainResult resumed = trainModel(m.clustered(), c);
+  EXPECT_EQ(resumed.resumedFromStep, fused.steps / 2);
+  EXPECT_EQ(resumed.clusterPlanes.values, fused.clusterPlanes.values);
+  EXPECT_EQ(resumed.rmseTrain, fused.rmseTrain);
+  std::filesystem::remove(ckpt);
+}
+
 // Free latents (optimizer.latent_learning_rate): in the polish phase the stored latents move
 // from the encoder's outputs and fit the decoder better than the encoder's own; the reported
 // RMSE is what they give; the torch backend (autograd) agrees; a resume inside the phase,
@@ -625,6 +670,8 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
       {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
       {R"({"direction_planes": {"features": 9}})", "'direction_planes.features' must be in 0..8"},
+      {R"({"cluster_planes": {"features": 9}})", "'cluster_planes.features' must be in 0..8"},
+      {R"({"cluster_planes": {"features": 2, "resolution": 1}})", "'cluster_planes.resolution' must be in 2..64"},
       {R"({"direction_planes": {"features": 2, "resolution": 1}})", "'direction_planes.resolution' must be in 2..64"},
       {R"({"direction_planes": {"size": 2}})", "'direction_planes.size' unknown key"},
       {R"({"optimizer": {"latent_learning_rate": -1}})", "'optimizer.latent_learning_rate' must be >= 0"},

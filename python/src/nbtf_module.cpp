@@ -101,6 +101,7 @@ class Material {
       d["ids"] = s.ids;
       d["modulation"] = s.modulation;
       d["planes"] = s.planes;
+      d["cluster_planes"] = s.clusterPlanes;
       d["decoder_parameters"] = s.decoderParameters;
       d["latent_rows"] = s.latentRows;
       d["latent_dim"] = s.latentDim;

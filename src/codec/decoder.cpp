@@ -69,6 +69,16 @@ void addPlaneFeatures(const CompressedBtf& material, const std::array<double, 3>
 }
 }  // namespace
 
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
+                             const std::array<double, 3>& view, float* input) {
+  const RowPlanes& c = material.clusterPlanes;
+  if (c.empty()) return;
+  float points[6];
+  directionPlanePoints(light, view, points);
+  sampleDirectionPlanes(c.resolution, c.features, c.rowValues(row), points,
+                        input + directionInputCount(material.directionEncoding) + material.planes.inputCount());
+}
+
 DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direction& light, const Direction& view) {
   DirectionInput d{};
   encodeDirections(material.directionEncoding, light, view, d.data());
@@ -310,6 +320,7 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
   std::int32_t row = latentRowOfTexel(texel), texel32 = texel;
   auto dirs = directionInput(light, view);
+  addClusterPlaneFeatures(material_, row, light.unitVector(), view.unitVector(), dirs.data());
   Rgb out;
   evaluateSamples(&row, &texel32, dirs.data(), 1, &out.r, scale);
   return out;
@@ -356,7 +367,9 @@ void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* 
                rows[i] = latentRowOfTexel(texels[i]);
                if (!last || !(q.light == last->light) || !(q.view == last->view))
                  d = directionInput(q.light, q.view), last = &q;
-               std::copy_n(d.data(), width, dirs + static_cast<std::size_t>(width) * i);
+               float* slot = dirs + static_cast<std::size_t>(width) * i;
+               std::copy_n(d.data(), width, slot);
+               addClusterPlaneFeatures(material_, rows[i], q.light.unitVector(), q.view.unitVector(), slot);
              }
            },
            combinerOf(*this));
@@ -393,8 +406,9 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
                const UvQuery& q = queries[begin + i];
                texels[i] = texelOfUv(q.u, q.v);
                rows[i] = latentRowOfTexel(texels[i]);
-               decoderDirectionInput(material_, unitQueryVector(q.light, "light"), unitQueryVector(q.view, "view"),
-                                     dirs + static_cast<std::size_t>(width) * i);
+               const auto l = unitQueryVector(q.light, "light"), v = unitQueryVector(q.view, "view");
+               decoderDirectionInput(material_, l, v, dirs + static_cast<std::size_t>(width) * i);
+               addClusterPlaneFeatures(material_, rows[i], l, v, dirs + static_cast<std::size_t>(width) * i);
              }
            },
            combinerOf(*this));
@@ -426,7 +440,7 @@ void NbtfDecoder::decodeRows(const Direction& light, const Direction& view, floa
   }
   if (modulated())
     throw Error(name_ + ": decodeRows: a material with per-texel modulation has no per-row values (use decodeImage)");
-  decodeRowTerms(directionInput(light, view), rgb, parallel);
+  decodeRowTerms(light, view, directionInput(light, view), rgb, parallel);
   if (scale == OutputScale::Linear)
     for (std::size_t i = 0, n = 3 * static_cast<std::size_t>(latentRows()); i < n; ++i) rgb[i] *= material_.alpha;
 }
@@ -435,10 +449,14 @@ void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, 
   if (pca_) throw Error(name_ + ": decodeRowTerms: a PCA file has no decoder terms");
   checkHemisphere(light, "light");
   checkHemisphere(view, "view");
-  decodeRowTerms(directionInput(light, view), terms, parallel);
+  decodeRowTerms(light, view, directionInput(light, view), terms, parallel);
 }
 
-void NbtfDecoder::decodeRowTerms(const DirectionInput& dirs, float* out, bool parallel) const {
+void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, const DirectionInput& dirs, float* out,
+                                 bool parallel) const {
+  // With cluster planes every row has direction inputs of its own: written per tile.
+  const bool perRow = !material_.clusterPlanes.empty();
+  const std::array<double, 3> l = light.unitVector(), v = view.unitVector();
   const std::size_t count = static_cast<std::size_t>(latentRows());
   const std::size_t outputs = static_cast<std::size_t>(packed_->outputs);
   auto tile = detail::kernelsFor(isa_).tile;
@@ -446,6 +464,8 @@ void NbtfDecoder::decodeRowTerms(const DirectionInput& dirs, float* out, bool pa
   auto body = [&](std::size_t tileBegin, std::size_t tileEnd) {
     float* scratch = threadScratch(packed_->scratchFloats());
     std::int32_t rows[detail::kTileRows];
+    float rowDirs[kMaxDecoderDirectionInputs * detail::kTileRows];
+    const int width = packed_->dirInputs;
     for (std::size_t t = tileBegin; t < tileEnd; ++t) {
       std::size_t begin = t * detail::kTileRows;
       detail::TileArgs a;
@@ -454,6 +474,15 @@ void NbtfDecoder::decodeRowTerms(const DirectionInput& dirs, float* out, bool pa
       a.rows = rows;
       a.dirs = dirs.data();
       a.dirStride = 0;  // one direction for the whole image: its first-layer part once per tile
+      if (perRow) {
+        for (int i = 0; i < a.n; ++i) {
+          float* slot = rowDirs + static_cast<std::size_t>(width) * i;
+          std::copy_n(dirs.data(), width, slot);
+          addClusterPlaneFeatures(material_, rows[i], l, v, slot);
+        }
+        a.dirs = rowDirs;
+        a.dirStride = width;
+      }
       a.out = out + outputs * begin;
       a.scratch = scratch;
       tile(*packed_, a);
@@ -480,7 +509,7 @@ void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, flo
     checkHemisphere(view, "view");
     const int r = terms_;
     std::vector<float> terms(3 * static_cast<std::size_t>(r) * latentRows());
-    decodeRowTerms(directionInput(light, view), terms.data(), parallel);
+    decodeRowTerms(light, view, directionInput(light, view), terms.data(), parallel);
     const float factor = scale == OutputScale::Linear ? material_.alpha : 1.0f;
     for (int y = 0; y < outHeight; ++y) {
       const int sy = y % height();

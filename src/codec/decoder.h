@@ -168,7 +168,8 @@ class NbtfDecoder {
 
  private:
   void build(const DecoderOptions& options);
-  void decodeRowTerms(const DirectionInput& dirs, float* terms, bool parallel) const;
+  void decodeRowTerms(const Direction& light, const Direction& view, const DirectionInput& dirs, float* terms,
+                      bool parallel) const;
   // The direction input of a pair in this material's encoding.
   DirectionInput directionInput(const Direction& light, const Direction& view) const;
   // The inner evaluation: n samples (latent row, its texel, directionInputs() values each).
@@ -197,6 +198,10 @@ DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direct
 // The same for unit vectors (queries by vector), into out.
 void decoderDirectionInput(const CompressedBtf& material, const std::array<double, 3>& light,
                            const std::array<double, 3>& view, float* out);
+// Materials with cluster planes (format 1.9): latent row `row`'s own plane features at the pair,
+// written into `input` (a decoderDirectionInput result) after the shared planes'. No-op without.
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
+                             const std::array<double, 3>& view, float* input);
 // A query's direction vector normalized; throws when z < 0 or the vector is zero or not
 // finite. `what` names the direction in messages.
 std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what);

@@ -83,6 +83,12 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
                                     std::to_string(btf.planes.resolution) + " points x " +
                                     std::to_string(btf.planes.features) + " features each (+" +
                                     std::to_string(btf.planes.inputCount()) + " decoder inputs)");
+    if (!btf.clusterPlanes.empty())
+      field("cluster planes", "each latent row's own planes over light, view and half vector, " +
+                                  std::to_string(btf.clusterPlanes.resolution) + " x " +
+                                  std::to_string(btf.clusterPlanes.resolution) + " points x " +
+                                  std::to_string(btf.clusterPlanes.features) + " features each (+" +
+                                  std::to_string(btf.clusterPlanes.inputCount()) + " decoder inputs)");
     field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
     std::size_t params = 0;
     for (const auto& l : btf.decoder.layers) params += l.parameterCount();

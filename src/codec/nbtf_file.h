@@ -27,7 +27,7 @@ namespace nbtf {
 // writer writes the lowest version that describes the file: the highest version among the
 // sections it writes (the section table, codec/nbtf_sections.h; docs/file_format.md).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 8;
+constexpr std::uint16_t kNbtfFormatMinor = 9;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -97,6 +97,9 @@ struct CompressedBtf {
   // Learned direction planes (format 1.8; util/direction_planes.h): their 3 F features follow
   // the fixed direction inputs. Stored as float32 with a float32 decoder, in half otherwise.
   DirectionPlanes planes;
+  // Each latent row's own direction planes (format 1.9, section CPLN; util/direction_planes.h):
+  // their 3 F features follow the shared planes'. Stored like the direction planes.
+  RowPlanes clusterPlanes;
   int latentDim = 8;                      // PCA: the number of components C
   int latentRows = 0;                     // k (clustered) or texels (per-texel, PCA)
   std::vector<float> latents;             // latentRows x latentDim, row-major; PCA: the coefficients
@@ -118,8 +121,10 @@ struct CompressedBtf {
   std::uint16_t formatMajor = kNbtfFormatMajor, formatMinor = kNbtfFormatMinor;
   std::vector<std::string> skippedSections;
 
-  // The decoder's direction inputs: the encoding's, then the planes'.
-  int directionInputs() const { return directionInputCount(directionEncoding) + planes.inputCount(); }
+  // The decoder's direction inputs: the encoding's, then the planes', then the cluster planes'.
+  int directionInputs() const {
+    return directionInputCount(directionEncoding) + planes.inputCount() + clusterPlanes.inputCount();
+  }
   int numImages() const { return static_cast<int>(lights.size() * views.size()); }
   int numTexels() const { return width * height; }
   int numClusters() const { return method == CodecMethod::ClusteredNeural ? latentRows : 0; }
@@ -166,6 +171,8 @@ struct NbtfSizes {
   std::uint64_t decoder = 0, latents = 0, ids = 0, modulation = 0, total = 0;
   std::uint64_t planes = 0;  // direction planes: 3 x R x R x F values x 2 (half) or 4 (float32)
   int planeResolution = 0, planeFeatures = 0, planeBytesPerValue = 0;
+  std::uint64_t clusterPlanes = 0;  // cluster planes: rows x 3 x R x R x F values, as the planes
+  int clusterPlaneResolution = 0, clusterPlaneFeatures = 0;
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;

@@ -130,6 +130,18 @@ void writePlanes(const CompressedBtf& btf, ByteWriter& w) {
   writeValues(w, btf.planes.values, half);
 }
 
+// CPLN (format 1.9): u32 rows, u32 resolution R, u32 features F, u8 1 = half values (0 =
+// float32), 3 reserved, then rows x 3 x R x R x F values: row, then as in DPLN.
+void writeClusterPlanes(const CompressedBtf& btf, ByteWriter& w) {
+  const bool half = storagePlanesHalf(btf);
+  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.rows));
+  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.resolution));
+  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.features));
+  w.u8(half ? 1 : 0);
+  w.zeros(3);
+  writeValues(w, btf.clusterPlanes.values, half);
+}
+
 void writeLatents(const CompressedBtf& btf, ByteWriter& w) {
   w.u32(static_cast<std::uint32_t>(btf.latentRows));
   w.u32(static_cast<std::uint32_t>(btf.latentDim));
@@ -297,6 +309,21 @@ void parsePlanes(const SectionRef& s, CompressedBtf& btf, const std::string& nam
   if (half > 1) throw r.fail("unknown plane value type " + std::to_string(half));
   r.take(3, "reserved");
   p.values = readValues(r, p.valueCount(), half == 1, "plane values");
+}
+
+void parseClusterPlanes(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
+  ByteReader r(s.payload, s.size, name, sectionLabel(s.tag), s.offset + kSectionHeaderSize);
+  RowPlanes& p = btf.clusterPlanes;
+  p.rows = checkedInt(r, r.u32(), INT32_MAX, "cluster plane rows");
+  p.resolution = checkedInt(r, r.u32(), DirectionPlanes::kMaxResolution, "cluster plane resolution");
+  p.features = checkedInt(r, r.u32(), DirectionPlanes::kMaxFeatures, "cluster plane features");
+  if (p.rows < 1 || p.resolution < 2 || p.features < 1)
+    throw r.fail("cluster planes of " + std::to_string(p.rows) + " rows x " + std::to_string(p.resolution) +
+                 " points x " + std::to_string(p.features) + " features (at least 1 row, 2 points and 1 feature)");
+  const std::uint8_t half = r.u8();
+  if (half > 1) throw r.fail("unknown cluster plane value type " + std::to_string(half));
+  r.take(3, "reserved");
+  p.values = readValues(r, p.valueCount(), half == 1, "cluster plane values");
 }
 
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -563,6 +590,9 @@ std::uint64_t decoderBytes(const CompressedBtf& b) {
   return bytes;
 }
 std::uint64_t planeBytes(const CompressedBtf& b) { return b.planes.valueCount() * (storagePlanesHalf(b) ? 2 : 4); }
+std::uint64_t clusterPlaneBytes(const CompressedBtf& b) {
+  return b.clusterPlanes.valueCount() * (storagePlanesHalf(b) ? 2 : 4);
+}
 std::uint64_t latentBytes(const CompressedBtf& b) { return latentValues(b) * (b.storage.latentsHalf ? 2 : 4); }
 std::uint64_t idBytes(const CompressedBtf& b) { return texelCount(b) * idWidthForClusters(b.latentRows); }
 std::uint64_t idZstdBytes(const CompressedBtf& b) {
@@ -597,6 +627,7 @@ bool float32Decoder(const CompressedBtf& b) { return neural(b) && !st(b).decoder
 bool halfDecoder(const CompressedBtf& b) { return neural(b) && !st(b).decoderInt8 && st(b).decoderHalf; }
 bool int8Decoder(const CompressedBtf& b) { return neural(b) && st(b).decoderInt8; }
 bool hasPlanes(const CompressedBtf& b) { return !b.planes.empty(); }
+bool hasClusterPlanes(const CompressedBtf& b) { return !b.clusterPlanes.empty(); }
 bool float32Latents(const CompressedBtf& b) { return neural(b) && !st(b).latentsHalf; }
 bool halfLatents(const CompressedBtf& b) { return neural(b) && st(b).latentsHalf; }
 bool rawIds(const CompressedBtf& b) { return clustered(b) && !st(b).idsZstd; }
@@ -628,6 +659,8 @@ const std::vector<SectionKind> kSections = {
     {kDecoderInt8, "decoder, 8-bit weights", Part::Decoder, true, 4, nullptr, int8Decoder, writeDecoder, parseDecoder,
      decoderBytes},
     {tag("DPLN"), "direction planes", Part::Planes, true, 8, nullptr, hasPlanes, writePlanes, parsePlanes, planeBytes},
+    {tag("CPLN"), "cluster planes", Part::ClusterPlanes, true, 9, nullptr, hasClusterPlanes, writeClusterPlanes,
+     parseClusterPlanes, clusterPlaneBytes},
     {tag("LATN"), "latents", Part::Latents, true, 0, nullptr, float32Latents, writeLatents, parseLatents, latentBytes},
     {kLatentsHalf, "latents, half precision", Part::Latents, true, 2, nullptr, halfLatents, writeLatents, parseLatents,
      latentBytes},
@@ -660,6 +693,7 @@ const std::vector<PartRule> kPartRules = {
     {Part::PcaMean, F, F, R, "PCA"},         {Part::PcaBasis, F, F, R, "PCA"},
     {Part::PcaCoefficients, F, F, R, "PCA"}, {Part::Ids, R, F, F, "clustered"},
     {Part::Modulation, O, F, F, nullptr},    {Part::Planes, O, O, O, nullptr},
+    {Part::ClusterPlanes, O, O, F, nullptr},
     {Part::Holdout, O, O, O, nullptr},       {Part::Encoder, O, O, O, nullptr},
     {Part::Metadata, O, O, O, nullptr},
 };

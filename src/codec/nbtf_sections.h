@@ -29,6 +29,7 @@ enum class Part {
   Ids,
   Modulation,
   Planes,
+  ClusterPlanes,
   Holdout,
   Encoder,
   Metadata,

@@ -66,10 +66,17 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.planeBytesPerValue = storagePlanesHalf(btf) ? 2 : 4;
     s.planes = partBytes(format::Part::Planes);
   }
-  s.total = s.decoder + s.planes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
+  if (!btf.clusterPlanes.empty()) {
+    s.clusterPlaneResolution = btf.clusterPlanes.resolution;
+    s.clusterPlaneFeatures = btf.clusterPlanes.features;
+    s.planeBytesPerValue = storagePlanesHalf(btf) ? 2 : 4;
+    s.clusterPlanes = partBytes(format::Part::ClusterPlanes);
+  }
+  s.total = s.decoder + s.planes + s.clusterPlanes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
   // The same model stored the paper's way: float32 decoder, planes and latents, 4-byte ids.
   s.totalPaper = btf.isPca() ? s.total
-                             : s.decoderParameters * 4 + btf.planes.valueCount() * 4 + latentValues * 4 + s.idsPaper +
+                             : s.decoderParameters * 4 + btf.planes.valueCount() * 4 +
+                                   btf.clusterPlanes.valueCount() * 4 + latentValues * 4 + s.idsPaper +
                                    s.modulation;
   s.rawFloat32 = s.texels * s.images * 3 * 4;
   s.fileBytes = fileBytes;
@@ -131,6 +138,11 @@ std::string formatSizeTable(const NbtfSizes& s) {
     out += row("planes", s.planes,
                "3 direction planes x " + std::to_string(s.planeResolution) + " x " + std::to_string(s.planeResolution) +
                    " points x " + std::to_string(s.planeFeatures) + " features" + precision(s.planeBytesPerValue));
+  if (s.clusterPlanes)
+    out += row("cl. planes", s.clusterPlanes,
+               withCommas(s.latentRows) + " rows x 3 planes x " + std::to_string(s.clusterPlaneResolution) + " x " +
+                   std::to_string(s.clusterPlaneResolution) + " points x " + std::to_string(s.clusterPlaneFeatures) +
+                   " features" + precision(s.planeBytesPerValue));
   out += row("latents", s.latents,
              withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
   if (s.idWidth && s.idsZstd) {
@@ -156,7 +168,8 @@ std::string formatSizeTable(const NbtfSizes& s) {
     out += row("per-texel", s.modulation, note);
   }
   out += row("total", s.total,
-             std::string(s.planes ? "decoder + planes" : "decoder") + " + latents + id list" +
+             std::string(s.planes ? "decoder + planes" : "decoder") + (s.clusterPlanes ? " + cluster planes" : "") +
+                 " + latents + id list" +
                  (s.modulationTerms ? " + per-texel" : ""));
   out += rawAndRatio();
   char ratio[160];

@@ -107,8 +107,10 @@ void roundToStorage(CompressedBtf& btf) {
     }
   if (btf.storage.latentsHalf && !btf.isPca())
     for (float& z : btf.latents) z = roundToHalf(z);
-  if (storagePlanesHalf(btf))
+  if (storagePlanesHalf(btf)) {
     for (float& v : btf.planes.values) v = roundToHalf(v);
+    for (float& v : btf.clusterPlanes.values) v = roundToHalf(v);
+  }
 }
 
 }  // namespace nbtf

@@ -121,6 +121,7 @@ void CompressedBtf::validatePca(const std::string& name) const {
   const std::int64_t rows = 3 * static_cast<std::int64_t>(numImages());
   const int texels = numTexels();
   if (!decoder.layers.empty() || !ids.empty()) throw fail("PCA file has a decoder or an id list");
+  if (!planes.values.empty() || !clusterPlanes.values.empty()) throw fail("PCA file has direction or cluster planes");
   const std::int64_t maxComponents = std::min<std::int64_t>({rows, texels, kMaxPcaComponents});
   if (latentDim < 1 || latentDim > maxComponents)
     throw fail(std::to_string(latentDim) + " PCA components, expected 1 to " + std::to_string(maxComponents) +
@@ -159,7 +160,8 @@ void CompressedBtf::validateNeural(const std::string& name) const {
       throw fail(which + " takes " + std::to_string(l.in) + " inputs, expected " + std::to_string(expectedIn) +
                  (i == 0 ? " (latent + " + std::to_string(directionInputs) + " direction inputs, " +
                               directionEncodingName(directionEncoding) +
-                              (planes.empty() ? std::string() : " + direction planes") + ")"
+                              (planes.empty() ? std::string() : " + direction planes") +
+                              (clusterPlanes.empty() ? std::string() : " + cluster planes") + ")"
                         : std::string(" (previous layer's outputs)")));
     if (l.weight.size() != static_cast<std::size_t>(l.in) * l.out || l.bias.size() != static_cast<std::size_t>(l.out))
       throw fail(which + " has " + std::to_string(l.weight.size()) + " weights and " + std::to_string(l.bias.size()) +
@@ -188,6 +190,23 @@ void CompressedBtf::validateNeural(const std::string& name) const {
     if (!allFinite(planes.values)) throw fail("direction planes contain non-finite values (NaN or Inf)");
   } else if (!planes.values.empty()) {
     throw fail("direction plane values without features");
+  }
+  if (!clusterPlanes.empty()) {
+    if (clusterPlanes.features < 0 || clusterPlanes.features > DirectionPlanes::kMaxFeatures ||
+        clusterPlanes.resolution < 2 || clusterPlanes.resolution > DirectionPlanes::kMaxResolution)
+      throw fail("cluster planes of " + std::to_string(clusterPlanes.resolution) + " x " +
+                 std::to_string(clusterPlanes.resolution) + " points x " + std::to_string(clusterPlanes.features) +
+                 " features are out of range (2.." + std::to_string(DirectionPlanes::kMaxResolution) + " points, 1.." +
+                 std::to_string(DirectionPlanes::kMaxFeatures) + " features)");
+    if (clusterPlanes.rows != latentRows)
+      throw fail("cluster planes have " + std::to_string(clusterPlanes.rows) + " rows, expected one per latent row (" +
+                 std::to_string(latentRows) + ")");
+    if (clusterPlanes.values.size() != clusterPlanes.valueCount())
+      throw fail("cluster planes hold " + std::to_string(clusterPlanes.values.size()) + " values, expected " +
+                 std::to_string(clusterPlanes.valueCount()));
+    if (!allFinite(clusterPlanes.values)) throw fail("cluster planes contain non-finite values (NaN or Inf)");
+  } else if (!clusterPlanes.values.empty()) {
+    throw fail("cluster plane values without features");
   }
 
   // Latents and ids
@@ -237,6 +256,8 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                    "(round them with roundToStorage first)");
   if (storagePlanesHalf(*this) && !halfExact(planes.values))
     throw fail("direction planes are to be stored in half precision but hold values that half cannot represent");
+  if (storagePlanesHalf(*this) && !halfExact(clusterPlanes.values))
+    throw fail("cluster planes are to be stored in half precision but hold values that half cannot represent");
   if (storage.latentsHalf && !halfExact(latents))
     throw fail("latents are to be stored in half precision but hold values that half cannot represent");
 

@@ -59,6 +59,7 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
   t.rawFloat32 = s.rawFloat32, t.decoder = s.decoder, t.latents = s.latents, t.ids = s.ids, t.total = s.total;
   t.perTexel = s.modulation;
   t.planes = s.planes;
+  t.clusterPlanes = s.clusterPlanes;
   t.fileBytes = s.fileBytes;
   t.idsPaper = s.idsPaper, t.totalPaper = s.totalPaper;
   t.pca = s.pca, t.pcaComponents = s.pcaComponents;
@@ -67,10 +68,13 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
 }
 
 std::string methodDescription(const CompressedBtf& btf) {
-  const std::string planes =
-      btf.planes.empty() ? ""
-                         : " + direction planes (" + std::to_string(btf.planes.resolution) + " x " +
-                               std::to_string(btf.planes.resolution) + " x " + std::to_string(btf.planes.features) + ")";
+  std::string planes;
+  if (!btf.planes.empty())
+    planes += " + direction planes (" + std::to_string(btf.planes.resolution) + " x " +
+              std::to_string(btf.planes.resolution) + " x " + std::to_string(btf.planes.features) + ")";
+  if (!btf.clusterPlanes.empty())
+    planes += " + cluster planes (" + std::to_string(btf.clusterPlanes.resolution) + " x " +
+              std::to_string(btf.clusterPlanes.resolution) + " x " + std::to_string(btf.clusterPlanes.features) + ")";
   if (btf.method == CodecMethod::ClusteredNeural && !btf.modulation.empty())
     return "clustered neural + per-texel modulation (" + std::to_string(btf.modulation.terms) + " term" +
            (btf.modulation.terms > 1 ? "s" : "") + (btf.modulation.channels > 1 ? ", per channel" : "") + ")" +
@@ -94,7 +98,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.method = methodDescription(btf);
   // Modulated files are a curve of their own in sweeps (they are not the paper's model).
   in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated") +
-                    (btf.planes.empty() ? "" : "-planes");
+                    (btf.planes.empty() ? "" : "-planes") + (btf.clusterPlanes.empty() ? "" : "-cluster-planes");
   if (btf.method == CodecMethod::ClusteredNeural) {
     in.methodParameter = btf.latentRows;
     in.clusterIds = btf.ids;

@@ -27,6 +27,7 @@ struct SizeTable {
   std::uint64_t rawFloat32 = 0, decoder = 0, latents = 0, ids = 0, total = 0, fileBytes = 0;
   std::uint64_t perTexel = 0;  // per-texel modulation codes as stored (0 = none)
   std::uint64_t planes = 0;    // direction planes as stored (0 = none)
+  std::uint64_t clusterPlanes = 0;  // cluster planes as stored (0 = none)
   // The same with the paper's 4-byte ids (0 = not given, or equal to the above).
   std::uint64_t idsPaper = 0, totalPaper = 0;
   // The PCA baseline's parts instead (decoder, latents, ids 0): total = mean + basis + coefficients.

@@ -126,6 +126,7 @@ json reportJson(const EvalResult& r) {
                     {"ids", r.sizes.ids},                 {"per_texel", r.sizes.perTexel}, {"total", r.sizes.total},
                     {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
     if (r.sizes.planes) j["bytes"]["planes"] = r.sizes.planes;
+    if (r.sizes.clusterPlanes) j["bytes"]["cluster_planes"] = r.sizes.clusterPlanes;
     j["ratio"] = r.sizes.ratio();
     if (r.sizes.totalPaper && r.sizes.totalPaper != r.sizes.total) {
       j["bytes"]["ids_paper"] = r.sizes.idsPaper;
@@ -364,6 +365,9 @@ void addSizes(Doc& doc, const json& j) {
     if (b.contains("planes"))
       srows.push_back({"Direction planes (learned features over light, view, half vector)", bytesText(b["planes"]),
                        humanBytes(b["planes"])});
+    if (b.contains("cluster_planes"))
+      srows.push_back({"Cluster planes (each cluster's own features over light, view, half vector)",
+                       bytesText(b["cluster_planes"]), humanBytes(b["cluster_planes"])});
     if (b.contains("per_texel") && b["per_texel"].get<std::uint64_t>() > 0)
       srows.push_back({"Per-texel factors (modulation codes)", bytesText(b["per_texel"]), humanBytes(b["per_texel"])});
     srows.push_back({"**Total**", bytesText(b["total"]), humanBytes(b["total"])});

@@ -11,7 +11,7 @@ namespace nbtf {
 
 using json = nlohmann::json;
 
-const std::vector<std::string> kTrainConfigSections = {"model",    "direction_planes", "optimizer",
+const std::vector<std::string> kTrainConfigSections = {"model",    "direction_planes", "cluster_planes", "optimizer",
                                                        "training", "modulation",       "storage"};
 
 namespace {

@@ -86,6 +86,8 @@ std::uint64_t checkpointFingerprint(const TrainConfig& c, const TrainingSet& set
     h = hashCombine(h, static_cast<std::uint64_t>(c.model.directionInputs));
   if (c.model.planeFeatures > 0)  // absent without planes: old checkpoints still match
     h = hashCombine(hashCombine(h, c.model.planeResolution), c.model.planeFeatures);
+  if (c.model.clusterPlaneFeatures > 0)  // absent without cluster planes: old checkpoints still match
+    h = hashCombine(hashCombine(h, 0x63706c6eull + c.model.clusterPlaneResolution), c.model.clusterPlaneFeatures);
   return h;
 }
 

@@ -58,6 +58,10 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("model", "direction_inputs", model.directionInputs, nullptr),
     NBTF_CONFIG_FIELD("direction_planes", "resolution", model.planeResolution, withPlanes),
     NBTF_CONFIG_FIELD("direction_planes", "features", model.planeFeatures, withPlanes),
+    NBTF_CONFIG_FIELD("cluster_planes", "resolution", model.clusterPlaneResolution,
+                      [](const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }),
+    NBTF_CONFIG_FIELD("cluster_planes", "features", model.clusterPlaneFeatures,
+                      [](const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }),
     NBTF_CONFIG_FIELD("optimizer", "name", optimizer, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate", learningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate_scaling", learningRateScaling, nullptr),
@@ -162,6 +166,11 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
         "must be in 0.." + std::to_string(DirectionPlanes::kMaxFeatures) + " (0: no direction planes)");
   if (c.model.planeResolution < 2 || c.model.planeResolution > DirectionPlanes::kMaxResolution)
     bad(source, "direction_planes.resolution", "must be in 2.." + std::to_string(DirectionPlanes::kMaxResolution));
+  if (c.model.clusterPlaneFeatures < 0 || c.model.clusterPlaneFeatures > DirectionPlanes::kMaxFeatures)
+    bad(source, "cluster_planes.features",
+        "must be in 0.." + std::to_string(DirectionPlanes::kMaxFeatures) + " (0: no cluster planes)");
+  if (c.model.clusterPlaneResolution < 2 || c.model.clusterPlaneResolution > DirectionPlanes::kMaxResolution)
+    bad(source, "cluster_planes.resolution", "must be in 2.." + std::to_string(DirectionPlanes::kMaxResolution));
   if (c.optimizer != "sgd" && c.optimizer != "adam")
     bad(source, "optimizer.name", "must be \"sgd\" or \"adam\", got \"" + c.optimizer + "\"");
   if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");

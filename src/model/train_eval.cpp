@@ -6,7 +6,8 @@
 
 namespace nbtf::detail {
 
-RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const torch::Tensor& latents, bool progress) {
+RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const torch::Tensor& latents, bool progress,
+                      const float* clusterPlanes) {
   torch::NoGradGuard noGrad;
   const int images = set.images(), groups = set.groups();
   // Groups per chunk: about 64k decoder rows, at least one group.
@@ -20,7 +21,13 @@ RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const to
   Progress bar("evaluate", groups, progress);
   for (int g0 = 0; g0 < groups; g0 += chunk) {
     const int n = std::min(chunk, groups - g0);
-    torch::Tensor out = decoder.forward(latents.narrow(0, g0, n), dirsOne.repeat({n, 1}), images);
+    torch::Tensor dirs = dirsOne.repeat({n, 1});
+    if (clusterPlanes)
+      for (int j = 0; j < n; ++j)
+        set.writeClusterPlaneFeatures(clusterPlanes + static_cast<std::size_t>(g0 + j) * set.clusterPlaneValues(),
+                                      all.data(), images,
+                                      dirs.data_ptr<float>() + static_cast<std::size_t>(j) * images * set.directionWidth());
+    torch::Tensor out = decoder.forward(latents.narrow(0, g0, n), dirs, images);
     const float* f = out.data_ptr<float>();
     for (int j = 0; j < n; ++j) {
       const int g = g0 + j;

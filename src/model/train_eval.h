@@ -13,6 +13,7 @@ struct RmsError {
 // Decodes every (group, image) once and adds the within-cluster term, so the cost is
 // k x N decoder evaluations, not M x N:
 //   sum_t |f - y_t|^2 = n_c |f - ybar_c|^2 + sum_t |y_t - ybar_c|^2.
-RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const torch::Tensor& latents, bool progress);
+RmsError evaluateRmse(const TrainingSet& set, DecoderBackprop& decoder, const torch::Tensor& latents, bool progress,
+                      const float* clusterPlanes = nullptr);
 
 }  // namespace nbtf::detail

@@ -188,7 +188,8 @@ void setLearningRate(torch::optim::Optimizer& opt, double lr, double secondFacto
 // The network's parameters in one group and, when defined, the direction planes in a second
 // (optimizer.plane_learning_rate gives them a rate of their own).
 std::unique_ptr<torch::optim::Optimizer> makeOptimizer(const TrainConfig& c, std::vector<torch::Tensor> params,
-                                                       const torch::Tensor& planes) {
+                                                       const torch::Tensor& planes,
+                                                       const torch::Tensor& clusterPlanes = torch::Tensor()) {
   const bool sgd = c.optimizer == "sgd";
   auto options = [&]() -> std::unique_ptr<torch::optim::OptimizerOptions> {
     if (sgd) return std::make_unique<torch::optim::SGDOptions>(torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
@@ -197,9 +198,13 @@ std::unique_ptr<torch::optim::Optimizer> makeOptimizer(const TrainConfig& c, std
   std::vector<torch::optim::OptimizerParamGroup> groups;
   std::vector<torch::Tensor> network;
   for (const torch::Tensor& p : params)
-    if (!planes.defined() || !p.is_same(planes)) network.push_back(p);
+    if (!(planes.defined() && p.is_same(planes)) && !(clusterPlanes.defined() && p.is_same(clusterPlanes)))
+      network.push_back(p);
   groups.emplace_back(network, options());
-  if (planes.defined()) groups.emplace_back(std::vector<torch::Tensor>{planes}, options());
+  std::vector<torch::Tensor> grids;
+  if (planes.defined()) grids.push_back(planes);
+  if (clusterPlanes.defined()) grids.push_back(clusterPlanes);
+  if (!grids.empty()) groups.emplace_back(grids, options());
   if (sgd)
     return std::make_unique<torch::optim::SGD>(std::move(groups), torch::optim::SGDOptions(c.learningRate).momentum(c.momentum));
   return std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(c.learningRate));
@@ -238,7 +243,7 @@ class TrainingRun {
       : config_(config),
         callStart_(callStart),
         set_(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs,
-             config.model.planeFeatures),
+             config.model.planeFeatures, config.model.clusterPlaneFeatures, config.model.clusterPlaneResolution),
         x_(*inputs.encoderInputs),
         inputSource_(x_),
         encoder_(nullptr),
@@ -313,6 +318,8 @@ class TrainingRun {
   double planeRateFactor_ = 1;
   std::unique_ptr<DecoderBackprop> backprop_;
   int planeInputs_ = 0;
+  int clusterInputs_ = 0, trailingInputs_ = 0;
+  torch::Tensor clusterPlanes_;  // [groups, 3 R^2 G] per-cluster direction planes (undefined without)
   std::vector<float> stockInputGradient_;
   DirectionPlanes stepPlanes_;  // the planes as this step samples them
   double flopsPerSample_ = 0;
@@ -353,13 +360,24 @@ void TrainingRun::buildModel() {
   if (!device_.is_cpu()) encoder_->to(device_), decoder_->to(device_);
   params_ = encoder_->parameters();
   for (auto& p : decoder_->parameters()) params_.push_back(p);
-  optimizer_ = makeOptimizer(config_, params_, decoder_->planes);  // its rates are set before every step
+  // Cluster planes: a parameter of the decoder module, so that checkpoints keep them.
+  clusterInputs_ = set_.clusterPlaneInputs();
+  if (clusterInputs_ > 0 && !device_.is_cpu())
+    throw Error("cluster_planes: training with cluster planes runs on the CPU only (training.device \"cpu\")");
+  if (clusterInputs_ > 0) {
+    clusterPlanes_ = decoder_->register_parameter(
+        "cluster_planes", torch::empty({set_.groups(), static_cast<std::int64_t>(set_.clusterPlaneValues())})
+                              .uniform_(-detail::kPlaneInitScale, detail::kPlaneInitScale));
+    params_.push_back(clusterPlanes_);
+  }
+  optimizer_ = makeOptimizer(config_, params_, decoder_->planes, clusterPlanes_);  // its rates are set before every step
   planeRateFactor_ = config_.planeLearningRate > 0 ? config_.planeLearningRate / config_.learningRate : 1;
   backprop_ = std::make_unique<DecoderBackprop>(decoder_, config_.model.latentDim);
   // Learned direction planes: their features are the last direction inputs, sampled anew
   // after every step that moved them; their gradient comes from the decoder's input gradient.
   planeInputs_ = set_.planeInputs();
-  backprop_->setTrailingInputGradient(planeInputs_);
+  trailingInputs_ = planeInputs_ + clusterInputs_;
+  backprop_->setTrailingInputGradient(trailingInputs_);
   flopsPerSample_ = decoderShape(config_.model).flopsPerSample();
 }
 
@@ -465,7 +483,7 @@ void TrainingRun::step() {
   phaseStart_ = Clock::now();
   sampleStep();
   double loss = forwardBackward(polishing, p);
-  if (planeInputs_ > 0) addPlaneGradient();
+  if (trailingInputs_ > 0) addPlaneGradient();
   if (group_) loss = reduceOverRanks(loss);
   if (!std::isfinite(loss))
     throw Error("training diverged at step " + std::to_string(step_) +
@@ -496,6 +514,10 @@ void TrainingRun::sampleStep() {
       for (int s = 0; s < perTile; ++s)
         std::memcpy(d + (t * perTile + s) * dirWidth_, &allDirs[static_cast<std::size_t>(img[s]) * dirWidth_],
                     dirWidth_ * sizeof(float));
+      if (clusterInputs_ > 0)
+        set_.writeClusterPlaneFeatures(
+            clusterPlanes_.data_ptr<float>() + plan_.tileGroup[begin + t] * set_.clusterPlaneValues(), img, perTile,
+            d + t * perTile * dirWidth_);
     }
   });
   for (int t = 0; t < tiles; ++t) {
@@ -522,7 +544,7 @@ double TrainingRun::forwardBackward(bool polishing, double p) {
     if (stock_) {
       // Autograd through encoder and decoder; the whole step is timed as the decoder's.
       torch::Tensor z = encoder_->forwardStock(in.to(device_)).index_select(0, stepTileSlot_.to(device_));
-      loss = stockTrainStep(decoder_, params_, z, stepDirs_, stepTargets_, perTile, device_, planeInputs_,
+      loss = stockTrainStep(decoder_, params_, z, stepDirs_, stepTargets_, perTile, device_, trailingInputs_,
                             stockInputGradient_);
       lap(&TrainResult::Profile::decoder);
     } else {
@@ -545,7 +567,7 @@ double TrainingRun::forwardBackward(bool polishing, double p) {
   lap(&TrainResult::Profile::encoder);
   loss = polishStep(polish_, stepTileGroup_, [&](const torch::Tensor& z) {
     return stock_ ? stockTrainStep(decoder_, params_, z.to(device_), stepDirs_, stepTargets_, perTile, device_,
-                                   planeInputs_, stockInputGradient_)
+                                   trailingInputs_, stockInputGradient_)
                   : backprop_->trainStep(z, stepDirs_, stepTargets_, perTile, dz_);
   }, stock_, dz_);
   if (polish_.free())
@@ -555,11 +577,25 @@ double TrainingRun::forwardBackward(bool polishing, double p) {
 }
 
 void TrainingRun::addPlaneGradient() {
-  torch::Tensor gradient = torch::zeros_like(decoder_->planes);
-  set_.addPlaneGradient(stepPlanes_, &plan_.images[static_cast<std::size_t>(tileShare_.first) * geometry_.perTile],
-                        stock_ ? stockInputGradient_.data() : backprop_->inputGradient().data(),
-                        static_cast<std::int64_t>(stepTiles()) * geometry_.perTile, gradient.data_ptr<float>());
-  decoder_->planes.mutable_grad() = gradient;
+  const int perTile = geometry_.perTile;
+  const float* rowGradients = stock_ ? stockInputGradient_.data() : backprop_->inputGradient().data();
+  const int* images = &plan_.images[static_cast<std::size_t>(tileShare_.first) * perTile];
+  if (planeInputs_ > 0) {
+    torch::Tensor gradient = torch::zeros_like(decoder_->planes);
+    set_.addPlaneGradient(stepPlanes_, images, rowGradients, static_cast<std::int64_t>(stepTiles()) * perTile,
+                          gradient.data_ptr<float>(), trailingInputs_);
+    decoder_->planes.mutable_grad() = gradient;
+  }
+  if (clusterInputs_ > 0) {
+    torch::Tensor gradient = torch::zeros_like(clusterPlanes_);
+    float* g = gradient.data_ptr<float>();
+    for (int t = 0; t < stepTiles(); ++t)
+      set_.addClusterPlaneGradient(images + t * perTile, perTile,
+                                   rowGradients + static_cast<std::size_t>(t) * perTile * trailingInputs_ + planeInputs_,
+                                   trailingInputs_,
+                                   g + plan_.tileGroup[tileShare_.first + t] * set_.clusterPlaneValues());
+    clusterPlanes_.mutable_grad() = gradient;
+  }
   lap(&TrainResult::Profile::decoder);
 }
 
@@ -650,6 +686,13 @@ TrainResult TrainingRun::finish() {
   result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());
   result.decoder = detail::exportDecoder(decoder_);
   result.planes = exportPlanes(decoder_);
+  if (clusterInputs_ > 0) {
+    RowPlanes& c = result.clusterPlanes;
+    c.resolution = config_.model.clusterPlaneResolution, c.features = config_.model.clusterPlaneFeatures;
+    c.rows = set_.groups();
+    torch::Tensor v = clusterPlanes_.detach().to(torch::kCPU).contiguous();
+    c.values.assign(v.data_ptr<float>(), v.data_ptr<float>() + v.numel());
+  }
   set_.setPlaneFeatures(result.planes);  // the final planes, for the evaluation below
   result.encoderState = serializeModule(*encoder_);
   if (!config_.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
@@ -658,7 +701,8 @@ TrainResult TrainingRun::finish() {
   if (result.interrupted) {
     result.rmseTrain = result.rmseHoldout = -1;
   } else {
-    detail::RmsError rmse = detail::evaluateRmse(set_, *backprop_, latents, config_.progress);
+    detail::RmsError rmse = detail::evaluateRmse(set_, *backprop_, latents, config_.progress,
+                                                 clusterInputs_ > 0 ? clusterPlanes_.data_ptr<float>() : nullptr);
     result.rmseTrain = rmse.train;
     result.rmseHoldout = rmse.holdout;
     if (!set_.perTexel()) result.rmseFloor = std::sqrt(withinTrain_);

@@ -37,9 +37,14 @@ struct ModelConfig {
   // "resolution" R, "features" F; F = 0: none): 3 F more decoder inputs after the fixed ones.
   int planeResolution = 8;
   int planeFeatures = 4;
-  // The decoder's direction inputs: the fixed encoding's, then the planes'.
+  // Per-cluster direction planes ("cluster_planes": "resolution", "features"; 0 = none): each
+  // encoder input (cluster) has its own three R x R grids of G features; 3 G more inputs.
+  int clusterPlaneResolution = 6;
+  int clusterPlaneFeatures = 0;
+  // The decoder's direction inputs: the fixed encoding's, then the planes', then the cluster planes'.
   int directionInputCount() const {
-    return nbtf::directionInputCount(directionInputs) + DirectionPlanes::kPlanes * planeFeatures;
+    return nbtf::directionInputCount(directionInputs) + DirectionPlanes::kPlanes * planeFeatures +
+           DirectionPlanes::kPlanes * clusterPlaneFeatures;
   }
 };
 
@@ -214,6 +219,7 @@ struct TrainInputs {
 struct TrainResult {
   Mlp decoder;                          // input latent + the direction inputs (ModelConfig::directionInputCount)
   DirectionPlanes planes;               // the learned direction planes; empty without
+  RowPlanes clusterPlanes;              // each latent row's own planes; empty without
   std::vector<float> latents;           // rows x latentDim
   int latentRows = 0;
   std::vector<std::uint8_t> encoderState;  // serialized encoder (for --save-encoder)

@@ -18,7 +18,8 @@ constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
 }  // namespace
 
 TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress,
-                         DirectionEncoding directionInputs, int planeFeatures)
+                         DirectionEncoding directionInputs, int planeFeatures, int clusterPlaneFeatures,
+                         int clusterPlaneResolution)
     : stack_(in.stack), alpha_(in.alpha), perTexel_(in.ids.empty()) {
   // ---- Validate: every mismatch here would otherwise be a wrong answer, not a crash.
   if (!in.stack) throw Error("training: no BTF stack given");
@@ -64,14 +65,18 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
 
   // ---- Decoder direction inputs (eq. 7-9).
   planeInputs_ = DirectionPlanes::kPlanes * planeFeatures;
-  directionWidth_ = directionInputCount(directionInputs) + planeInputs_;
+  clusterPlaneInputs_ = DirectionPlanes::kPlanes * clusterPlaneFeatures;
+  clusterPlaneResolution_ = clusterPlaneResolution;
+  clusterPlaneSize_ = static_cast<std::size_t>(clusterPlaneInputs_) * clusterPlaneResolution * clusterPlaneResolution;
+  directionWidth_ = directionInputCount(directionInputs) + planeInputs_ + clusterPlaneInputs_;
   directions_.assign(static_cast<std::size_t>(images_) * directionWidth_, 0.0f);
-  if (planeInputs_ > 0) planePoints_.resize(static_cast<std::size_t>(images_) * 6);
+  const bool planePoints = planeInputs_ + clusterPlaneInputs_ > 0;
+  if (planePoints) planePoints_.resize(static_cast<std::size_t>(images_) * 6);
   for (int i = 0; i < images_; ++i) {
     const Direction& light = stack.lights()[i / stack.numViews()];
     const Direction& view = stack.views()[i % stack.numViews()];
     encodeDirections(directionInputs, light, view, &directions_[static_cast<std::size_t>(i) * directionWidth_]);
-    if (planeInputs_ > 0) directionPlanePoints(light.unitVector(), view.unitVector(), &planePoints_[6 * static_cast<std::size_t>(i)]);
+    if (planePoints) directionPlanePoints(light.unitVector(), view.unitVector(), &planePoints_[6 * static_cast<std::size_t>(i)]);
   }
 
   if (!perTexel_) {
@@ -181,17 +186,33 @@ void planStep(const TrainingSet& set, std::uint64_t seed, std::int64_t step, int
 
 void TrainingSet::setPlaneFeatures(const DirectionPlanes& planes) {
   if (planeInputs_ == 0) return;
-  const int first = directionWidth_ - planeInputs_;
+  const int first = directionWidth_ - clusterPlaneInputs_ - planeInputs_;
   for (int i = 0; i < images_; ++i)
     sampleDirectionPlanes(planes, &planePoints_[6 * static_cast<std::size_t>(i)],
                           &directions_[static_cast<std::size_t>(i) * directionWidth_ + first]);
 }
 
 void TrainingSet::addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients,
-                                   std::int64_t rows, float* gradient) const {
+                                   std::int64_t rows, float* gradient, int stride) const {
+  if (stride == 0) stride = planeInputs_;
   for (std::int64_t r = 0; r < rows; ++r)
     scatterDirectionPlanesGradient(planes, &planePoints_[6 * static_cast<std::size_t>(images[r])],
-                                   rowGradients + r * planeInputs_, gradient);
+                                   rowGradients + r * stride, gradient);
+}
+
+void TrainingSet::writeClusterPlaneFeatures(const float* values, const int* images, int count, float* rows) const {
+  const int first = directionWidth_ - clusterPlaneInputs_, G = clusterPlaneInputs_ / DirectionPlanes::kPlanes;
+  for (int r = 0; r < count; ++r)
+    sampleDirectionPlanes(clusterPlaneResolution_, G, values, &planePoints_[6 * static_cast<std::size_t>(images[r])],
+                          rows + static_cast<std::size_t>(r) * directionWidth_ + first);
+}
+
+void TrainingSet::addClusterPlaneGradient(const int* images, int count, const float* rowGradients, int stride,
+                                          float* gradient) const {
+  const int G = clusterPlaneInputs_ / DirectionPlanes::kPlanes;
+  for (int r = 0; r < count; ++r)
+    scatterDirectionPlanesGradient(clusterPlaneResolution_, G, &planePoints_[6 * static_cast<std::size_t>(images[r])],
+                                   rowGradients + static_cast<std::size_t>(r) * stride, gradient);
 }
 
 }  // namespace nbtf

@@ -30,7 +30,8 @@ class TrainingSet {
  public:
   // Validates the inputs (throws nbtf::Error) and precomputes the cluster means in parallel.
   TrainingSet(const TrainInputs& inputs, double holdoutFraction, std::uint64_t seed, bool progress,
-              DirectionEncoding directionInputs = DirectionEncoding::Stereographic, int planeFeatures = 0);
+              DirectionEncoding directionInputs = DirectionEncoding::Stereographic, int planeFeatures = 0,
+              int clusterPlaneFeatures = 0, int clusterPlaneResolution = 0);
 
   bool perTexel() const { return perTexel_; }
   int groups() const { return groups_; }        // encoder inputs (rows of encoderInputs)
@@ -51,12 +52,23 @@ class TrainingSet {
   const std::vector<float>& directions() const { return directions_; }
   int directionWidth() const { return directionWidth_; }
   int planeInputs() const { return planeInputs_; }
+  // The per-cluster planes' inputs (the last 3 G columns; zero in directions()).
+  int clusterPlaneInputs() const { return clusterPlaneInputs_; }
+  std::size_t clusterPlaneValues() const { return clusterPlaneSize_; }  // per group
+  // Writes group g's planes (`values`: clusterPlaneValues() floats) sampled at images[0..count)
+  // into the last clusterPlaneInputs() columns of `rows` (directionWidth() floats each).
+  void writeClusterPlaneFeatures(const float* values, const int* images, int count, float* rows) const;
+  // Adds to `gradient` (one group's clusterPlaneValues() floats) the gradient from `count` rows
+  // of dLoss/d(cluster plane features), `stride` floats apart.
+  void addClusterPlaneGradient(const int* images, int count, const float* rowGradients, int stride,
+                               float* gradient) const;
   // Samples `planes` at every image's directions into the last planeInputs() columns.
   void setPlaneFeatures(const DirectionPlanes& planes);
   // Adds to `gradient` (laid out as planes.values) the planes' gradient from rows of
   // dLoss/d(plane features): row r (planeInputs() floats) belongs to image images[r].
+  // Rows are `stride` floats apart (planeInputs() when 0).
   void addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients, std::int64_t rows,
-                        float* gradient) const;
+                        float* gradient, int stride = 0) const;
   // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.
   std::uint64_t texelCoefficientHash() const { return coefficientHash_; }
 
@@ -83,6 +95,8 @@ class TrainingSet {
   std::vector<float> directions_; // images x directionWidth_
   int directionWidth_ = 4;
   int planeInputs_ = 0;
+  int clusterPlaneInputs_ = 0, clusterPlaneResolution_ = 0;
+  std::size_t clusterPlaneSize_ = 0;
   std::vector<float> planePoints_; // images x 6 (util/direction_planes.h), when there are planes
   std::uint64_t coefficientHash_ = 0;
   int terms_ = 1;

@@ -297,6 +297,9 @@ int clustersWithinBudget(const std::vector<AdaptiveStage>& stages, double latent
 int initialAdaptiveClusters(const CompressOptions& o, std::int64_t texels) {
   const AdaptiveOptions& a = o.adaptive;
   validateAdaptiveOptions(a, "adaptive options");
+  if (o.train.model.clusterPlaneFeatures > 0)
+    throw Error("--adaptive cannot train cluster planes (\"cluster_planes\"): each stage changes the clusters they "
+                "belong to; use a fixed --clusters");
   int k0 = a.initialClusters;
   if (k0 == 0) {
     const int reference = a.maxClusters > 0 ? a.maxClusters : o.clusters;

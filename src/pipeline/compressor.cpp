@@ -164,6 +164,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   CompressedBtf b = compressedFrame(stack, method, alpha);
   b.decoder = std::move(train.decoder);
   b.planes = std::move(train.planes);
+  b.clusterPlanes = std::move(train.clusterPlanes);
   b.directionEncoding = config.model.directionInputs;
   b.latentDim = config.model.latentDim;
   b.latentRows = train.latentRows;
@@ -706,6 +707,7 @@ std::string compressStatsJson(const CompressStats& s) {
                   {"per_texel", s.sizes.modulation},
                   {"total", s.sizes.total},     {"raw_float32", s.sizes.rawFloat32}, {"file", s.sizes.fileBytes}};
   if (s.sizes.planes) j["bytes"]["planes"] = s.sizes.planes;
+  if (s.sizes.clusterPlanes) j["bytes"]["cluster_planes"] = s.sizes.clusterPlanes;
   j["seconds"] = {{"load", s.seconds.load},   {"preprocess", s.seconds.preprocess}, {"cluster", s.seconds.cluster},
                   {"train", s.seconds.train}, {"pca", s.seconds.pca},               {"write", s.seconds.write},
                   {"assemble", s.seconds.assemble}, {"total", s.seconds.total()}};

@@ -201,6 +201,9 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
   if (!isDirectionEncoding(static_cast<int>(m.directionEncoding)))
     throw Error(name + ": direction encoding code " + std::to_string(static_cast<int>(m.directionEncoding)) +
                 " has no GLSL form in this build");
+  if (!m.clusterPlanes.empty())
+    throw Error(name + ": cluster planes (format 1.9) have no GLSL form yet: export a file made without "
+                "\"cluster_planes\" (docs/model.md, *Cluster planes*)");
   d.encoding = m.directionEncoding;
   d.encodingInputs = directionInputCount(m.directionEncoding);
   d.planeResolution = m.planes.empty() ? 0 : m.planes.resolution;

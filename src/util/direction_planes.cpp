@@ -43,11 +43,19 @@ void directionPlanePoints(const std::array<double, 3>& light, const std::array<d
 }
 
 void sampleDirectionPlanes(const DirectionPlanes& planes, const float* points, float* out) {
-  const int R = planes.resolution, F = planes.features;
+  sampleDirectionPlanes(planes.resolution, planes.features, planes.values.data(), points, out);
+}
+
+void scatterDirectionPlanesGradient(const DirectionPlanes& planes, const float* points, const float* dOut,
+                                    float* gradient) {
+  scatterDirectionPlanesGradient(planes.resolution, planes.features, points, dOut, gradient);
+}
+
+void sampleDirectionPlanes(int R, int F, const float* values, const float* points, float* out) {
   const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
   for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
     const Taps t = tapsOf(R, points[2 * p], points[2 * p + 1]);
-    const float* v00 = planes.values.data() + p * planeSize + (static_cast<std::size_t>(t.y0) * R + t.x0) * F;
+    const float* v00 = values + p * planeSize + (static_cast<std::size_t>(t.y0) * R + t.x0) * F;
     const float* v01 = v00 + F;                                  // x + 1
     const float* v10 = v00 + static_cast<std::size_t>(R) * F;    // y + 1
     const float* v11 = v10 + F;
@@ -56,9 +64,7 @@ void sampleDirectionPlanes(const DirectionPlanes& planes, const float* points, f
   }
 }
 
-void scatterDirectionPlanesGradient(const DirectionPlanes& planes, const float* points, const float* dOut,
-                                    float* gradient) {
-  const int R = planes.resolution, F = planes.features;
+void scatterDirectionPlanesGradient(int R, int F, const float* points, const float* dOut, float* gradient) {
   const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
   for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
     const Taps t = tapsOf(R, points[2 * p], points[2 * p + 1]);

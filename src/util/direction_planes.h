@@ -30,9 +30,29 @@ struct DirectionPlanes {
   }
 };
 
+// Direction planes of each latent row's own ("cluster planes"): every cluster (or texel, in
+// the per-texel mode) has three R x R grids of F features over the same disks as
+// DirectionPlanes, appended to the decoder's direction inputs after the shared planes. They
+// give each cluster's angular function free parameters of its own, so the network no longer
+// has to carry every cluster's highlights and shadows in its weights.
+struct RowPlanes {
+  int resolution = 0;                      // R
+  int features = 0;                        // F per plane; 0 = none
+  int rows = 0;                            // latent rows
+  std::vector<float> values;               // [row][plane][y][x][feature]
+
+  bool empty() const { return features == 0; }
+  int inputCount() const { return DirectionPlanes::kPlanes * features; }
+  std::size_t valuesPerRow() const {
+    return static_cast<std::size_t>(DirectionPlanes::kPlanes) * resolution * resolution * features;
+  }
+  std::size_t valueCount() const { return static_cast<std::size_t>(rows) * valuesPerRow(); }
+  const float* rowValues(int row) const { return values.data() + static_cast<std::size_t>(row) * valuesPerRow(); }
+};
+
 // The most direction inputs a decoder takes: the widest fixed encoding and the most plane features.
 constexpr int kMaxDecoderDirectionInputs =
-    kMaxDirectionInputs + DirectionPlanes::kPlanes * DirectionPlanes::kMaxFeatures;
+    kMaxDirectionInputs + 2 * DirectionPlanes::kPlanes * DirectionPlanes::kMaxFeatures;
 
 // The points a (light, view) pair samples, in [-1, 1]^2 each: the stereographic projections
 // (x / (1 + z), y / (1 + z); the horizon maps to radius 1) of the unit light, view and half
@@ -42,6 +62,11 @@ void directionPlanePoints(const std::array<double, 3>& light, const std::array<d
 // The planes' features at `points` (6 floats): out gets inputCount() floats, plane by plane.
 // Points outside [-1, 1] are clamped to the border.
 void sampleDirectionPlanes(const DirectionPlanes& planes, const float* points, float* out);
+
+// The same on raw grids: `values` laid out as DirectionPlanes::values for resolution R, F features.
+void sampleDirectionPlanes(int resolution, int features, const float* values, const float* points, float* out);
+void scatterDirectionPlanesGradient(int resolution, int features, const float* points, const float* dOut,
+                                    float* gradient);
 
 // The transpose of sampleDirectionPlanes: adds the gradient dOut (inputCount() floats) of
 // the sampled features at `points` to gradient (valueCount() floats, laid out as values).
