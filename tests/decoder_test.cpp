@@ -647,17 +647,14 @@ TEST(Decoder, PcaUnmeasuredPairIsTheWeightedBlendOfItsNeighbours) {
 namespace nbtf {
 namespace {
 
-// A material with learned direction planes (format 1.8): images, texel queries and UV queries
-// agree with the naive reference, and the material decodes bit for bit the same after a round
-// trip through the file (float32 and half storage).
-TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
+// Images, texel queries, UV queries and single evaluations of `b` agree with the naive
+// reference (which samples the texel's own latent row) at three light / view pairs.
+void expectEveryQueryFormMatchesReference(const CompressedBtf& b) {
   using testing::decoderTolerance;
-  using testing::makeDecoderMaterial;
   using testing::referenceOutput;
-  CompressedBtf b = makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 3);
   NbtfDecoder dec(b);
-  EXPECT_EQ(dec.directionInputs(), 20 + 9);
-  const std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}}, {{75, 345}, {60, 18}}};
+  const std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}},
+                                                              {{75, 345}, {60, 18}}};
   for (const auto& [l, v] : pairs) {
     std::vector<float> img(3 * b.numTexels()), byTexel(3 * b.numTexels()), byUv(3 * b.numTexels());
     dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
@@ -674,6 +671,8 @@ TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
     for (int t = 0; t < b.numTexels(); ++t) {
       std::array<double, 3> mag;
       const std::array<double, 3> want = referenceOutput(b, t, l, v, &mag);
+      const Rgb one = dec.evaluate(t % b.width, t / b.width, l, v, OutputScale::Normalized);
+      EXPECT_EQ(one.r, byTexel[3 * t]) << "texel " << t;
       for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(img[3 * t + c], want[c], 2 * decoderTolerance(mag[c])) << "texel " << t;
         EXPECT_EQ(byTexel[3 * t + c], img[3 * t + c]) << "texel " << t;
@@ -682,78 +681,54 @@ TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
       }
     }
   }
+}
+
+// `b` stored (float32 or half), written and read back: the file is format 1.`minor`, writes the
+// same bytes again and decodes bit for bit as the stored material. Returns what was read.
+CompressedBtf expectRoundTripDecodesTheSame(const CompressedBtf& b, bool half, int minor) {
+  CompressedBtf stored = b;
+  stored.storage.decoderHalf = half;
+  roundToStorage(stored);
+  const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
+  EXPECT_EQ(bytes[10], minor);
+  CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(back.planes.values, stored.planes.values);
+  EXPECT_EQ(back.clusterPlanes.values, stored.clusterPlanes.values);
+  EXPECT_EQ(serializeNbtf(back), bytes);
+  std::vector<float> a(3 * b.numTexels()), c(3 * b.numTexels());
+  NbtfDecoder(stored).decodeImage({37.5, 200}, {10, 45}, a.data(), OutputScale::Normalized);
+  NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
+  EXPECT_EQ(a, c);
+  return back;
+}
+
+// A material with learned direction planes (format 1.8) serves every query form and survives a
+// round trip through the file (float32 and half storage).
+TEST(Decoder, DirectionPlanesServeEveryQueryFormAndRoundTrip) {
+  CompressedBtf b =
+      testing::makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 3);
+  EXPECT_EQ(NbtfDecoder(b).directionInputs(), 20 + 9);
+  expectEveryQueryFormMatchesReference(b);
   for (bool half : {false, true}) {
-    CompressedBtf stored = b;
-    stored.storage.decoderHalf = half;
-    roundToStorage(stored);
-    const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
-    EXPECT_EQ(bytes[10], 8);  // format 1.8
-    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
-    EXPECT_EQ(back.planes.values, stored.planes.values);
-    EXPECT_EQ(serializeNbtf(back), bytes);
+    const CompressedBtf back = expectRoundTripDecodesTheSame(b, half, 8);
     EXPECT_EQ(computeSizes(back).planes, 3u * 6 * 6 * 3 * (half ? 2 : 4));
-    std::vector<float> a(3 * b.numTexels()), c(3 * b.numTexels());
-    NbtfDecoder(stored).decodeImage({37.5, 200}, {10, 45}, a.data(), OutputScale::Normalized);
-    NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
-    EXPECT_EQ(a, c);
   }
 }
 
-// Cluster planes (format 1.9, CPLN): each latent row's own planes. Images (decoded per latent
-// row), texel queries, UV queries and single evaluations agree with the naive reference, which
-// samples the texel's own row; a round trip through the file decodes bit for bit the same
-// (float32 and half storage), for a clustered and a per-texel material.
+// Cluster planes (format 1.9, CPLN): each latent row's own planes, for a clustered and a
+// per-texel material.
 TEST(Decoder, ClusterPlanesServeEveryQueryFormAndRoundTrip) {
-  using testing::decoderTolerance;
-  using testing::referenceOutput;
   for (int k : {5, 0}) {
+    SCOPED_TRACE("k " + std::to_string(k));
     CompressedBtf b =
         testing::makeDecoderMaterial(k, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 3, 2);
-    NbtfDecoder dec(b);
-    EXPECT_EQ(dec.directionInputs(), 20 + 9 + 6);
-    const std::vector<std::pair<Direction, Direction>> pairs = {{{0, 0}, {0, 0}}, {{37.5, 200}, {10, 45}},
-                                                                {{75, 345}, {60, 18}}};
-    for (const auto& [l, v] : pairs) {
-      std::vector<float> img(3 * b.numTexels()), byTexel(3 * b.numTexels()), byUv(3 * b.numTexels());
-      dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
-      std::vector<TexelQuery> tq;
-      std::vector<UvQuery> uq;
-      const auto lu = l.unitVector(), vu = v.unitVector();
-      for (int t = 0; t < b.numTexels(); ++t) {
-        tq.push_back({t % b.width, t / b.width, l, v});
-        uq.push_back({(t % b.width + 0.5f) / b.width, (t / b.width + 0.5f) / b.height,
-                      {float(lu[0]), float(lu[1]), float(lu[2])}, {float(vu[0]), float(vu[1]), float(vu[2])}});
-      }
-      dec.evaluate(tq.data(), tq.size(), byTexel.data(), OutputScale::Normalized);
-      dec.evaluate(uq.data(), uq.size(), byUv.data(), OutputScale::Normalized);
-      for (int t = 0; t < b.numTexels(); ++t) {
-        std::array<double, 3> mag;
-        const std::array<double, 3> want = referenceOutput(b, t, l, v, &mag);
-        const Rgb one = dec.evaluate(t % b.width, t / b.width, l, v, OutputScale::Normalized);
-        EXPECT_EQ(one.r, byTexel[3 * t]) << "texel " << t;
-        for (int c = 0; c < 3; ++c) {
-          EXPECT_NEAR(img[3 * t + c], want[c], 2 * decoderTolerance(mag[c])) << "k " << k << " texel " << t;
-          EXPECT_EQ(byTexel[3 * t + c], img[3 * t + c]) << "texel " << t;
-          EXPECT_NEAR(byUv[3 * t + c], want[c], 1e-4 + 1e-4 * mag[c]) << "texel " << t;
-        }
-      }
-    }
+    EXPECT_EQ(NbtfDecoder(b).directionInputs(), 20 + 9 + 6);
+    expectEveryQueryFormMatchesReference(b);
     for (bool half : {false, true}) {
-      CompressedBtf stored = b;
-      stored.storage.decoderHalf = half;
-      roundToStorage(stored);
-      const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
-      EXPECT_EQ(bytes[10], 9);  // format 1.9
-      CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+      const CompressedBtf back = expectRoundTripDecodesTheSame(b, half, 9);
       EXPECT_EQ(back.clusterPlanes.rows, b.latentRows);
-      EXPECT_EQ(back.clusterPlanes.values, stored.clusterPlanes.values);
-      EXPECT_EQ(serializeNbtf(back), bytes);
       EXPECT_EQ(computeSizes(back).clusterPlanes,
                 static_cast<std::uint64_t>(b.latentRows) * 3 * 4 * 4 * 2 * (half ? 2 : 4));
-      std::vector<float> a(3 * b.numTexels()), c(3 * b.numTexels());
-      NbtfDecoder(stored).decodeImage({37.5, 200}, {10, 45}, a.data(), OutputScale::Normalized);
-      NbtfDecoder(back).decodeImage({37.5, 200}, {10, 45}, c.data(), OutputScale::Normalized);
-      EXPECT_EQ(a, c);
     }
   }
 }
