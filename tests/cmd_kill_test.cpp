@@ -69,10 +69,16 @@ struct Outcome {
   int exitCode = -1;
 };
 
-// Lets the child run for `seconds`, then SIGKILLs it (unless it has ended by then).
-Outcome killAfter(pid_t pid, double seconds) {
-  const auto start = Clock::now();
+// Lets the child run for `seconds`, then SIGKILLs it (unless it has ended by then). With
+// `afterFile`, the seconds count from when that file exists: on a loaded machine the child's
+// start takes longer than any fixed delay foresees.
+Outcome killAfter(pid_t pid, double seconds, const std::string& afterFile = "") {
   int status = 0;
+  while (!afterFile.empty() && !fs::exists(afterFile)) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) return {false, WIFEXITED(status) ? WEXITSTATUS(status) : -1};
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  const auto start = Clock::now();
   while (secondsSince(start) < seconds) {
     if (::waitpid(pid, &status, WNOHANG) == pid) return {false, WIFEXITED(status) ? WEXITSTATUS(status) : -1};
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
@@ -135,21 +141,23 @@ TEST(KillCompress, RandomSigkillsLeaveNoPartialFileAndResumeMatchesAnUninterrupt
   const std::vector<std::uint8_t> previous = readFileBytes(out);
 
   // Kills alternate between the start (loading, clustering; no checkpoint yet or the
-  // previous run's) and training (between and during checkpoint writes); each resumed run
-  // gets a little further, and the last one must finish what is left.
+  // previous run's) and training (once a checkpoint exists: between and during checkpoint
+  // writes); each resumed run gets a little further, and the last one must finish what is left.
   std::mt19937 rng(20261121);
-  std::uniform_real_distribution<double> duringStart(0.02, startSeconds), duringTraining(0.05, 0.2 * trainSeconds);
+  std::uniform_real_distribution<double> duringStart(0.02, startSeconds), duringTraining(0.0, 0.2 * trainSeconds);
   int kills = 0, killsWithCheckpoint = 0, killsAfterTheWrite = 0;
   for (int attempt = 0; attempt < 8; ++attempt) {
-    const double after = attempt % 2 == 0 ? duringStart(rng) : startSeconds + duringTraining(rng);
-    Outcome o = killAfter(spawnNbtf(compressArgs(out, dir / "out.json")), after);
+    const bool inTraining = attempt % 2 == 1;
+    const double after = inTraining ? duringTraining(rng) : duringStart(rng);
+    Outcome o = killAfter(spawnNbtf(compressArgs(out, dir / "out.json")), after, inTraining ? out + ".ckpt" : "");
     if (!o.killed) {
       ASSERT_EQ(o.exitCode, 0) << "the run ended by itself, but failed";
       break;
     }
     ++kills;
     killsWithCheckpoint += fs::exists(out + ".ckpt");
-    SCOPED_TRACE("kill " + std::to_string(kills) + " after " + std::to_string(after) + " s");
+    SCOPED_TRACE("kill " + std::to_string(kills) + " after " + std::to_string(after) + " s" +
+                 (inTraining ? " of training" : ""));
     ASSERT_TRUE(fs::exists(out)) << "the previous file disappeared";
     std::vector<std::uint8_t> now = readFileBytes(out);
     if (now != previous) {

@@ -93,16 +93,18 @@ TEST(CompressConfig, ShippedCompactConfigIsTheDefaultWithASmallerDecoderAndModul
   EXPECT_EQ(trainConfigJson(compact), trainConfigJson(expected));
 }
 
-// configs/high_fidelity.json is the default recipe with cluster planes, three modulation terms
-// and 128 images per encoder input (each cluster's planes visited 4x as often): the large end
-// of the rate-distortion curve, nothing else changed.
+// configs/high_fidelity.json is the default recipe with cluster planes (stored in 8 bits), three
+// modulation terms and 128 images per encoder input (each cluster's planes visited 4x as
+// often): the large end of the rate-distortion curve, nothing else changed.
 TEST(CompressConfig, ShippedHighFidelityConfigIsTheDefaultWithClusterPlanesAndThreeTerms) {
   const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
   TrainConfig fidelity = loadTrainConfig(dir + "high_fidelity.json");
-  EXPECT_EQ(fidelity.model.clusterPlaneFeatures, 4);
+  EXPECT_EQ(fidelity.model.clusterPlaneFeatures, 8);
+  EXPECT_EQ(fidelity.storage.clusterPlanes, "8bit");
   TrainConfig expected = loadTrainConfig(dir + "default.json");
-  expected.model.clusterPlaneFeatures = 4;
+  expected.model.clusterPlaneFeatures = 8;
   expected.model.clusterPlaneResolution = 6;
+  expected.storage.clusterPlanes = "8bit";
   expected.modulation.terms = 3;
   expected.imagesPerInput = 128;
   EXPECT_EQ(trainConfigJson(fidelity), trainConfigJson(expected));

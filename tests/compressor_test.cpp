@@ -127,6 +127,50 @@ TEST(Compressor, ClusteredMaterialBeatsTheImageMeanAndRoundTrips) {
   EXPECT_EQ(nlohmann::json::parse(compressStatsJson(stats))["pca_components"].get<int>(), 32);
 }
 
+// The RMSE of `b` over every image of `stack`, decoded image by image by the file's decoder.
+double decodedFileRmse(const CompressedBtf& b, const BtfStack& stack) {
+  NbtfDecoder dec(b);
+  std::vector<float> img(3 * static_cast<std::size_t>(b.numTexels()));
+  double sse = 0;
+  for (int i = 0; i < stack.numImages(); ++i) {
+    dec.decodeImage(b.lights[i / b.views.size()], b.views[i % b.views.size()], img.data(), OutputScale::Normalized);
+    for (int t = 0; t < b.numTexels(); ++t)
+      for (int c = 0; c < 3; ++c) sse += std::pow(img[3 * t + c] - stack.sample(i, t, c) / b.alpha, 2);
+  }
+  return std::sqrt(sse / (3.0 * b.numTexels() * stack.numImages()));
+}
+
+// Cluster planes stored in 8 bits (format 1.10): the same training as with float32 planes, a
+// file whose reported RMSE is its own (measured through the codes) and close to the float one,
+// and a recorded recipe that says so.
+TEST(Compressor, EightBitClusterPlanesAreMeasuredAsStored) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = quickOptions(6);
+  o.train.epochs = 300;
+  o.train.model.clusterPlaneResolution = 4;
+  o.train.model.clusterPlaneFeatures = 2;
+  CompressStats floatStats, eightStats;
+  const CompressedBtf floats = compressStack(m.stack, o, floatStats);
+  o.train.storage.clusterPlanes = "8bit";
+  const CompressedBtf eight = compressStack(m.stack, o, eightStats);
+  EXPECT_FALSE(floats.storage.clusterPlanes8Bit);
+  ASSERT_TRUE(eight.storage.clusterPlanes8Bit);
+  EXPECT_EQ(eight.decoder.layers[0].weight, floats.decoder.layers[0].weight);  // the same training
+  EXPECT_NE(eight.clusterPlanes.values, floats.clusterPlanes.values);
+  EXPECT_EQ(serializeNbtf(floats)[10], 9);
+  const std::vector<std::uint8_t> bytes = serializeNbtf(eight);
+  EXPECT_EQ(bytes[10], 10);
+  const CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_EQ(back.clusterPlanes.values, eight.clusterPlanes.values);
+  EXPECT_NEAR(eightStats.rmseTrain, decodedFileRmse(back, m.stack), 1e-5);
+  EXPECT_NEAR(floatStats.rmseTrain, decodedFileRmse(floats, m.stack), 1e-4);
+  EXPECT_LT(eightStats.rmseTrain, 1.05 * floatStats.rmseTrain);
+  EXPECT_EQ(eightStats.sizes.clusterPlanes, 6u * (3 * 4 * 4 * 2 + 2 * 8));
+  const nlohmann::json recorded = nlohmann::json::parse(back.metadataJson)["config"];
+  EXPECT_EQ(recorded["storage"]["cluster_planes"], "8bit");
+  EXPECT_FALSE(nlohmann::json::parse(floats.metadataJson)["config"]["storage"].contains("cluster_planes"));
+}
+
 // Per-texel modulation with compact storage: the file decodes (through its own decoder, every
 // texel) to the RMSE the compressor reports, below the plain cluster-mean floor on a material
 // whose texels differ by brightness, and its parts are stored compactly.

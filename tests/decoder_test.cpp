@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "codec/nbtf_format.h"
 #include "codec/pca_model.h"
 #include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
@@ -336,6 +337,20 @@ TEST(Decoder, CommittedFormat19FileDecodesAsBefore) {
   EXPECT_EQ(b.clusterPlanes.rows, 8);
   EXPECT_EQ(b.clusterPlanes.resolution, 6);
   EXPECT_EQ(b.clusterPlanes.features, 4);
+  EXPECT_EQ(b.modulation.terms, 3);
+}
+
+// Format 1.10 (8-bit cluster planes, CPLN value type 2; configs/high_fidelity.json since
+// format 1.10), written on 2026-11-27 when the format was introduced, by `nbtf compress` of the
+// same satin with the same options and `--config configs/high_fidelity.json` (cluster planes 6 x 6
+// x 8 in 8 bits, three modulation terms).
+TEST(Decoder, CommittedFormat110FileDecodesAsBefore) {
+  expectCommittedFourierFile("compact_v1_10", 10, DirectionEncoding::StereographicFourier2, 20 + 12 + 24);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_10.nbtf");
+  EXPECT_TRUE(b.storage.clusterPlanes8Bit);
+  EXPECT_EQ(b.clusterPlanes.rows, 8);
+  EXPECT_EQ(b.clusterPlanes.resolution, 6);
+  EXPECT_EQ(b.clusterPlanes.features, 8);
   EXPECT_EQ(b.modulation.terms, 3);
 }
 
@@ -683,11 +698,13 @@ void expectEveryQueryFormMatchesReference(const CompressedBtf& b) {
   }
 }
 
-// `b` stored (float32 or half), written and read back: the file is format 1.`minor`, writes the
-// same bytes again and decodes bit for bit as the stored material. Returns what was read.
-CompressedBtf expectRoundTripDecodesTheSame(const CompressedBtf& b, bool half, int minor) {
+// `b` stored (float32 or half; cluster planes in 8 bits when `eightBit`), written and read back:
+// the file is format 1.`minor`, writes the same bytes again and decodes bit for bit as the
+// stored material. Returns what was read.
+CompressedBtf expectRoundTripDecodesTheSame(const CompressedBtf& b, bool half, int minor, bool eightBit = false) {
   CompressedBtf stored = b;
   stored.storage.decoderHalf = half;
+  stored.storage.clusterPlanes8Bit = eightBit;
   roundToStorage(stored);
   const std::vector<std::uint8_t> bytes = serializeNbtf(stored);
   EXPECT_EQ(bytes[10], minor);
@@ -730,7 +747,49 @@ TEST(Decoder, ClusterPlanesServeEveryQueryFormAndRoundTrip) {
       EXPECT_EQ(computeSizes(back).clusterPlanes,
                 static_cast<std::uint64_t>(b.latentRows) * 3 * 4 * 4 * 2 * (half ? 2 : 4));
     }
+    // 8-bit (format 1.10): a code per value and a float32 range per row and feature.
+    const CompressedBtf back = expectRoundTripDecodesTheSame(b, true, 10, true);
+    EXPECT_TRUE(back.storage.clusterPlanes8Bit);
+    EXPECT_EQ(computeSizes(back).clusterPlanes, static_cast<std::uint64_t>(b.latentRows) * (3 * 4 * 4 * 2 + 2 * 8));
+    EXPECT_NE(storageDescription(back).find("cluster planes 8-bit"), std::string::npos) << storageDescription(back);
   }
+}
+
+// 8-bit cluster planes: every value within half a code step of what was trained, each row's
+// and feature's extremes kept exactly, and the decoded values code to themselves again.
+TEST(Decoder, ClusterPlanes8BitCodesAreWithinHalfAStepAndStable) {
+  CompressedBtf b =
+      testing::makeDecoderMaterial(6, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 0, 3);
+  RowPlanes& p = b.clusterPlanes;
+  p.values[5] = 1000.f;  // one wide range, and a feature whose values are all equal
+  for (std::size_t i = 2; i < p.valuesPerRow(); i += p.features) p.values[p.valuesPerRow() + i] = 0.25f;
+  const RowPlanes trained = p;
+  const std::vector<float> ranges = format::clusterPlaneRanges(trained);
+  format::roundClusterPlanesTo8Bit(p);
+  EXPECT_EQ(format::clusterPlaneRanges(p), ranges);
+  EXPECT_TRUE(format::clusterPlanes8BitExact(p));
+  EXPECT_FALSE(format::clusterPlanes8BitExact(trained));
+  int distinct = 0;
+  for (std::size_t i = 0; i < p.values.size(); ++i) {
+    const float* r = &ranges[(i / p.valuesPerRow() * p.features + i % p.features) * 2];
+    EXPECT_LE(std::fabs(p.values[i] - trained.values[i]), (r[1] - r[0]) / 510 * (1 + 1e-5f) + 1e-7f) << i;
+    EXPECT_GE(p.values[i], r[0]);
+    EXPECT_LE(p.values[i], r[1]);
+    distinct += p.values[i] != trained.values[i];
+  }
+  EXPECT_GT(distinct, 0);
+  EXPECT_EQ(p.values[p.valuesPerRow() + 2], 0.25f);
+  EXPECT_EQ(format::planeCode(0.25f, 0.25f, 0.25f), 0);
+  EXPECT_EQ(format::planeCodeValue(0, -1, 3), -1.f);
+  EXPECT_EQ(format::planeCodeValue(255, -1, 3), 3.f);
+  EXPECT_EQ(format::planeCode(1.f, -1, 3), 128);  // 127.5 rounds to even
+
+  // Values the codes cannot represent are refused by name, not stored as something else.
+  CompressedBtf unrounded = b;
+  unrounded.clusterPlanes = trained;
+  unrounded.storage.clusterPlanes8Bit = true;
+  test::expectErrorContaining([&] { unrounded.validate("m.nbtf"); },
+                              {"m.nbtf", "cluster planes are to be stored in 8 bits"});
 }
 
 TEST(Decoder, ClusterPlanesContentIsCheckedByName) {

@@ -12,6 +12,7 @@
 #include "codec/crc32.h"
 #include "codec/texel_modulation.h"
 #include "codec_fixtures.h"
+#include "decoder_fixtures.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 #include "util/half.h"
@@ -24,8 +25,6 @@ using testing::makeBtf;
 using testing::makeDecoder;
 using testing::makePcaBtf;
 
-// The files every damage test runs on: clustered neural and the PCA baseline (whose
-// sections have their own size fields and checks).
 // A decoder for `terms` modulation terms: makeBtf's, with 3 x terms outputs.
 void setTerms(CompressedBtf& b, int terms) {
   DenseLayer& last = b.decoder.layers.back();
@@ -47,8 +46,18 @@ CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6, int channel
   return b;
 }
 
+// A format-1.10 file: direction planes, and cluster planes in 8 bits.
+CompressedBtf makeClusterPlanes8BitBtf() {
+  CompressedBtf b =
+      testing::makeDecoderMaterial(5, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 2, 2);
+  b.storage.decoderInt8 = b.storage.clusterPlanes8Bit = true;
+  roundToStorage(b);
+  return b;
+}
+
 // The files every damage test runs on: clustered neural, the PCA baseline (whose sections
-// have their own size fields and checks) and a compact 1.2 file (zstd frames, half floats).
+// have their own size fields and checks), compact 1.2 and 1.4 files (zstd frames, half floats,
+// 8-bit decoder) and a 1.10 file (direction planes, 8-bit cluster planes).
 std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
   CompressedBtf compactMetadata = makeCompactBtf();  // and an 8-bit decoder
   compactMetadata.storage.metadataZstd = compactMetadata.storage.decoderInt8 = true;
@@ -58,7 +67,8 @@ std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles()
   return {{"clustered", serializeNbtf(makeBtf(5))},
           {"pca", serializeNbtf(makePcaBtf())},
           {"compact", serializeNbtf(makeCompactBtf())},
-          {"compact metadata", serializeNbtf(compactMetadata)}};
+          {"compact metadata", serializeNbtf(compactMetadata)},
+          {"8-bit cluster planes", serializeNbtf(makeClusterPlanes8BitBtf())}};
 }
 
 std::string errorOf(const std::vector<std::uint8_t>& bytes, std::size_t size = SIZE_MAX,
@@ -759,7 +769,7 @@ TEST(NbtfFile, EveryCommittedFileReserializesToItsBytes) {
   }
   std::sort(minors.begin(), minors.end());
   minors.erase(std::unique(minors.begin(), minors.end()), minors.end());
-  EXPECT_EQ(minors, (std::vector<int>{0, 1, 2, 4, 5, 6, 7, 8, 9}));
+  EXPECT_EQ(minors, (std::vector<int>{0, 1, 2, 4, 5, 6, 7, 8, 9, 10}));
 }
 
 TEST(NbtfFile, CompactContentIsCheckedByName) {
@@ -850,6 +860,33 @@ TEST(NbtfFile, EveryFlippedByteIsRejected) {
           ASSERT_TRUE(contains(e, "corrupted: checksum mismatch")) << kind << " " << i << ": " << e;
       }
     }
+  }
+}
+
+// CPLN value type 2 (format 1.10): an unknown type and a range that is not lo <= hi are
+// refused by name.
+TEST(NbtfFile, EightBitClusterPlaneRangesAndTypeAreChecked) {
+  const std::vector<std::uint8_t> good = serializeNbtf(makeClusterPlanes8BitBtf());
+  EXPECT_EQ(good[10], 10);
+  const std::size_t at = findSection(good, "CPLN");
+  ASSERT_NE(at, 0u);
+  EXPECT_EQ(good[at + 24 + 12], 2);
+  {
+    std::vector<std::uint8_t> b = good;
+    b[at + 24 + 12] = 3;
+    resealSection(b, at);
+    EXPECT_TRUE(contains(errorOf(b), "unknown cluster plane value type 3")) << errorOf(b);
+  }
+  {
+    std::vector<std::uint8_t> b = good;
+    // Row 1, feature 0: hi below lo.
+    const std::size_t hi = at + 24 + 16 + (1 * 2 + 0) * 8 + 4;
+    ByteWriter w;
+    w.f32(-1e6f);
+    std::copy(w.bytes().begin(), w.bytes().end(), b.begin() + hi);
+    resealSection(b, at);
+    const std::string e = errorOf(b);
+    EXPECT_TRUE(contains(e, "section 'CPLN'") && contains(e, "cluster plane range 2 (row 1, feature 0)")) << e;
   }
 }
 

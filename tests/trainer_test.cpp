@@ -667,6 +667,8 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"storage": {"decoder": "int4"}})", "'storage.decoder' must be \"float32\", \"half\" or \"int8\", got \"int4\""},
       {R"({"storage": {"directions": "f32"}})", "'storage.directions' must be \"f64\" or \"zstd\", got \"f32\""},
       {R"({"storage": {"metadata": "gzip"}})", "'storage.metadata' must be \"raw\" or \"zstd\", got \"gzip\""},
+      {R"({"storage": {"cluster_planes": "half"}})",
+       "'storage.cluster_planes' must be \"auto\" (as the direction planes) or \"8bit\", got \"half\""},
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
       {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
       {R"({"direction_planes": {"features": 9}})", "'direction_planes.features' must be in 0..8"},

@@ -69,12 +69,9 @@ void addPlaneFeatures(const CompressedBtf& material, const std::array<double, 3>
 }
 }  // namespace
 
-void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
-                             const std::array<double, 3>& view, float* input) {
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const float* points, float* input) {
   const RowPlanes& c = material.clusterPlanes;
   if (c.empty()) return;
-  float points[6];
-  directionPlanePoints(light, view, points);
   sampleDirectionPlanes(c.resolution, c.features, c.rowValues(row), points,
                         input + directionInputCount(material.directionEncoding) + material.planes.inputCount());
 }
@@ -320,7 +317,11 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
   std::int32_t row = latentRowOfTexel(texel), texel32 = texel;
   auto dirs = directionInput(light, view);
-  addClusterPlaneFeatures(material_, row, light.unitVector(), view.unitVector(), dirs.data());
+  if (!material_.clusterPlanes.empty()) {
+    float points[6];
+    directionPlanePoints(light.unitVector(), view.unitVector(), points);
+    addClusterPlaneFeatures(material_, row, points, dirs.data());
+  }
   Rgb out;
   evaluateSamples(&row, &texel32, dirs.data(), 1, &out.r, scale);
   return out;
@@ -360,16 +361,20 @@ void NbtfDecoder::evaluate(const TexelQuery* queries, std::size_t count, float* 
              // Consecutive queries often share directions: convert each distinct pair once.
              const TexelQuery* last = nullptr;
              DirectionInput d{};
+             float points[6];  // the pair's plane points, for cluster planes
+             const bool clusterPlanes = !material_.clusterPlanes.empty();
              const int width = packed_->dirInputs;
              for (int i = 0; i < n; ++i) {
                const TexelQuery& q = queries[begin + i];
                texels[i] = q.y * this->width() + q.x;
                rows[i] = latentRowOfTexel(texels[i]);
-               if (!last || !(q.light == last->light) || !(q.view == last->view))
+               if (!last || !(q.light == last->light) || !(q.view == last->view)) {
                  d = directionInput(q.light, q.view), last = &q;
+                 if (clusterPlanes) directionPlanePoints(q.light.unitVector(), q.view.unitVector(), points);
+               }
                float* slot = dirs + static_cast<std::size_t>(width) * i;
                std::copy_n(d.data(), width, slot);
-               addClusterPlaneFeatures(material_, rows[i], q.light.unitVector(), q.view.unitVector(), slot);
+               if (clusterPlanes) addClusterPlaneFeatures(material_, rows[i], points, slot);
              }
            },
            combinerOf(*this));
@@ -407,8 +412,13 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
                texels[i] = texelOfUv(q.u, q.v);
                rows[i] = latentRowOfTexel(texels[i]);
                const auto l = unitQueryVector(q.light, "light"), v = unitQueryVector(q.view, "view");
-               decoderDirectionInput(material_, l, v, dirs + static_cast<std::size_t>(width) * i);
-               addClusterPlaneFeatures(material_, rows[i], l, v, dirs + static_cast<std::size_t>(width) * i);
+               float* slot = dirs + static_cast<std::size_t>(width) * i;
+               decoderDirectionInput(material_, l, v, slot);
+               if (!material_.clusterPlanes.empty()) {
+                 float points[6];
+                 directionPlanePoints(l, v, points);
+                 addClusterPlaneFeatures(material_, rows[i], points, slot);
+               }
              }
            },
            combinerOf(*this));
@@ -456,7 +466,8 @@ void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, 
                                  bool parallel) const {
   // With cluster planes every row has direction inputs of its own: written per tile.
   const bool perRow = !material_.clusterPlanes.empty();
-  const std::array<double, 3> l = light.unitVector(), v = view.unitVector();
+  float points[6];
+  if (perRow) directionPlanePoints(light.unitVector(), view.unitVector(), points);
   const std::size_t count = static_cast<std::size_t>(latentRows());
   const std::size_t outputs = static_cast<std::size_t>(packed_->outputs);
   auto tile = detail::kernelsFor(isa_).tile;
@@ -478,7 +489,7 @@ void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, 
         for (int i = 0; i < a.n; ++i) {
           float* slot = rowDirs + static_cast<std::size_t>(width) * i;
           std::copy_n(dirs.data(), width, slot);
-          addClusterPlaneFeatures(material_, rows[i], l, v, slot);
+          addClusterPlaneFeatures(material_, rows[i], points, slot);
         }
         a.dirs = rowDirs;
         a.dirStride = width;

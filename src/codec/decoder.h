@@ -198,10 +198,10 @@ DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direct
 // The same for unit vectors (queries by vector), into out.
 void decoderDirectionInput(const CompressedBtf& material, const std::array<double, 3>& light,
                            const std::array<double, 3>& view, float* out);
-// Materials with cluster planes (format 1.9): latent row `row`'s own plane features at the pair,
-// written into `input` (a decoderDirectionInput result) after the shared planes'. No-op without.
-void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
-                             const std::array<double, 3>& view, float* input);
+// Materials with cluster planes (format 1.9): latent row `row`'s own plane features at a pair's
+// plane points (directionPlanePoints), written into `input` (a decoderDirectionInput result)
+// after the shared planes'. No-op without.
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const float* points, float* input);
 // A query's direction vector normalized; throws when z < 0 or the vector is zero or not
 // finite. `what` names the direction in messages.
 std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what);

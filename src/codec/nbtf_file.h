@@ -27,7 +27,7 @@ namespace nbtf {
 // writer writes the lowest version that describes the file: the highest version among the
 // sections it writes (the section table, codec/nbtf_sections.h; docs/file_format.md).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 9;
+constexpr std::uint16_t kNbtfFormatMinor = 10;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -72,9 +72,12 @@ struct PartStorage {
   bool modulationZstd = true;   // TXSC codes zstd-coded
   bool metadataZstd = false;    // METZ and HOLZ (zstd-coded, format 1.4) instead of META and HOLD
   bool directionsZstd = false;  // DIRZ (byte planes, zstd-coded, format 1.4) instead of DIRS
+  bool clusterPlanes8Bit = false;  // CPLN value type 2 (format 1.10): 8-bit codes in per-row, per-feature ranges
+  // Whether storing changes decoded values (roundToStorage): the measured RMSE is then the file's.
+  bool anyRounding() const { return decoderHalf || decoderInt8 || latentsHalf || clusterPlanes8Bit; }
   // Any part stored otherwise than in format 1.0 (the paper's float32 parts, raw ids).
   bool anyCompact() const {
-    return decoderHalf || decoderInt8 || latentsHalf || idsZstd || metadataZstd || directionsZstd;
+    return decoderHalf || decoderInt8 || latentsHalf || idsZstd || metadataZstd || directionsZstd || clusterPlanes8Bit;
   }
 };
 
@@ -98,7 +101,7 @@ struct CompressedBtf {
   // the fixed direction inputs. Stored as float32 with a float32 decoder, in half otherwise.
   DirectionPlanes planes;
   // Each latent row's own direction planes (format 1.9, section CPLN; util/direction_planes.h):
-  // their 3 F features follow the shared planes'. Stored like the direction planes.
+  // their 3 F features follow the shared planes'. Stored like the direction planes, or in 8 bits.
   RowPlanes clusterPlanes;
   int latentDim = 8;                      // PCA: the number of components C
   int latentRows = 0;                     // k (clustered) or texels (per-texel, PCA)
@@ -172,7 +175,7 @@ struct NbtfSizes {
   std::uint64_t planes = 0;  // direction planes: 3 x R x R x F values x 2 (half) or 4 (float32)
   int planeResolution = 0, planeFeatures = 0, planeBytesPerValue = 0;
   std::uint64_t clusterPlanes = 0;  // cluster planes: rows x 3 x R x R x F values, as the planes
-  int clusterPlaneResolution = 0, clusterPlaneFeatures = 0;
+  int clusterPlaneResolution = 0, clusterPlaneFeatures = 0, clusterPlaneBytesPerValue = 0;  // 1: 8-bit codes
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;

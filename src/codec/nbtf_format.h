@@ -61,4 +61,19 @@ int int8Code(float w, float scale);
 // Direction planes follow the decoder's storage: float32 with a float32 decoder, half otherwise.
 bool storagePlanesHalf(const CompressedBtf& b);
 
+// ---- 8-bit cluster planes (CPLN value type 2, format 1.10)
+
+// Each row's feature f spans [lo, hi] (float32, the extremes of its values over the row's three
+// planes); a value is stored as the code round(255 (v - lo) / (hi - lo)). Codes 0 and 255 decode
+// to lo and hi exactly, so the ranges of decoded values are the stored ones: the writer
+// re-derives ranges and codes from the values in memory, as with DEC8.
+// The ranges of `planes`: rows x features pairs (lo, hi), row-major.
+std::vector<float> clusterPlaneRanges(const RowPlanes& planes);
+std::uint8_t planeCode(float value, float lo, float hi);
+float planeCodeValue(int code, float lo, float hi);
+// planes.values replaced by their 8-bit decoded values.
+void roundClusterPlanesTo8Bit(RowPlanes& planes);
+// Whether the values are 8-bit decoded values already (the writer stores them exactly).
+bool clusterPlanes8BitExact(const RowPlanes& planes);
+
 }  // namespace nbtf::format

@@ -130,16 +130,25 @@ void writePlanes(const CompressedBtf& btf, ByteWriter& w) {
   writeValues(w, btf.planes.values, half);
 }
 
-// CPLN (format 1.9): u32 rows, u32 resolution R, u32 features F, u8 1 = half values (0 =
-// float32), 3 reserved, then rows x 3 x R x R x F values: row, then as in DPLN.
+// CPLN (format 1.9): u32 rows, u32 resolution R, u32 features F, u8 value type, 3 reserved,
+// then rows x 3 x R x R x F values (row, then as in DPLN). Value type 0 = float32, 1 = half,
+// 2 = 8-bit (format 1.10): first rows x F float32 pairs (lo, hi), row-major, then one code
+// per value (clusterPlaneRanges).
 void writeClusterPlanes(const CompressedBtf& btf, ByteWriter& w) {
-  const bool half = storagePlanesHalf(btf);
-  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.rows));
-  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.resolution));
-  w.u32(static_cast<std::uint32_t>(btf.clusterPlanes.features));
-  w.u8(half ? 1 : 0);
+  const RowPlanes& p = btf.clusterPlanes;
+  const bool eight = btf.storage.clusterPlanes8Bit, half = !eight && storagePlanesHalf(btf);
+  w.u32(static_cast<std::uint32_t>(p.rows));
+  w.u32(static_cast<std::uint32_t>(p.resolution));
+  w.u32(static_cast<std::uint32_t>(p.features));
+  w.u8(eight ? 2 : half ? 1 : 0);
   w.zeros(3);
-  writeValues(w, btf.clusterPlanes.values, half);
+  if (!eight) return writeValues(w, p.values, half);
+  const std::vector<float> ranges = format::clusterPlaneRanges(p);
+  writeValues(w, ranges, false);
+  for (std::size_t i = 0; i < p.values.size(); ++i) {
+    const float* r = &ranges[(i / p.valuesPerRow() * p.features + i % p.features) * 2];
+    w.u8(format::planeCode(p.values[i], r[0], r[1]));
+  }
 }
 
 void writeLatents(const CompressedBtf& btf, ByteWriter& w) {
@@ -320,10 +329,27 @@ void parseClusterPlanes(const SectionRef& s, CompressedBtf& btf, const std::stri
   if (p.rows < 1 || p.resolution < 2 || p.features < 1)
     throw r.fail("cluster planes of " + std::to_string(p.rows) + " rows x " + std::to_string(p.resolution) +
                  " points x " + std::to_string(p.features) + " features (at least 1 row, 2 points and 1 feature)");
-  const std::uint8_t half = r.u8();
-  if (half > 1) throw r.fail("unknown cluster plane value type " + std::to_string(half));
+  const std::uint8_t type = r.u8();
+  if (type > 2) throw r.fail("unknown cluster plane value type " + std::to_string(type));
   r.take(3, "reserved");
-  p.values = readValues(r, p.valueCount(), half == 1, "cluster plane values");
+  btf.storage.clusterPlanes8Bit = type == 2;
+  if (type < 2) {
+    p.values = readValues(r, p.valueCount(), type == 1, "cluster plane values");
+    return;
+  }
+  const std::vector<float> ranges =
+      readValues(r, static_cast<std::size_t>(p.rows) * p.features * 2, false, "cluster plane ranges");
+  for (std::size_t i = 0; i < ranges.size(); i += 2)
+    if (!std::isfinite(ranges[i]) || !std::isfinite(ranges[i + 1]) || !(ranges[i] <= ranges[i + 1]))
+      throw r.fail("cluster plane range " + std::to_string(i / 2) + " (row " + std::to_string(i / 2 / p.features) +
+                   ", feature " + std::to_string(i / 2 % p.features) + ") is not a finite lo <= hi");
+  r.needItems(p.valueCount(), 1, "cluster plane codes");
+  const std::uint8_t* codes = r.take(p.valueCount(), "cluster plane codes");
+  p.values.resize(p.valueCount());
+  for (std::size_t i = 0; i < p.values.size(); ++i) {
+    const float* range = &ranges[(i / p.valuesPerRow() * p.features + i % p.features) * 2];
+    p.values[i] = format::planeCodeValue(codes[i], range[0], range[1]);
+  }
 }
 
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -591,6 +617,8 @@ std::uint64_t decoderBytes(const CompressedBtf& b) {
 }
 std::uint64_t planeBytes(const CompressedBtf& b) { return b.planes.valueCount() * (storagePlanesHalf(b) ? 2 : 4); }
 std::uint64_t clusterPlaneBytes(const CompressedBtf& b) {
+  if (b.storage.clusterPlanes8Bit)  // a code per value, a float32 range per row and feature
+    return b.clusterPlanes.valueCount() + static_cast<std::uint64_t>(b.clusterPlanes.rows) * b.clusterPlanes.features * 8;
   return b.clusterPlanes.valueCount() * (storagePlanesHalf(b) ? 2 : 4);
 }
 std::uint64_t latentBytes(const CompressedBtf& b) { return latentValues(b) * (b.storage.latentsHalf ? 2 : 4); }
@@ -621,6 +649,9 @@ std::uint16_t infoMinor(const CompressedBtf& b) {
     default: return 3;                                        // the encodings other than the paper's pair
   }
 }
+
+// A reader before 1.10 refuses value type 2 by name.
+std::uint16_t clusterPlanesMinor(const CompressedBtf& b) { return b.storage.clusterPlanes8Bit ? 10 : 9; }
 
 bool pca(const CompressedBtf& b) { return b.isPca(); }
 bool float32Decoder(const CompressedBtf& b) { return neural(b) && !st(b).decoderInt8 && !st(b).decoderHalf; }
@@ -659,7 +690,7 @@ const std::vector<SectionKind> kSections = {
     {kDecoderInt8, "decoder, 8-bit weights", Part::Decoder, true, 4, nullptr, int8Decoder, writeDecoder, parseDecoder,
      decoderBytes},
     {tag("DPLN"), "direction planes", Part::Planes, true, 8, nullptr, hasPlanes, writePlanes, parsePlanes, planeBytes},
-    {tag("CPLN"), "cluster planes", Part::ClusterPlanes, true, 9, nullptr, hasClusterPlanes, writeClusterPlanes,
+    {tag("CPLN"), "cluster planes", Part::ClusterPlanes, true, 9, clusterPlanesMinor, hasClusterPlanes, writeClusterPlanes,
      parseClusterPlanes, clusterPlaneBytes},
     {tag("LATN"), "latents", Part::Latents, true, 0, nullptr, float32Latents, writeLatents, parseLatents, latentBytes},
     {kLatentsHalf, "latents, half precision", Part::Latents, true, 2, nullptr, halfLatents, writeLatents, parseLatents,

@@ -69,7 +69,7 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   if (!btf.clusterPlanes.empty()) {
     s.clusterPlaneResolution = btf.clusterPlanes.resolution;
     s.clusterPlaneFeatures = btf.clusterPlanes.features;
-    s.planeBytesPerValue = storagePlanesHalf(btf) ? 2 : 4;
+    s.clusterPlaneBytesPerValue = btf.storage.clusterPlanes8Bit ? 1 : storagePlanesHalf(btf) ? 2 : 4;
     s.clusterPlanes = partBytes(format::Part::ClusterPlanes);
   }
   s.total = s.decoder + s.planes + s.clusterPlanes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
@@ -142,7 +142,9 @@ std::string formatSizeTable(const NbtfSizes& s) {
     out += row("cl. planes", s.clusterPlanes,
                withCommas(s.latentRows) + " rows x 3 planes x " + std::to_string(s.clusterPlaneResolution) + " x " +
                    std::to_string(s.clusterPlaneResolution) + " points x " + std::to_string(s.clusterPlaneFeatures) +
-                   " features" + precision(s.planeBytesPerValue));
+                   " features" +
+                   (s.clusterPlaneBytesPerValue == 1 ? std::string(": 8-bit codes, a float32 range per row and feature")
+                                                     : precision(s.clusterPlaneBytesPerValue)));
   out += row("latents", s.latents,
              withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
   if (s.idWidth && s.idsZstd) {

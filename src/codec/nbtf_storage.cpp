@@ -71,6 +71,53 @@ int int8Code(float w, float scale) {
 
 bool storagePlanesHalf(const CompressedBtf& b) { return b.storage.decoderHalf || b.storage.decoderInt8; }
 
+std::vector<float> clusterPlaneRanges(const RowPlanes& planes) {
+  const int features = planes.features;
+  std::vector<float> ranges(static_cast<std::size_t>(planes.rows) * features * 2);
+  for (int row = 0; row < planes.rows; ++row) {
+    const float* v = planes.rowValues(row);
+    float* r = &ranges[static_cast<std::size_t>(row) * features * 2];
+    for (int f = 0; f < features; ++f) r[2 * f] = r[2 * f + 1] = v[f];
+    for (std::size_t i = 0; i < planes.valuesPerRow(); ++i) {
+      const int f = static_cast<int>(i % features);
+      r[2 * f] = std::min(r[2 * f], v[i]);
+      r[2 * f + 1] = std::max(r[2 * f + 1], v[i]);
+    }
+  }
+  return ranges;
+}
+std::uint8_t planeCode(float value, float lo, float hi) {
+  if (!(hi > lo)) return 0;
+  return static_cast<std::uint8_t>(std::clamp(std::nearbyint((value - lo) / (hi - lo) * 255.f), 0.f, 255.f));
+}
+float planeCodeValue(int code, float lo, float hi) {
+  const float t = static_cast<float>(code) / 255.f;  // 0 and 1 exactly at the ends
+  return std::clamp((1 - t) * lo + t * hi, lo, hi);
+}
+bool roundClusterPlanesTo8BitOnce(RowPlanes& planes) {
+  const std::vector<float> ranges = clusterPlaneRanges(planes);
+  const int features = planes.features;
+  bool changed = false;
+  for (std::size_t i = 0; i < planes.values.size(); ++i) {
+    const std::size_t row = i / planes.valuesPerRow();
+    const float* r = &ranges[(row * features + i % features) * 2];
+    const float v = planeCodeValue(planeCode(planes.values[i], r[0], r[1]), r[0], r[1]);
+    changed |= v != planes.values[i];
+    planes.values[i] = v;
+  }
+  return changed;
+}
+void roundClusterPlanesTo8Bit(RowPlanes& planes) {
+  // One pass re-quantizes to itself unless a range spans a few float steps only (then the
+  // codes are finer than float); a second pass settles those.
+  for (int pass = 0; pass < 4 && roundClusterPlanesTo8BitOnce(planes); ++pass) {
+  }
+}
+bool clusterPlanes8BitExact(const RowPlanes& planes) {
+  RowPlanes copy = planes;
+  return !roundClusterPlanesTo8BitOnce(copy);
+}
+
 }  // namespace format
 
 using format::int8Code;
@@ -85,6 +132,11 @@ std::string storageDescription(const CompressedBtf& btf) {
          ", latents " + (btf.storage.latentsHalf ? "half" : "float32") +
          (btf.method == CodecMethod::ClusteredNeural ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
                                                      : std::string()) +
+         (btf.clusterPlanes.empty() ? std::string()
+                                    : std::string(", cluster planes ") +
+                                          (btf.storage.clusterPlanes8Bit ? "8-bit"
+                                           : storagePlanesHalf(btf)      ? "half"
+                                                                         : "float32")) +
          ", directions " + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
          (btf.storage.metadataZstd ? "zstd" : "raw");
 }
@@ -107,10 +159,11 @@ void roundToStorage(CompressedBtf& btf) {
     }
   if (btf.storage.latentsHalf && !btf.isPca())
     for (float& z : btf.latents) z = roundToHalf(z);
-  if (storagePlanesHalf(btf)) {
-    for (float& v : btf.planes.values) v = roundToHalf(v);
+  if (storagePlanesHalf(btf)) for (float& v : btf.planes.values) v = roundToHalf(v);
+  if (btf.storage.clusterPlanes8Bit)
+    format::roundClusterPlanesTo8Bit(btf.clusterPlanes);
+  else if (storagePlanesHalf(btf))
     for (float& v : btf.clusterPlanes.values) v = roundToHalf(v);
-  }
 }
 
 }  // namespace nbtf

@@ -176,38 +176,30 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                (terms == 1 ? std::string("3 (RGB)") : std::to_string(3 * terms) + " (RGB x " + std::to_string(terms) +
                                                           " per-texel modulation terms)"));
 
-  // Direction planes
-  if (!planes.empty()) {
-    if (planes.features < 0 || planes.features > DirectionPlanes::kMaxFeatures || planes.resolution < 2 ||
-        planes.resolution > DirectionPlanes::kMaxResolution)
-      throw fail("direction planes of " + std::to_string(planes.resolution) + " x " + std::to_string(planes.resolution) +
-                 " points x " + std::to_string(planes.features) + " features are out of range (2.." +
+  // Direction planes, shared and per latent row: `what` names them in messages.
+  auto checkPlanes = [&](const std::string& what, int resolution, int features, const std::vector<float>& values,
+                         std::size_t expected) {
+    if (features == 0) {
+      if (!values.empty()) throw fail(what + " plane values without features");
+      return;
+    }
+    if (features < 0 || features > DirectionPlanes::kMaxFeatures || resolution < 2 ||
+        resolution > DirectionPlanes::kMaxResolution)
+      throw fail(what + " planes of " + std::to_string(resolution) + " x " + std::to_string(resolution) +
+                 " points x " + std::to_string(features) + " features are out of range (2.." +
                  std::to_string(DirectionPlanes::kMaxResolution) + " points, 1.." +
                  std::to_string(DirectionPlanes::kMaxFeatures) + " features)");
-    if (planes.values.size() != planes.valueCount())
-      throw fail("direction planes hold " + std::to_string(planes.values.size()) + " values, expected " +
-                 std::to_string(planes.valueCount()));
-    if (!allFinite(planes.values)) throw fail("direction planes contain non-finite values (NaN or Inf)");
-  } else if (!planes.values.empty()) {
-    throw fail("direction plane values without features");
-  }
-  if (!clusterPlanes.empty()) {
-    if (clusterPlanes.features < 0 || clusterPlanes.features > DirectionPlanes::kMaxFeatures ||
-        clusterPlanes.resolution < 2 || clusterPlanes.resolution > DirectionPlanes::kMaxResolution)
-      throw fail("cluster planes of " + std::to_string(clusterPlanes.resolution) + " x " +
-                 std::to_string(clusterPlanes.resolution) + " points x " + std::to_string(clusterPlanes.features) +
-                 " features are out of range (2.." + std::to_string(DirectionPlanes::kMaxResolution) + " points, 1.." +
-                 std::to_string(DirectionPlanes::kMaxFeatures) + " features)");
-    if (clusterPlanes.rows != latentRows)
-      throw fail("cluster planes have " + std::to_string(clusterPlanes.rows) + " rows, expected one per latent row (" +
-                 std::to_string(latentRows) + ")");
-    if (clusterPlanes.values.size() != clusterPlanes.valueCount())
-      throw fail("cluster planes hold " + std::to_string(clusterPlanes.values.size()) + " values, expected " +
-                 std::to_string(clusterPlanes.valueCount()));
-    if (!allFinite(clusterPlanes.values)) throw fail("cluster planes contain non-finite values (NaN or Inf)");
-  } else if (!clusterPlanes.values.empty()) {
-    throw fail("cluster plane values without features");
-  }
+    if (values.size() != expected)
+      throw fail(what + " planes hold " + std::to_string(values.size()) + " values, expected " +
+                 std::to_string(expected));
+    if (!allFinite(values)) throw fail(what + " planes contain non-finite values (NaN or Inf)");
+  };
+  checkPlanes("direction", planes.resolution, planes.features, planes.values, planes.valueCount());
+  if (!clusterPlanes.empty() && clusterPlanes.rows != latentRows)
+    throw fail("cluster planes have " + std::to_string(clusterPlanes.rows) + " rows, expected one per latent row (" +
+               std::to_string(latentRows) + ")");
+  checkPlanes("cluster", clusterPlanes.resolution, clusterPlanes.features, clusterPlanes.values,
+              clusterPlanes.valueCount());
 
   // Latents and ids
   if (latentRows < 1) throw fail("no latents");
@@ -256,8 +248,12 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                    "(round them with roundToStorage first)");
   if (storagePlanesHalf(*this) && !halfExact(planes.values))
     throw fail("direction planes are to be stored in half precision but hold values that half cannot represent");
-  if (storagePlanesHalf(*this) && !halfExact(clusterPlanes.values))
+  if (storage.clusterPlanes8Bit) {
+    if (!format::clusterPlanes8BitExact(clusterPlanes))
+      throw fail("cluster planes are to be stored in 8 bits but hold values that their codes cannot represent");
+  } else if (storagePlanesHalf(*this) && !halfExact(clusterPlanes.values)) {
     throw fail("cluster planes are to be stored in half precision but hold values that half cannot represent");
+  }
   if (storage.latentsHalf && !halfExact(latents))
     throw fail("latents are to be stored in half precision but hold values that half cannot represent");
 

@@ -44,6 +44,7 @@ struct ConfigField {
 
 bool never(const TrainConfig&) { return false; }
 bool withPlanes(const TrainConfig& c) { return c.model.planeFeatures > 0; }
+bool withClusterPlanes(const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }
 bool withModulation(const TrainConfig& c) { return c.modulation.mode != "none"; }
 
 #define NBTF_CONFIG_FIELD(section, key, member, recorded) \
@@ -58,10 +59,8 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("model", "direction_inputs", model.directionInputs, nullptr),
     NBTF_CONFIG_FIELD("direction_planes", "resolution", model.planeResolution, withPlanes),
     NBTF_CONFIG_FIELD("direction_planes", "features", model.planeFeatures, withPlanes),
-    NBTF_CONFIG_FIELD("cluster_planes", "resolution", model.clusterPlaneResolution,
-                      [](const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }),
-    NBTF_CONFIG_FIELD("cluster_planes", "features", model.clusterPlaneFeatures,
-                      [](const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }),
+    NBTF_CONFIG_FIELD("cluster_planes", "resolution", model.clusterPlaneResolution, withClusterPlanes),
+    NBTF_CONFIG_FIELD("cluster_planes", "features", model.clusterPlaneFeatures, withClusterPlanes),
     NBTF_CONFIG_FIELD("optimizer", "name", optimizer, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate", learningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate_scaling", learningRateScaling, nullptr),
@@ -99,6 +98,8 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("storage", "ids", storage.ids, nullptr),
     NBTF_CONFIG_FIELD("storage", "directions", storage.directions, nullptr),
     NBTF_CONFIG_FIELD("storage", "metadata", storage.metadata, nullptr),
+    NBTF_CONFIG_FIELD("storage", "cluster_planes", storage.clusterPlanes,
+                      [](const TrainConfig& c) { return withClusterPlanes(c) && c.storage.clusterPlanes != "auto"; }),
 };
 
 #undef NBTF_CONFIG_FIELD
@@ -238,6 +239,9 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "storage.ids", "must be \"raw\" or \"zstd\", got \"" + c.storage.ids + "\"");
   if (c.storage.directions != "f64" && c.storage.directions != "zstd")
     bad(source, "storage.directions", "must be \"f64\" or \"zstd\", got \"" + c.storage.directions + "\"");
+  if (c.storage.clusterPlanes != "auto" && c.storage.clusterPlanes != "8bit")
+    bad(source, "storage.cluster_planes", "must be \"auto\" (as the direction planes) or \"8bit\", got \"" +
+                                              c.storage.clusterPlanes + "\"");
   if (c.storage.metadata != "raw" && c.storage.metadata != "zstd")
     bad(source, "storage.metadata", "must be \"raw\" or \"zstd\", got \"" + c.storage.metadata + "\"");
 }

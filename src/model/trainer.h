@@ -87,6 +87,9 @@ struct StorageConfig {
   std::string ids = "zstd";         // "raw" (smallest integer width) | "zstd"
   std::string directions = "zstd";  // "f64" | "zstd" (format 1.4)
   std::string metadata = "zstd";    // "raw" | "zstd": the metadata and hold-out list (format 1.4)
+  // "auto" (as the direction planes: float32 beside a float32 decoder, half otherwise) |
+  // "8bit" (a code per value in a float32 range per row and feature, format 1.10)
+  std::string clusterPlanes = "auto";
 };
 
 // A snapshot of a running training, for callers that log or plot its course.

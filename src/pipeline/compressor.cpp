@@ -180,6 +180,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   b.storage.idsZstd = config.storage.ids == "zstd";
   b.storage.metadataZstd = config.storage.metadata == "zstd";
   b.storage.directionsZstd = config.storage.directions == "zstd";
+  b.storage.clusterPlanes8Bit = !b.clusterPlanes.empty() && config.storage.clusterPlanes == "8bit";
   roundToStorage(b);
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
@@ -203,7 +204,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
                              mc.channels);
     b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits, mc.channels);
   }
-  if (b.storage.decoderHalf || b.storage.decoderInt8 || b.storage.latentsHalf || modulated) {
+  if (b.storage.anyRounding() || modulated) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
