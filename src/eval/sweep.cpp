@@ -167,10 +167,14 @@ std::string pointLabel(const SweepEntry& e) {
 }
 
 Color8 familyColor(const std::string& family, std::size_t i) {
-  static const Color8 colors[] = {{0x55, 0x55, 0x55}, {0xe0, 0x7b, 0x39}, {0x2a, 0x6f, 0x97}, {0x6a, 0x99, 0x4e},
-                                  {0x9d, 0x4e, 0xdd}};
+  // The three named families keep their colours; the others (model kinds: planes, cluster
+  // planes, modulation...) take distinct ones by their place in the list.
+  static const Color8 colors[] = {{0x55, 0x55, 0x55}, {0xe0, 0x7b, 0x39}, {0x2a, 0x6f, 0x97},
+                                  {0x6a, 0x99, 0x4e}, {0x9d, 0x4e, 0xdd}, {0xd6, 0x27, 0x28},
+                                  {0x17, 0xbe, 0xcf}, {0x8c, 0x56, 0x4b}, {0xe3, 0x77, 0xc2}, {0xbc, 0xbd, 0x22}};
+  constexpr std::size_t kOthers = sizeof colors / sizeof colors[0] - 3;
   int rank = familyRank(family);
-  return colors[rank < 3 ? rank : 3 + i % 2];
+  return colors[rank < 3 ? static_cast<std::size_t>(rank) : 3 + i % kOthers];
 }
 
 // The rate-distortion plot drawn by nbtf: x = log10 of the ratio (the line chart's axes are linear).
