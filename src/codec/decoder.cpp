@@ -75,6 +75,13 @@ void addClusterPlaneFeatures(const CompressedBtf& material, int row, const float
   sampleDirectionPlanes(c.resolution, c.features, c.rowValues(row), points,
                         input + directionInputCount(material.directionEncoding) + material.planes.inputCount());
 }
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
+                             const std::array<double, 3>& view, float* input) {
+  if (material.clusterPlanes.empty()) return;  // before the projections: not on the default's path
+  float points[6];
+  directionPlanePoints(light, view, points);
+  addClusterPlaneFeatures(material, row, points, input);
+}
 
 DirectionInput decoderDirectionInput(const CompressedBtf& material, const Direction& light, const Direction& view) {
   DirectionInput d{};
@@ -317,11 +324,8 @@ Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Dire
   if (pca_) return evaluate(texel % width(), texel / width(), light, view, scale);
   std::int32_t row = latentRowOfTexel(texel), texel32 = texel;
   auto dirs = directionInput(light, view);
-  if (!material_.clusterPlanes.empty()) {
-    float points[6];
-    directionPlanePoints(light.unitVector(), view.unitVector(), points);
-    addClusterPlaneFeatures(material_, row, points, dirs.data());
-  }
+  if (!material_.clusterPlanes.empty())
+    addClusterPlaneFeatures(material_, row, light.unitVector(), view.unitVector(), dirs.data());
   Rgb out;
   evaluateSamples(&row, &texel32, dirs.data(), 1, &out.r, scale);
   return out;
@@ -414,11 +418,7 @@ void NbtfDecoder::evaluate(const UvQuery* queries, std::size_t count, float* rgb
                const auto l = unitQueryVector(q.light, "light"), v = unitQueryVector(q.view, "view");
                float* slot = dirs + static_cast<std::size_t>(width) * i;
                decoderDirectionInput(material_, l, v, slot);
-               if (!material_.clusterPlanes.empty()) {
-                 float points[6];
-                 directionPlanePoints(l, v, points);
-                 addClusterPlaneFeatures(material_, rows[i], points, slot);
-               }
+               addClusterPlaneFeatures(material_, rows[i], l, v, slot);
              }
            },
            combinerOf(*this));

@@ -202,6 +202,9 @@ void decoderDirectionInput(const CompressedBtf& material, const std::array<doubl
 // plane points (directionPlanePoints), written into `input` (a decoderDirectionInput result)
 // after the shared planes'. No-op without.
 void addClusterPlaneFeatures(const CompressedBtf& material, int row, const float* points, float* input);
+// The same at a pair of unit vectors (their points computed only with cluster planes).
+void addClusterPlaneFeatures(const CompressedBtf& material, int row, const std::array<double, 3>& light,
+                             const std::array<double, 3>& view, float* input);
 // A query's direction vector normalized; throws when z < 0 or the vector is zero or not
 // finite. `what` names the direction in messages.
 std::array<double, 3> unitQueryVector(const std::array<float, 3>& dir, const std::string& what);

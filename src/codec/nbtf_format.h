@@ -63,6 +63,10 @@ bool storagePlanesHalf(const CompressedBtf& b);
 
 // ---- 8-bit cluster planes (CPLN value type 2, format 1.10)
 
+// Bytes per stored cluster plane value: 1 (8-bit codes), 2 (half, beside a half or 8-bit
+// decoder) or 4 (float32).
+int clusterPlaneBytesPerValue(const CompressedBtf& b);
+
 // Each row's feature f spans [lo, hi] (float32, the extremes of its values over the row's three
 // planes); a value is stored as the code round(255 (v - lo) / (hi - lo)). Codes 0 and 255 decode
 // to lo and hi exactly, so the ranges of decoded values are the stored ones: the writer
@@ -71,6 +75,11 @@ bool storagePlanesHalf(const CompressedBtf& b);
 std::vector<float> clusterPlaneRanges(const RowPlanes& planes);
 std::uint8_t planeCode(float value, float lo, float hi);
 float planeCodeValue(int code, float lo, float hi);
+// The code of each value of `planes` in its range, and the values codes decode to (`planes`
+// gives the shape only).
+std::vector<std::uint8_t> clusterPlaneCodes(const RowPlanes& planes, const std::vector<float>& ranges);
+std::vector<float> clusterPlaneCodeValues(const RowPlanes& planes, const std::vector<float>& ranges,
+                                          const std::uint8_t* codes);
 // planes.values replaced by their 8-bit decoded values.
 void roundClusterPlanesTo8Bit(RowPlanes& planes);
 // Whether the values are 8-bit decoded values already (the writer stores them exactly).

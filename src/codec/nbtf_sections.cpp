@@ -136,19 +136,16 @@ void writePlanes(const CompressedBtf& btf, ByteWriter& w) {
 // per value (clusterPlaneRanges).
 void writeClusterPlanes(const CompressedBtf& btf, ByteWriter& w) {
   const RowPlanes& p = btf.clusterPlanes;
-  const bool eight = btf.storage.clusterPlanes8Bit, half = !eight && storagePlanesHalf(btf);
+  const int bytes = format::clusterPlaneBytesPerValue(btf);
   w.u32(static_cast<std::uint32_t>(p.rows));
   w.u32(static_cast<std::uint32_t>(p.resolution));
   w.u32(static_cast<std::uint32_t>(p.features));
-  w.u8(eight ? 2 : half ? 1 : 0);
+  w.u8(bytes == 1 ? 2 : bytes == 2 ? 1 : 0);
   w.zeros(3);
-  if (!eight) return writeValues(w, p.values, half);
+  if (bytes != 1) return writeValues(w, p.values, bytes == 2);
   const std::vector<float> ranges = format::clusterPlaneRanges(p);
   writeValues(w, ranges, false);
-  for (std::size_t i = 0; i < p.values.size(); ++i) {
-    const float* r = &ranges[(i / p.valuesPerRow() * p.features + i % p.features) * 2];
-    w.u8(format::planeCode(p.values[i], r[0], r[1]));
-  }
+  for (std::uint8_t code : format::clusterPlaneCodes(p, ranges)) w.u8(code);
 }
 
 void writeLatents(const CompressedBtf& btf, ByteWriter& w) {
@@ -344,12 +341,7 @@ void parseClusterPlanes(const SectionRef& s, CompressedBtf& btf, const std::stri
       throw r.fail("cluster plane range " + std::to_string(i / 2) + " (row " + std::to_string(i / 2 / p.features) +
                    ", feature " + std::to_string(i / 2 % p.features) + ") is not a finite lo <= hi");
   r.needItems(p.valueCount(), 1, "cluster plane codes");
-  const std::uint8_t* codes = r.take(p.valueCount(), "cluster plane codes");
-  p.values.resize(p.valueCount());
-  for (std::size_t i = 0; i < p.values.size(); ++i) {
-    const float* range = &ranges[(i / p.valuesPerRow() * p.features + i % p.features) * 2];
-    p.values[i] = format::planeCodeValue(codes[i], range[0], range[1]);
-  }
+  p.values = format::clusterPlaneCodeValues(p, ranges, r.take(p.valueCount(), "cluster plane codes"));
 }
 
 void parseDecoder(const SectionRef& s, CompressedBtf& btf, const std::string& name) {
@@ -617,9 +609,9 @@ std::uint64_t decoderBytes(const CompressedBtf& b) {
 }
 std::uint64_t planeBytes(const CompressedBtf& b) { return b.planes.valueCount() * (storagePlanesHalf(b) ? 2 : 4); }
 std::uint64_t clusterPlaneBytes(const CompressedBtf& b) {
-  if (b.storage.clusterPlanes8Bit)  // a code per value, a float32 range per row and feature
-    return b.clusterPlanes.valueCount() + static_cast<std::uint64_t>(b.clusterPlanes.rows) * b.clusterPlanes.features * 8;
-  return b.clusterPlanes.valueCount() * (storagePlanesHalf(b) ? 2 : 4);
+  const int bytes = format::clusterPlaneBytesPerValue(b);
+  const std::uint64_t ranges = bytes == 1 ? static_cast<std::uint64_t>(b.clusterPlanes.rows) * b.clusterPlanes.features * 8 : 0;
+  return b.clusterPlanes.valueCount() * bytes + ranges;  // 8-bit: a float32 range per row and feature
 }
 std::uint64_t latentBytes(const CompressedBtf& b) { return latentValues(b) * (b.storage.latentsHalf ? 2 : 4); }
 std::uint64_t idBytes(const CompressedBtf& b) { return texelCount(b) * idWidthForClusters(b.latentRows); }

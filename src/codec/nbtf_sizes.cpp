@@ -69,7 +69,7 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   if (!btf.clusterPlanes.empty()) {
     s.clusterPlaneResolution = btf.clusterPlanes.resolution;
     s.clusterPlaneFeatures = btf.clusterPlanes.features;
-    s.clusterPlaneBytesPerValue = btf.storage.clusterPlanes8Bit ? 1 : storagePlanesHalf(btf) ? 2 : 4;
+    s.clusterPlaneBytesPerValue = format::clusterPlaneBytesPerValue(btf);
     s.clusterPlanes = partBytes(format::Part::ClusterPlanes);
   }
   s.total = s.decoder + s.planes + s.clusterPlanes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;

@@ -94,35 +94,61 @@ float planeCodeValue(int code, float lo, float hi) {
   const float t = static_cast<float>(code) / 255.f;  // 0 and 1 exactly at the ends
   return std::clamp((1 - t) * lo + t * hi, lo, hi);
 }
-bool roundClusterPlanesTo8BitOnce(RowPlanes& planes) {
+
+namespace {
+// The (lo, hi) pair of value i of `planes` ([row][plane][y][x][feature]) in `ranges`.
+const float* rangeOfValue(const RowPlanes& planes, const std::vector<float>& ranges, std::size_t i) {
+  return &ranges[(i / planes.valuesPerRow() * planes.features + i % planes.features) * 2];
+}
+// The values of `planes` after one code-and-decode pass.
+std::vector<float> codedValues(const RowPlanes& planes) {
   const std::vector<float> ranges = clusterPlaneRanges(planes);
-  const int features = planes.features;
-  bool changed = false;
-  for (std::size_t i = 0; i < planes.values.size(); ++i) {
-    const std::size_t row = i / planes.valuesPerRow();
-    const float* r = &ranges[(row * features + i % features) * 2];
-    const float v = planeCodeValue(planeCode(planes.values[i], r[0], r[1]), r[0], r[1]);
-    changed |= v != planes.values[i];
-    planes.values[i] = v;
+  return clusterPlaneCodeValues(planes, ranges, clusterPlaneCodes(planes, ranges).data());
+}
+}  // namespace
+
+std::vector<std::uint8_t> clusterPlaneCodes(const RowPlanes& planes, const std::vector<float>& ranges) {
+  std::vector<std::uint8_t> codes(planes.values.size());
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    const float* r = rangeOfValue(planes, ranges, i);
+    codes[i] = planeCode(planes.values[i], r[0], r[1]);
   }
-  return changed;
+  return codes;
+}
+std::vector<float> clusterPlaneCodeValues(const RowPlanes& planes, const std::vector<float>& ranges,
+                                          const std::uint8_t* codes) {
+  std::vector<float> values(planes.valueCount());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const float* r = rangeOfValue(planes, ranges, i);
+    values[i] = planeCodeValue(codes[i], r[0], r[1]);
+  }
+  return values;
 }
 void roundClusterPlanesTo8Bit(RowPlanes& planes) {
-  // One pass re-quantizes to itself unless a range spans a few float steps only (then the
-  // codes are finer than float); a second pass settles those.
-  for (int pass = 0; pass < 4 && roundClusterPlanesTo8BitOnce(planes); ++pass) {
+  // One pass re-codes to itself unless a range spans a few float steps only (then the codes
+  // are finer than float); a further pass settles those.
+  for (int pass = 0; pass < 4; ++pass) {
+    std::vector<float> coded = codedValues(planes);
+    if (coded == planes.values) return;
+    planes.values = std::move(coded);
   }
 }
-bool clusterPlanes8BitExact(const RowPlanes& planes) {
-  RowPlanes copy = planes;
-  return !roundClusterPlanesTo8BitOnce(copy);
+bool clusterPlanes8BitExact(const RowPlanes& planes) { return codedValues(planes) == planes.values; }
+
+int clusterPlaneBytesPerValue(const CompressedBtf& b) {
+  return b.storage.clusterPlanes8Bit ? 1 : storagePlanesHalf(b) ? 2 : 4;
 }
 
 }  // namespace format
 
 using format::int8Code;
 using format::int8RowScale;
+using format::clusterPlaneBytesPerValue;
 using format::storagePlanesHalf;
+
+namespace {
+const char* valueStorageName(int bytes) { return bytes == 1 ? "8-bit" : bytes == 2 ? "half" : "float32"; }
+}  // namespace
 
 std::string storageDescription(const CompressedBtf& btf) {
   if (btf.isPca())
@@ -133,10 +159,7 @@ std::string storageDescription(const CompressedBtf& btf) {
          (btf.method == CodecMethod::ClusteredNeural ? std::string(", ids ") + (btf.storage.idsZstd ? "zstd" : "raw")
                                                      : std::string()) +
          (btf.clusterPlanes.empty() ? std::string()
-                                    : std::string(", cluster planes ") +
-                                          (btf.storage.clusterPlanes8Bit ? "8-bit"
-                                           : storagePlanesHalf(btf)      ? "half"
-                                                                         : "float32")) +
+                                    : std::string(", cluster planes ") + valueStorageName(clusterPlaneBytesPerValue(btf))) +
          ", directions " + (btf.storage.directionsZstd ? "zstd" : "f64") + ", metadata " +
          (btf.storage.metadataZstd ? "zstd" : "raw");
 }
@@ -160,9 +183,9 @@ void roundToStorage(CompressedBtf& btf) {
   if (btf.storage.latentsHalf && !btf.isPca())
     for (float& z : btf.latents) z = roundToHalf(z);
   if (storagePlanesHalf(btf)) for (float& v : btf.planes.values) v = roundToHalf(v);
-  if (btf.storage.clusterPlanes8Bit)
+  if (clusterPlaneBytesPerValue(btf) == 1)
     format::roundClusterPlanesTo8Bit(btf.clusterPlanes);
-  else if (storagePlanesHalf(btf))
+  else if (clusterPlaneBytesPerValue(btf) == 2)
     for (float& v : btf.clusterPlanes.values) v = roundToHalf(v);
 }
 

@@ -248,12 +248,11 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                    "(round them with roundToStorage first)");
   if (storagePlanesHalf(*this) && !halfExact(planes.values))
     throw fail("direction planes are to be stored in half precision but hold values that half cannot represent");
-  if (storage.clusterPlanes8Bit) {
-    if (!format::clusterPlanes8BitExact(clusterPlanes))
-      throw fail("cluster planes are to be stored in 8 bits but hold values that their codes cannot represent");
-  } else if (storagePlanesHalf(*this) && !halfExact(clusterPlanes.values)) {
+  const int clusterPlaneBytes = format::clusterPlaneBytesPerValue(*this);
+  if (clusterPlaneBytes == 1 && !format::clusterPlanes8BitExact(clusterPlanes))
+    throw fail("cluster planes are to be stored in 8 bits but hold values that their codes cannot represent");
+  if (clusterPlaneBytes == 2 && !halfExact(clusterPlanes.values))
     throw fail("cluster planes are to be stored in half precision but hold values that half cannot represent");
-  }
   if (storage.latentsHalf && !halfExact(latents))
     throw fail("latents are to be stored in half precision but hold values that half cannot represent");
 
