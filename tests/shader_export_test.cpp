@@ -77,6 +77,51 @@ TEST(ShaderExport, ClusteredDescriptionFollowsTheFile) {
   EXPECT_GT(s.cost.transcendentals, 0);  // the Fourier inputs' sin and cos
 }
 
+TEST(ShaderExport, ClusterPlanesAreEachRowsOwnTexture) {
+  // 5 features: two vec4 per grid point, the second padded with zeros.
+  const CompressedBtf m = makeShaderClusteredMaterial(5);
+  const ShaderDecoder s = buildShaderDecoder(m, "cp.nbtf");
+  const ShaderDecoderDescription& d = s.description;
+  EXPECT_EQ(d.clusterPlaneResolution, 4);
+  EXPECT_EQ(d.clusterPlaneFeatures, 5);
+  EXPECT_EQ(d.directionInputs(), m.directionInputs());
+  EXPECT_EQ(d.directionInputs(), 20 + 3 * 3 + 3 * 5);
+  const ShaderTexture* t = findTexture(s, "nbtf_cluster_planes");
+  ASSERT_NE(t, nullptr);
+  const int points = 3 * 4 * 4;  // per row
+  EXPECT_EQ(t->vec4s, static_cast<std::size_t>(m.latentRows) * points * 2);
+  // Row r, point q, feature f at vec4 (r x points + q) x 2 + f / 4, component f % 4.
+  for (int r : {0, 2, m.latentRows - 1})
+    for (int q : {0, 17, points - 1})
+      for (int f = 0; f < 8; ++f) {
+        const float want = f < 5 ? m.clusterPlanes.rowValues(r)[q * 5 + f] : 0.0f;
+        EXPECT_EQ(t->data[((static_cast<std::size_t>(r) * points + q) * 2) * 4 + f], want)
+            << "row " << r << " point " << q << " feature " << f;
+      }
+  // The lookup starts at the texel's own row and fills the inputs after the shared planes'.
+  EXPECT_NE(s.glsl.find("int base = row * " + std::to_string(points * 2) + ";"), std::string::npos) << s.glsl;
+  const int first = m.latentDim + 20 + 3 * 3;
+  const std::string firstInput = "a[" + std::to_string(first / 4) + "]." + "xyzw"[first % 4] + " = f0.x;";
+  EXPECT_NE(s.glsl.find(firstInput), std::string::npos) << firstInput;
+  const nlohmann::json manifest = nlohmann::json::parse(shaderManifestJson(s));
+  EXPECT_EQ(manifest["material"]["cluster_planes"]["resolution"], 4);
+  EXPECT_EQ(manifest["material"]["cluster_planes"]["features"], 5);
+  // Each set of planes costs its own taps: 3 planes x 4 taps x 2 vec4 more fetches (the weights
+  // in textures, so layer 0's wider rows add their own reads: 4 x groups per vec4 of inputs).
+  const ShaderDecoder withPlanes = buildShaderDecoder(m, "cp.nbtf", ShaderWeights::Texture);
+  const ShaderDecoder plain = buildShaderDecoder(makeShaderClusteredMaterial(), "plain.nbtf", ShaderWeights::Texture);
+  const int widerRows = withPlanes.description.layers[0].inVec4s() - plain.description.layers[0].inVec4s();
+  EXPECT_EQ(withPlanes.cost.textureFetches - plain.cost.textureFetches,
+            3 * 4 * 2 + widerRows * 4 * d.layers[0].groups());
+  // In the per-texel mode every texel is its own row.
+  const CompressedBtf perTexel =
+      testing::makeDecoderMaterial(0, {24, 16}, 6, 5, 13, DirectionEncoding::StereographicFourier2, 0, 2);
+  const ShaderDecoder p = buildShaderDecoder(perTexel, "ptcp.nbtf");
+  ASSERT_NE(findTexture(p, "nbtf_cluster_planes"), nullptr);
+  EXPECT_EQ(findTexture(p, "nbtf_cluster_planes")->vec4s, static_cast<std::size_t>(6 * 5 * points));
+  EXPECT_NE(p.glsl.find("int row = t;"), std::string::npos);
+}
+
 TEST(ShaderExport, WeightsInUniformBlocksWhenTheyFit) {
   const CompressedBtf m = makeShaderClusteredMaterial();
   const ShaderDecoder s = buildShaderDecoder(m, "cl.nbtf");  // auto
@@ -203,11 +248,6 @@ TEST(ShaderExport, WhatTheShaderCannotExpressIsRefusedAndNothingIsWritten) {
   EXPECT_EQ(page.exitCode, 1) << page.output;
   EXPECT_NE(page.output.find("wider than the 256"), std::string::npos) << page.output;
   EXPECT_FALSE(std::filesystem::exists(tmp / "wide.html"));
-  // Cluster planes (format 1.9) have no GLSL form yet: refused by name.
-  const CompressedBtf planes =
-      testing::makeDecoderMaterial(3, {37, 21}, 7, 5, 11, DirectionEncoding::StereographicFourier2, 0, 2);
-  test::expectErrorContaining([&] { buildShaderDecoder(planes, "cp.nbtf"); },
-                              {"cp.nbtf", "cluster planes", "no GLSL form"});
   // A folder that is not an earlier export is never replaced.
   std::filesystem::create_directories(tmp / "mine");
   std::ofstream(tmp / "mine/notes.txt") << "keep";

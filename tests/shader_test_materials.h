@@ -9,9 +9,11 @@
 namespace nbtf::testing {
 
 // Clustered, two-octave Fourier inputs, direction planes, 2 modulation terms per channel; the
-// default's hidden width (106), so the weights fill more than one row of their texture.
-inline CompressedBtf makeShaderClusteredMaterial() {
-  CompressedBtf b = makeDecoderMaterial(5, {106, 106}, 9, 7, 11, DirectionEncoding::StereographicFourier2, 3);
+// default's hidden width (106), so the weights fill more than one row of their texture. With
+// clusterPlaneFeatures > 0, each cluster also has its own planes (4 x 4 points).
+inline CompressedBtf makeShaderClusteredMaterial(int clusterPlaneFeatures = 0) {
+  CompressedBtf b = makeDecoderMaterial(5, {106, 106}, 9, 7, 11, DirectionEncoding::StereographicFourier2, 3,
+                                        clusterPlaneFeatures);
   const int terms = 2, channels = 3;
   std::mt19937 rng(3);
   std::normal_distribution<float> normal(0.f, 0.02f);

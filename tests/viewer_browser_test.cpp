@@ -132,6 +132,14 @@ TEST_F(ViewerBrowser, ClusteredPageMatchesTheDecoder) {
   checkInBrowser(chromium_, m, "clustered");  // weights in uniform blocks (they fit)
 }
 
+TEST_F(ViewerBrowser, ClusterPlanesPageMatchesTheDecoder) {
+  // configs/high_fidelity.json's storage: cluster planes as 8-bit codes, read back as the file holds them.
+  CompressedBtf m = testing::makeShaderClusteredMaterial(5);
+  m.storage.decoderInt8 = m.storage.latentsHalf = m.storage.idsZstd = m.storage.clusterPlanes8Bit = true;
+  roundToStorage(m);
+  checkInBrowser(chromium_, m, "cluster-planes", "--weights texture");
+}
+
 TEST_F(ViewerBrowser, PerTexelPageMatchesTheDecoder) {
   checkInBrowser(chromium_, testing::makeShaderPerTexelMaterial(), "per-texel", "--weights texture");
 }

@@ -163,25 +163,35 @@ std::string encodingGlsl(DirectionEncoding encoding, int first, const std::strin
   return s.str();
 }
 
-// The direction planes' 3 F features into `a` from index `first` (util/direction_planes.cpp).
-std::string planesGlsl(int resolution, int features, int first) {
+// The three points every set of planes samples (util/direction_planes.cpp): the stereographic
+// projections of light, view and the half vector (the normal when light = -view).
+std::string planePointsGlsl() {
+  return "  vec3 hp = light + view;\n  float hl = length(hp);\n"
+         "  vec2 pts[3] = vec2[3](nbtf_stereo(light), nbtf_stereo(view), hl > 1e-12 ? nbtf_stereo(hp / hl) : vec2(0.0));\n";
+}
+
+// One set of planes' 3 F features at `pts` into `a` from index `first`, bilinear with the
+// clamped taps of util/direction_planes.cpp. `fetch` reads the texture; `rowBase` is the GLSL
+// index of the set's first vec4 ("0" for the shared planes, "row * N" for cluster planes).
+std::string planesGlsl(const std::string& what, int resolution, int features, int first, const std::string& fetch,
+                       const std::string& rowBase) {
   std::ostringstream s;
   const int f4 = vec4sOf(features);
-  s << "  // Direction planes: light, view, half vector; " << resolution << " x " << resolution << " points x "
+  s << "  // " << what << ": light, view, half vector; " << resolution << " x " << resolution << " points x "
     << features << " features, bilinear\n";
-  s << "  {\n    vec3 hp = light + view;\n    float hl = length(hp);\n"
-    << "    vec2 pts[3] = vec2[3](nbtf_stereo(light), nbtf_stereo(view), hl > 1e-12 ? nbtf_stereo(hp / hl) : vec2(0.0));\n";
+  s << "  {\n    int base = " << rowBase << ";\n";
   for (int p = 0; p < 3; ++p) {
     s << "    {\n      vec2 g = clamp((pts[" << p << "] + 1.0) * " << lit(0.5f * static_cast<float>(resolution - 1))
       << ", vec2(0.0), vec2(" << lit(static_cast<float>(resolution - 1)) << "));\n"
       << "      ivec2 c = min(ivec2(g), ivec2(" << resolution - 2 << "));\n"
       << "      vec2 fr = g - vec2(c);\n"
-      << "      int i00 = ((" << p << " * " << resolution << " + c.y) * " << resolution << " + c.x) * " << f4 << ";\n";
+      << "      int i00 = base + ((" << p << " * " << resolution << " + c.y) * " << resolution << " + c.x) * " << f4
+      << ";\n";
     for (int j = 0; j < f4; ++j) {
-      s << "      vec4 f" << j << " = (1.0 - fr.x) * (1.0 - fr.y) * nbtf_planes_at(i00 + " << j << ")"
-        << " + fr.x * (1.0 - fr.y) * nbtf_planes_at(i00 + " << f4 + j << ")"
-        << " + (1.0 - fr.x) * fr.y * nbtf_planes_at(i00 + " << resolution * f4 + j << ")"
-        << " + fr.x * fr.y * nbtf_planes_at(i00 + " << (resolution + 1) * f4 + j << ");\n";
+      s << "      vec4 f" << j << " = (1.0 - fr.x) * (1.0 - fr.y) * " << fetch << "(i00 + " << j << ")"
+        << " + fr.x * (1.0 - fr.y) * " << fetch << "(i00 + " << f4 + j << ")"
+        << " + (1.0 - fr.x) * fr.y * " << fetch << "(i00 + " << resolution * f4 + j << ")"
+        << " + fr.x * fr.y * " << fetch << "(i00 + " << (resolution + 1) * f4 + j << ");\n";
     }
     for (int f = 0; f < features; ++f) {
       static const char* xyzw[] = {"x", "y", "z", "w"};
@@ -193,6 +203,14 @@ std::string planesGlsl(int resolution, int features, int first) {
   return s.str();
 }
 
+// What one set of planes costs per pixel: per plane the grid position and 4 taps of f4 vec4s.
+void addPlanesCost(int features, ShaderCost& c) {
+  const int f4 = vec4sOf(features);
+  c.otherOps += 3 * (6 + 8);
+  c.textureFetches += 3 * 4 * f4;
+  c.multiplyAdds += 3 * 4 * 4 * f4;
+}
+
 // ---- The neural decoder -------------------------------------------------------------------
 
 void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& out) {
@@ -201,13 +219,12 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
   if (!isDirectionEncoding(static_cast<int>(m.directionEncoding)))
     throw Error(name + ": direction encoding code " + std::to_string(static_cast<int>(m.directionEncoding)) +
                 " has no GLSL form in this build");
-  if (!m.clusterPlanes.empty())
-    throw Error(name + ": cluster planes (format 1.9) have no GLSL form yet: export a file made without "
-                "\"cluster_planes\" (docs/model.md, *Cluster planes*)");
   d.encoding = m.directionEncoding;
   d.encodingInputs = directionInputCount(m.directionEncoding);
   d.planeResolution = m.planes.empty() ? 0 : m.planes.resolution;
   d.planeFeatures = m.planes.empty() ? 0 : m.planes.features;
+  d.clusterPlaneResolution = m.clusterPlanes.empty() ? 0 : m.clusterPlanes.resolution;
+  d.clusterPlaneFeatures = m.clusterPlanes.empty() ? 0 : m.clusterPlanes.features;
   d.latentDim = m.latentDim;
   d.latentRows = m.latentRows;
   d.idMap = m.method == CodecMethod::ClusteredNeural;
@@ -313,6 +330,14 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
                                        "direction planes ([plane][y][x], " + std::to_string(f4) + " vec4 per point)",
                                        paddedRows(m.planes.values.data(), points, d.planeFeatures, f4)));
   }
+  const int g4 = vec4sOf(d.clusterPlaneFeatures);
+  const std::size_t clusterPoints = static_cast<std::size_t>(3) * d.clusterPlaneResolution * d.clusterPlaneResolution;
+  if (d.clusterPlaneFeatures > 0)
+    out.textures.push_back(makeTexture(name, "nbtf_cluster_planes",
+                                       "cluster planes (" + std::to_string(m.clusterPlanes.rows) +
+                                           " latent rows x [plane][y][x], " + std::to_string(g4) + " vec4 per point)",
+                                       paddedRows(m.clusterPlanes.values.data(), m.clusterPlanes.rows * clusterPoints,
+                                                  d.clusterPlaneFeatures, g4)));
 
   // ---- GLSL
   std::ostringstream s;
@@ -340,7 +365,14 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     s << "  }\n";
   }
   s << encodingGlsl(d.encoding, m.latentDim, name);
-  if (d.planeFeatures > 0) s << planesGlsl(d.planeResolution, d.planeFeatures, m.latentDim + d.encodingInputs);
+  if (d.planeFeatures > 0 || d.clusterPlaneFeatures > 0) s << planePointsGlsl();
+  if (d.planeFeatures > 0)
+    s << planesGlsl("Direction planes", d.planeResolution, d.planeFeatures, m.latentDim + d.encodingInputs,
+                    "nbtf_planes_at", "0");
+  if (d.clusterPlaneFeatures > 0)
+    s << planesGlsl("Cluster planes (the row's own)", d.clusterPlaneResolution, d.clusterPlaneFeatures,
+                    m.latentDim + d.encodingInputs + 3 * d.planeFeatures, "nbtf_cluster_planes_at",
+                    "row * " + std::to_string(clusterPoints * g4));
   // Dense layers: four output rows per step, a vec4 of inputs per read.
   std::string input = "a";
   for (std::size_t li = 0; li < d.layers.size(); ++li) {
@@ -400,11 +432,9 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     c.transcendentals += 8;
     c.otherOps += 4 + 4 * 4 * (octaves - 1);
   }
-  if (d.planeFeatures > 0) {
-    c.otherOps += 3 + 6 + 3 + 3 * (6 + 8);  // half vector, points, taps
-    c.textureFetches += 3 * 4 * f4;
-    c.multiplyAdds += 3 * 4 * 4 * f4;
-  }
+  if (d.planeFeatures > 0 || d.clusterPlaneFeatures > 0) c.otherOps += 3 + 6 + 3;  // half vector, points
+  if (d.planeFeatures > 0) addPlanesCost(d.planeFeatures, c);
+  if (d.clusterPlaneFeatures > 0) addPlanesCost(d.clusterPlaneFeatures, c);
   for (const ShaderLayer& l : d.layers) {
     const double rows = 4.0 * l.groups();
     c.multiplyAdds += rows * 4 * l.inVec4s() + rows * 4;  // products, horizontal sums, biases
@@ -600,6 +630,8 @@ std::string shaderManifestJson(const ShaderDecoder& shader) {
     mat["direction_encoding"] = directionEncodingName(d.encoding);
     mat["direction_inputs"] = d.directionInputs();
     if (d.planeFeatures > 0) mat["direction_planes"] = {{"resolution", d.planeResolution}, {"features", d.planeFeatures}};
+    if (d.clusterPlaneFeatures > 0)
+      mat["cluster_planes"] = {{"resolution", d.clusterPlaneResolution}, {"features", d.clusterPlaneFeatures}};
     mat["latent_dim"] = d.latentDim;
     mat["latent_rows"] = d.latentRows;
     ordered_json layers = ordered_json::array();

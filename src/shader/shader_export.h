@@ -1,7 +1,7 @@
 // The decoder as a GLSL ES 3.00 fragment-shader function (`nbtf export-shader`, `nbtf view`).
 //
 // A .nbtf file is first turned into a ShaderDecoder: the decoder's description (its stages
-// in order: texel lookup, direction encoding, direction planes, dense layers, per-texel
+// in order: texel lookup, direction encoding, direction planes, cluster planes, dense layers, per-texel
 // modulation, alpha; or the PCA baseline's interpolation) plus its data packed into RGBA32F
 // textures. The GLSL is generated from the description alone, stage by stage, so a new
 // model kind is a new stage here, not a rewrite of the generator. The generated function is
@@ -90,6 +90,8 @@ struct ShaderDecoderDescription {
   int encodingInputs = 0;   // fixed direction inputs (directionInputCount)
   int planeResolution = 0;  // direction planes (0 features = none)
   int planeFeatures = 0;
+  int clusterPlaneResolution = 0;  // each latent row's own planes (0 features = none)
+  int clusterPlaneFeatures = 0;
   int latentDim = 0;
   int latentRows = 0;
   bool idMap = false;  // clustered: texel -> latent row through nbtf_ids
@@ -100,7 +102,7 @@ struct ShaderDecoderDescription {
   int pcaComponents = 0;
   int lights = 0, views = 0;
 
-  int directionInputs() const { return encodingInputs + 3 * planeFeatures; }
+  int directionInputs() const { return encodingInputs + 3 * planeFeatures + 3 * clusterPlaneFeatures; }
 };
 
 // Work per pixel of one nbtf_decode call, counted from the description.
