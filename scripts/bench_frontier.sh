@@ -7,6 +7,8 @@
 #   nbtf_k<K>      the recipe under test (--config, default configs/default.json) at each K of --clusters;
 #   nbtf_k<K>_compact  configs/compact.json (width-64 decoder, one modulation coefficient per
 #                  texel) at each K of --compact-clusters: the small end of the curve;
+#   nbtf_k<K>_balanced configs/balanced.json (small cluster planes, 4 x 4 x 2 in 8 bits, three
+#                  modulation terms) at each K of --balanced-clusters: the middle of the curve;
 #   nbtf_k<K>_hifi configs/high_fidelity.json (cluster planes, three modulation terms) at each K
 #                  of --fidelity-clusters: the large end of the curve (target 2).
 # Every file is evaluated with `nbtf eval` against its stack (RMSE in linear RGB / alpha, eq. 10);
@@ -19,11 +21,12 @@
 #   (3) monotone and dominant: at every ratio r from 1:500 to 1:20,000, the best nbtf row of ratio
 #       >= r (that size or smaller) has a lower RMSE than every PCA or per-texel row of ratio
 #       1:500 .. r (that size or larger, within the window).
-# The full run (five presets, S = 400 s, K = 125 500 2000, compact K = 250, high-fidelity K = 500)
-# trains 5 x 7 rows of 400 s: about 4 hours on 2 cores. Run it alone on the machine.
+# The full run (five presets, S = 400 s, K = 125 500 2000, compact K = 250, balanced K = 500,
+# high-fidelity K = 500) trains 5 x 8 rows of 400 s: about 4.5 hours on 2 cores. Run it alone on the machine.
 #
 # usage: scripts/bench_frontier.sh [--presets "fabric wool"] [--budget S] [--clusters "125 500 2000"]
-#                                  [--compact-clusters "250"] [--fidelity-clusters "500"] [--config FILE]
+#                                  [--compact-clusters "250"] [--balanced-clusters "500"]
+#                                  [--fidelity-clusters "500"] [--config FILE]
 #                                  [--pca "1 2 4"] [-o DIR]
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
@@ -31,6 +34,7 @@ presets="fabric wool corduroy satin glossy"
 budget=400
 clusters="125 500 2000"
 compact_clusters="250"
+balanced_clusters="500"
 fidelity_clusters="500"
 config=$root/configs/default.json
 pcas="1 2 4 8 16 32 64"
@@ -41,6 +45,7 @@ while [[ $# -gt 0 ]]; do
     --budget) budget=$2; shift;;
     --clusters) clusters=$2; shift;;
     --compact-clusters) compact_clusters=$2; shift;;
+    --balanced-clusters) balanced_clusters=$2; shift;;
     --fidelity-clusters) fidelity_clusters=$2; shift;;
     --config) config=$2; shift;;
     --pca) pcas=$2; shift;;
@@ -75,6 +80,9 @@ for preset in $presets; do
   for k in $clusters; do runs+=("nbtf_k$k|--clusters $k --config $config --time-budget $budget"); done
   for k in $compact_clusters; do
     runs+=("nbtf_k${k}_compact|--clusters $k --config $root/configs/compact.json --time-budget $budget")
+  done
+  for k in $balanced_clusters; do
+    runs+=("nbtf_k${k}_balanced|--clusters $k --config $root/configs/balanced.json --time-budget $budget")
   done
   for k in $fidelity_clusters; do
     runs+=("nbtf_k${k}_hifi|--clusters $k --config $root/configs/high_fidelity.json --time-budget $budget")

@@ -235,7 +235,7 @@ TEST_F(CmdCompress, BuiltInConfigsAreNamedAndRecorded) {
   EXPECT_FALSE(nlohmann::json::parse(readNbtf(path("d.nbtf")).metadataJson).contains("config_name"));
   r = run("compress " + stack + " -o " + path("e.nbtf") + " --clusters 4 -q --config compactt");
   EXPECT_EQ(r.exitCode, 1);
-  EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, compact, "
+  EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, balanced, compact, "
                                  "converged, default, high_fidelity, paper, paper-clustered)"))
       << r.output;
   EXPECT_FALSE(fs::exists(path("e.nbtf")));

@@ -110,6 +110,19 @@ TEST(CompressConfig, ShippedHighFidelityConfigIsTheDefaultWithClusterPlanesAndTh
   EXPECT_EQ(trainConfigJson(fidelity), trainConfigJson(expected));
 }
 
+// configs/balanced.json is high_fidelity.json with small cluster planes (4 x 4 points x 2
+// features, in 8 bits): the middle of the rate-distortion curve, nothing else changed.
+TEST(CompressConfig, ShippedBalancedConfigIsHighFidelityWithSmallClusterPlanes) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  TrainConfig balanced = loadTrainConfig(dir + "balanced.json");
+  EXPECT_EQ(balanced.model.clusterPlaneResolution, 4);
+  EXPECT_EQ(balanced.model.clusterPlaneFeatures, 2);
+  TrainConfig expected = loadTrainConfig(dir + "high_fidelity.json");
+  expected.model.clusterPlaneResolution = 4;
+  expected.model.clusterPlaneFeatures = 2;
+  EXPECT_EQ(trainConfigJson(balanced), trainConfigJson(expected));
+}
+
 TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
   test::TempDir dir;
   const std::vector<std::pair<std::string, std::string>> cases = {
