@@ -5,6 +5,7 @@
 #include <fstream>
 #include <filesystem>
 #include <algorithm>
+#include <functional>
 
 #include <nlohmann/json.hpp>
 
@@ -80,47 +81,47 @@ TEST(CompressConfig, BuiltInConfigsAreTheShippedFiles) {
   EXPECT_EQ(trainConfigJson(loadTrainConfig("compact")), trainConfigJson(loadTrainConfig(dir + "compact.json")));
 }
 
-// configs/compact.json is the default recipe with a width-64 decoder and one modulation
-// coefficient per texel: the small end of the rate-distortion curve, nothing else changed.
+// The shipped configs of the rate-distortion curve are each another shipped config with a few
+// keys changed and nothing else: `name` equals `base` after `change`.
+void expectShippedConfigIs(const std::string& name, const std::string& base,
+                           const std::function<void(TrainConfig&)>& change) {
+  SCOPED_TRACE(name);
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  TrainConfig expected = loadTrainConfig(dir + base);
+  change(expected);
+  EXPECT_NE(trainConfigJson(expected), trainConfigJson(loadTrainConfig(dir + base)));  // the change changes something
+  EXPECT_EQ(trainConfigJson(loadTrainConfig(dir + name)), trainConfigJson(expected));
+}
+
+// configs/compact.json: the default with a width-64 decoder and one modulation coefficient per
+// texel, the small end of the curve.
 TEST(CompressConfig, ShippedCompactConfigIsTheDefaultWithASmallerDecoderAndModulation) {
-  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
-  TrainConfig compact = loadTrainConfig(dir + "compact.json");
-  EXPECT_EQ(compact.model.decoderWidth, 64);
-  EXPECT_EQ(compact.modulation.channels, 1);
-  TrainConfig expected = loadTrainConfig(dir + "default.json");
-  expected.model.decoderWidth = 64;
-  expected.modulation.channels = 1;
-  EXPECT_EQ(trainConfigJson(compact), trainConfigJson(expected));
+  expectShippedConfigIs("compact.json", "default.json", [](TrainConfig& c) {
+    c.model.decoderWidth = 64;
+    c.modulation.channels = 1;
+  });
 }
 
-// configs/high_fidelity.json is the default recipe with cluster planes (stored in 8 bits), three
+// configs/high_fidelity.json: the default with cluster planes (stored in 8 bits), three
 // modulation terms and 128 images per encoder input (each cluster's planes visited 4x as
-// often): the large end of the rate-distortion curve, nothing else changed.
+// often), the large end of the curve.
 TEST(CompressConfig, ShippedHighFidelityConfigIsTheDefaultWithClusterPlanesAndThreeTerms) {
-  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
-  TrainConfig fidelity = loadTrainConfig(dir + "high_fidelity.json");
-  EXPECT_EQ(fidelity.model.clusterPlaneFeatures, 8);
-  EXPECT_EQ(fidelity.storage.clusterPlanes, "8bit");
-  TrainConfig expected = loadTrainConfig(dir + "default.json");
-  expected.model.clusterPlaneFeatures = 8;
-  expected.model.clusterPlaneResolution = 6;
-  expected.storage.clusterPlanes = "8bit";
-  expected.modulation.terms = 3;
-  expected.imagesPerInput = 128;
-  EXPECT_EQ(trainConfigJson(fidelity), trainConfigJson(expected));
+  expectShippedConfigIs("high_fidelity.json", "default.json", [](TrainConfig& c) {
+    c.model.clusterPlaneFeatures = 8;
+    c.model.clusterPlaneResolution = 6;
+    c.storage.clusterPlanes = "8bit";
+    c.modulation.terms = 3;
+    c.imagesPerInput = 128;
+  });
 }
 
-// configs/balanced.json is high_fidelity.json with small cluster planes (4 x 4 points x 2
-// features, in 8 bits): the middle of the rate-distortion curve, nothing else changed.
+// configs/balanced.json: high_fidelity.json with small cluster planes (4 x 4 points x 2
+// features), the middle of the curve.
 TEST(CompressConfig, ShippedBalancedConfigIsHighFidelityWithSmallClusterPlanes) {
-  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
-  TrainConfig balanced = loadTrainConfig(dir + "balanced.json");
-  EXPECT_EQ(balanced.model.clusterPlaneResolution, 4);
-  EXPECT_EQ(balanced.model.clusterPlaneFeatures, 2);
-  TrainConfig expected = loadTrainConfig(dir + "high_fidelity.json");
-  expected.model.clusterPlaneResolution = 4;
-  expected.model.clusterPlaneFeatures = 2;
-  EXPECT_EQ(trainConfigJson(balanced), trainConfigJson(expected));
+  expectShippedConfigIs("balanced.json", "high_fidelity.json", [](TrainConfig& c) {
+    c.model.clusterPlaneResolution = 4;
+    c.model.clusterPlaneFeatures = 2;
+  });
 }
 
 TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
