@@ -78,14 +78,11 @@ for preset in $presets; do
   runs=("per_texel|--clusters 0 --time-budget $budget"
         "baseline_k500|--clusters 500 --config $baseline --time-budget $budget")
   for k in $clusters; do runs+=("nbtf_k$k|--clusters $k --config $config --time-budget $budget"); done
-  for k in $compact_clusters; do
-    runs+=("nbtf_k${k}_compact|--clusters $k --config $root/configs/compact.json --time-budget $budget")
-  done
-  for k in $balanced_clusters; do
-    runs+=("nbtf_k${k}_balanced|--clusters $k --config $root/configs/balanced.json --time-budget $budget")
-  done
-  for k in $fidelity_clusters; do
-    runs+=("nbtf_k${k}_hifi|--clusters $k --config $root/configs/high_fidelity.json --time-budget $budget")
+  # The shipped points of the curve: label suffix, config, the K to run it at.
+  for point in "compact|compact.json|$compact_clusters" "balanced|balanced.json|$balanced_clusters" \
+               "hifi|high_fidelity.json|$fidelity_clusters"; do
+    IFS='|' read -r suffix file ks <<<"$point"
+    for k in $ks; do runs+=("nbtf_k${k}_$suffix|--clusters $k --config $root/configs/$file --time-budget $budget"); done
   done
   for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
   run_rows "$out" "$preset" "$data" "${runs[@]}"
