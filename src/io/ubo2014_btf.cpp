@@ -202,47 +202,67 @@ int Ubo2014Btf::fileRow(int image) const {
   return light + numLights() * view;
 }
 
-void Ubo2014Btf::toRgb(float* v, int lightIndex) const {
+void Ubo2014Btf::toRgb(float* __restrict r, float* __restrict g, float* __restrict b, int n, int lightIndex) const {
+  // One loop per step, with the switch outside: the arithmetic loops vectorize, the exp ones
+  // call the library's expf value by value (a vector exp would round differently).
   const float eps = kUboDrrEps;
-  auto yuv = [&](float* x) {
+  auto expMinusEps = [&](float* x) {
+    for (int t = 0; t < n; ++t) x[t] = std::exp(x[t]) - eps;
+  };
+  auto yuv = [&] {
     const auto& m = rgbFromYuv_;
-    float y = x[0], u = x[1], w = x[2];
-    x[0] = m[0] * y + m[1] * u + m[2] * w;
-    x[1] = m[3] * y + m[4] * u + m[5] * w;
-    x[2] = m[6] * y + m[7] * u + m[8] * w;
+    for (int t = 0; t < n; ++t) {
+      const float y = r[t], u = g[t], w = b[t];
+      r[t] = m[0] * y + m[1] * u + m[2] * w;
+      g[t] = m[3] * y + m[4] * u + m[5] * w;
+      b[t] = m[6] * y + m[7] * u + m[8] * w;
+    }
   };
   switch (meta_.colorModel) {
     case 0: break;
-    case 1: yuv(v); break;
+    case 1: yuv(); break;
     case 3: {
-      const auto& t = meta_.colorTransform;
-      float a = v[0], b = v[1], c = v[2];
-      for (int j = 0; j < 3; ++j) v[j] = a * t[j] + b * t[3 + j] + c * t[6 + j] + meta_.colorMean[j];
+      const auto& tr = meta_.colorTransform;
+      const auto& mean = meta_.colorMean;
+      for (int t = 0; t < n; ++t) {
+        const float x = r[t], y = g[t], z = b[t];
+        r[t] = x * tr[0] + y * tr[3] + z * tr[6] + mean[0];
+        g[t] = x * tr[1] + y * tr[4] + z * tr[7] + mean[1];
+        b[t] = x * tr[2] + y * tr[5] + z * tr[8] + mean[2];
+      }
       break;
     }
-    case 4: {
-      float y = v[0], co = v[1], cg = v[2];
-      v[0] = y + co - cg, v[1] = y + cg, v[2] = y - co - cg;
+    case 4:
+      for (int t = 0; t < n; ++t) {
+        const float y = r[t], co = g[t], cg = b[t];
+        r[t] = y + co - cg, g[t] = y + cg, b[t] = y - co - cg;
+      }
+      break;
+    case 9: expMinusEps(r); yuv(); break;
+    case 10: {
+      expMinusEps(r);
+      const float logEps = std::log(eps);
+      for (float* c : {g, b})
+        for (int t = 0; t < n; ++t) c[t] = (c[t] > 0 ? 1.f : c[t] < 0 ? -1.f : 0.f) * std::exp(std::abs(c[t]) + logEps);
+      yuv();
       break;
     }
-    case 9: v[0] = std::exp(v[0]) - eps; yuv(v); break;
-    case 10:
-      v[0] = std::exp(v[0]) - eps;
-      for (int j = 1; j < 3; ++j) v[j] = (v[j] > 0 ? 1.f : v[j] < 0 ? -1.f : 0.f) * std::exp(std::abs(v[j]) + std::log(eps));
-      yuv(v);
-      break;
     case 11:
-      v[0] = std::exp(v[0]) - eps;
-      v[1] *= v[0] + eps, v[2] *= v[0] + eps;
-      yuv(v);
+      expMinusEps(r);
+      for (int t = 0; t < n; ++t) {
+        const float scale = r[t] + eps;
+        g[t] *= scale, b[t] *= scale;
+      }
+      yuv();
       break;
     case 12:
-      for (int j = 0; j < 3; ++j) v[j] = std::exp(v[j]) - eps;
+      for (float* c : {r, g, b}) expMinusEps(c);
       break;
   }
   if (meta_.cosineFlag) {
-    float cosTheta = static_cast<float>(std::cos(meta_.lights[lightIndex].thetaDeg * kPi / 180.0));
-    for (int j = 0; j < 3; ++j) v[j] /= cosTheta;
+    const float cosTheta = static_cast<float>(std::cos(meta_.lights[lightIndex].thetaDeg * kPi / 180.0));
+    for (float* c : {r, g, b})
+      for (int t = 0; t < n; ++t) c[t] /= cosTheta;
   }
 }
 
@@ -335,11 +355,8 @@ void Ubo2014Btf::computeValues(int numImages, ImageAt imageAt, int count, TexelA
       const int image = imageAt(i);
       const std::size_t row = static_cast<std::size_t>(fileRow(image));
       for (int c = 0; c < 3; ++c) dotsK(angular[c] + row * k[c], tiles[c].data(), k[c], n, v[c]);
-      for (int t = 0; t < n; ++t) {
-        float rgb[3] = {v[0][t], v[1][t], v[2][t]};
-        toRgb(rgb, image / numViews());
-        store(i, t0 + t, rgb);
-      }
+      toRgb(v[0], v[1], v[2], n, image / numViews());
+      store(i, t0, n, v);
     }
   }
 }
@@ -349,9 +366,9 @@ void Ubo2014Btf::imagesLinear(int first, int count, const Crop& crop, float* out
   computeValues(
       count, [&](int i) { return first + i; }, texels,
       [&](int t) { return materialTexel(crop, width(), t); },
-      [&](int i, int t, const float* rgb) {
-        float* o = out + (static_cast<std::size_t>(i) * texels + t) * 3;
-        o[0] = rgb[0], o[1] = rgb[1], o[2] = rgb[2];
+      [&](int i, int t0, int n, const float (*rgb)[kTile]) {
+        float* o = out + (static_cast<std::size_t>(i) * texels + t0) * 3;
+        for (int t = 0; t < n; ++t) o[3 * t] = rgb[0][t], o[3 * t + 1] = rgb[1][t], o[3 * t + 2] = rgb[2][t];
       });
 }
 
@@ -359,8 +376,8 @@ void Ubo2014Btf::gatherLinear(const int* images, int numImages, const int* texel
   if (!images) numImages = this->numImages();
   computeValues(
       numImages, [&](int j) { return images ? images[j] : j; }, count, [&](int t) { return texels[t]; },
-      [&](int j, int t, const float* rgb) {
-        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(3 * j + c) * count + t] = rgb[c];
+      [&](int j, int t0, int n, const float (*rgb)[kTile]) {
+        for (int c = 0; c < 3; ++c) std::copy_n(rgb[c], n, out + static_cast<std::size_t>(3 * j + c) * count + t0);
       });
 }
 
@@ -368,9 +385,11 @@ void Ubo2014Btf::abrdfsLinear(const int* texels, int count, float* out) const {
   const int pairs = numImages();
   computeValues(
       pairs, [](int image) { return image; }, count, [&](int k) { return texels[k]; },
-      [&](int image, int k, const float* rgb) {
-        float* o = out + (static_cast<std::size_t>(k) * pairs + image) * 3;
-        o[0] = rgb[0], o[1] = rgb[1], o[2] = rgb[2];
+      [&](int image, int k0, int n, const float (*rgb)[kTile]) {
+        for (int t = 0; t < n; ++t) {
+          float* o = out + (static_cast<std::size_t>(k0 + t) * pairs + image) * 3;
+          o[0] = rgb[0][t], o[1] = rgb[1][t], o[2] = rgb[2][t];
+        }
       });
 }
 
@@ -382,7 +401,7 @@ void Ubo2014Btf::valueLinear(int image, int texel, float* rgb) const {
     const float* spatial = (abrdfsInU_ ? ch.sxv.data() : ch.u.data()) + static_cast<std::size_t>(texel) * ch.components;
     rgb[c] = dotK(angular, spatial, ch.components);
   }
-  toRgb(rgb, image / numViews());
+  toRgb(rgb, rgb + 1, rgb + 2, 1, image / numViews());
 }
 
 std::size_t Ubo2014Btf::factorBytes() const {
@@ -416,6 +435,28 @@ namespace {
 // What toStack stores for a computed value, read back: reflectances (a truncated SVD can dip
 // below zero) rounded to half floats.
 inline float storedValue(float v) { return roundToHalf(std::max(0.0f, v)); }
+// storedValue on n values in place, four at a time (GCC vector types: the compiler leaves
+// the scalar loop unvectorized). The clamped value is never negative or NaN, so roundToHalf's
+// sign and NaN cases drop out and its unsigned comparisons become signed ones.
+void toStoredValues(float* v, std::size_t n) {
+  typedef float Floats __attribute__((vector_size(16)));
+  typedef std::int32_t Ints __attribute__((vector_size(16)));
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    Floats x;
+    std::memcpy(&x, v + i, sizeof x);
+    x = x > 0.0f ? x : Floats{};  // std::max(0.0f, x), NaN included
+    const Floats subnormal = (x + 0.5f) - 0.5f;
+    Ints a, sub;
+    std::memcpy(&a, &x, sizeof a);
+    std::memcpy(&sub, &subnormal, sizeof sub);
+    const Ints normal = (a + 0xFFF + ((a >> 13) & 1)) & ~0x1FFF;
+    Ints r = a < 0x38800000 ? sub : normal;
+    r = a < 0x477FF000 ? r : Ints{} + 0x7F800000;
+    std::memcpy(v + i, &r, sizeof r);
+  }
+  for (; i < n; ++i) v[i] = storedValue(v[i]);
+}
 
 // A crop of a factorized material, its values computed on demand (BtfStack::isComputed).
 //
@@ -453,8 +494,7 @@ class FactorizedValues : public ComputedStackValues {
     std::vector<int> file(count);
     for (int k = 0; k < count; ++k) file[k] = fileTexel(texels[k]);
     btf_->gatherLinear(images, numImages, file.data(), count, out);
-    const std::size_t n = static_cast<std::size_t>(images ? numImages : btf_->numImages()) * 3 * count;
-    for (std::size_t i = 0; i < n; ++i) out[i] = storedValue(out[i]);
+    toStoredValues(out, static_cast<std::size_t>(images ? numImages : btf_->numImages()) * 3 * count);
   }
   std::size_t bytes() const override {
     return btf_->factorBytes() + ubo2014ComputedBlockBytes(crop_.width * crop_.height, btf_->numImages(), blockBytes_);
@@ -496,7 +536,7 @@ class FactorizedValues : public ComputedStackValues {
       const int count = std::min(imagesPerBlock_, btf_->numImages() - first);
       b->rgb.resize(static_cast<std::size_t>(count) * crop_.width * crop_.height * 3);
       btf_->imagesLinear(first, count, crop_, b->rgb.data());
-      for (float& v : b->rgb) v = storedValue(v);
+      toStoredValues(b->rgb.data(), b->rgb.size());
     } catch (...) {
       lock.lock();
       making_.erase(index);
@@ -507,9 +547,11 @@ class FactorizedValues : public ComputedStackValues {
     making_.erase(index);
     cache_.push_back(std::move(b));
     if (static_cast<int>(cache_.size()) > capacity_) {
-      // Its buffer serves the next block unless a reader still holds it: a fresh 64 MB buffer
-      // costs more to zero and fault in than its values cost to compute.
-      if (cache_.front().use_count() == 1 && spare_.empty()) spare_.push_back(std::move(cache_.front()->rgb));
+      // Its buffer serves a later block unless a reader still holds it: a fresh 64 MB buffer
+      // costs more to zero and fault in than its values cost to compute. One spare per thread,
+      // as every thread may be making a block at once.
+      if (cache_.front().use_count() == 1 && static_cast<int>(spare_.size()) < threadCount())
+        spare_.push_back(std::move(cache_.front()->rgb));
       cache_.pop_front();
     }
     made_.notify_all();
@@ -524,7 +566,7 @@ class FactorizedValues : public ComputedStackValues {
   mutable std::condition_variable made_;
   mutable std::deque<std::shared_ptr<Block>> cache_;
   mutable std::set<int> making_;
-  mutable std::vector<std::vector<float>> spare_;  // at most one dropped block's buffer
+  mutable std::vector<std::vector<float>> spare_;  // dropped blocks' buffers, at most one per thread
 };
 
 }  // namespace

@@ -145,11 +145,14 @@ class Ubo2014Btf {
   Crop checkedCrop(const Crop& requested) const;
 
  private:
-  // Undecorrelates one light/view pair's channel values (in place) into linear RGB.
-  void toRgb(float* v, int lightIndex) const;
+  // Undecorrelates n values of one light/view pair (in place, channel by channel: r[t], g[t],
+  // b[t]) into linear RGB. Every value goes through the same operations in the same order
+  // whatever n is, so a tile of texels gets the bits one value alone gets.
+  void toRgb(float* r, float* g, float* b, int n, int lightIndex) const;
   int fileRow(int image) const;  // nbtf image -> the file's light/view row (light fastest)
   // The values of texels texelAt(k), k < count, in images imageAt(j), j < numImages, a tile of
-  // texels at a time (their factors read once for all the images): store(j, k, rgb).
+  // texels at a time (their factors read once for all the images): store(j, k0, n, rgb) with
+  // rgb[c][t] the value of channel c at texel k0 + t, t < n.
   template <class ImageAt, class TexelAt, class Store>
   void computeValues(int numImages, ImageAt imageAt, int count, TexelAt texelAt, Store store) const;
   void setProvenance(BtfStack& stack, const Crop& crop) const;
@@ -163,8 +166,9 @@ class Ubo2014Btf {
 
 // A computed stack (Ubo2014Btf::computedStack) makes whole images a block at a time, about
 // blockBytes of floats (at least one image, at most 1/64 of them), and keeps
-// ubo2014BlocksKept() blocks. At most ubo2014BlocksHeld() exist at once (those kept, one in
-// the making on each thread, one spare buffer): ubo2014ComputedBlockBytes besides the factors.
+// ubo2014BlocksKept() blocks. At most ubo2014BlocksHeld() exist at once (those kept, one
+// buffer per thread in the making or spare for the next block, one more a reader may still
+// hold after it was dropped): ubo2014ComputedBlockBytes besides the factors.
 int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
 int ubo2014BlocksKept();
 int ubo2014BlocksHeld();
