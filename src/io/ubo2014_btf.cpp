@@ -578,7 +578,7 @@ int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes) {
   return static_cast<int>(std::clamp<std::size_t>(blockBytes / bytesPerImage, 1, most));
 }
 int ubo2014BlocksKept() { return threadCount() + 2; }
-int ubo2014BlocksHeld() { return ubo2014BlocksKept() + threadCount() + 1; }
+int ubo2014BlocksHeld() { return ubo2014BlocksKept() + 2 * threadCount(); }
 std::size_t ubo2014ComputedBlockBytes(int texels, int images, std::size_t blockBytes) {
   return static_cast<std::size_t>(ubo2014BlocksHeld()) * ubo2014ImagesPerBlock(texels, images, blockBytes) * texels * 3 *
          sizeof(float);

@@ -166,8 +166,8 @@ class Ubo2014Btf {
 
 // A computed stack (Ubo2014Btf::computedStack) makes whole images a block at a time, about
 // blockBytes of floats (at least one image, at most 1/64 of them), and keeps
-// ubo2014BlocksKept() blocks. At most ubo2014BlocksHeld() exist at once (those kept, one
-// buffer per thread in the making or spare for the next block, one more a reader may still
+// ubo2014BlocksKept() blocks. At most ubo2014BlocksHeld() exist at once (those kept, and per
+// thread one buffer in the making or spare for the next block and one a reader may still
 // hold after it was dropped): ubo2014ComputedBlockBytes besides the factors.
 int ubo2014ImagesPerBlock(int texels, int images, std::size_t blockBytes = kUbo2014BlockBytes);
 int ubo2014BlocksKept();
