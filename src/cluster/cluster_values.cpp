@@ -271,11 +271,14 @@ void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const s
     for (std::size_t j0 = begin * kImages; j0 < std::min(end * kImages, used.size()); j0 += kImages) {
       const std::size_t m = std::min(kImages, used.size() - j0);
       stack.gatherLinear(&used[j0], static_cast<int>(m), texels.data(), count, values.data());
+      // Column by column: each cluster's column is written in row order (one write stream
+      // per cluster of the batch instead of three).
       for (std::size_t j = 0; j < m; ++j)
-        for (int i = 0; i < count; ++i)
-          for (int c = 0; c < 3; ++c)
-            y[slots[i].cluster](slots[i].row, static_cast<Eigen::Index>(3 * (j0 + j) + c)) =
-                values[(3 * j + c) * count + i];
+        for (int c = 0; c < 3; ++c) {
+          const float* from = &values[(3 * j + c) * count];
+          const Eigen::Index column = static_cast<Eigen::Index>(3 * (j0 + j) + c);
+          for (int i = 0; i < count; ++i) y[slots[i].cluster](slots[i].row, column) = from[i];
+        }
     }
   });
 }
