@@ -11,6 +11,7 @@
 #include "util/random.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/simd.h"
 
 namespace nbtf {
 
@@ -131,11 +132,12 @@ Eigen::MatrixXf orthonormalColumns(const Eigen::MatrixXf& a) {
 
 }  // namespace
 
-void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
+void topLeftSingularVectors(const Eigen::Ref<const Eigen::MatrixXf>& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
                             Eigen::VectorXd& sigma, int* iterationsOut) {
   const Eigen::Index n = y.rows(), dims = y.cols();
   const Eigen::Index rank = std::min(n, dims);
   if (terms < 1 || rank == 0) throw Error("top singular vectors: need terms >= 1 and a non-empty matrix");
+  const int ld = static_cast<int>(y.outerStride());
   const Eigen::Index want = std::min<Eigen::Index>(terms, rank);
   const Eigen::Index block = std::min<Eigen::Index>(rank, want + 6);
   // Start: the mean row (close to the top right singular vector of same-signed data) and fixed
@@ -157,10 +159,10 @@ void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t s
     // are approximately q Ub, the next right ones orth(B^T) = orth(y^T q). Single-threaded BLAS
     // products: the same bits on any thread count.
     gemmOnThisThread(false, false, static_cast<int>(n), static_cast<int>(block), static_cast<int>(dims), y.data(),
-                     static_cast<int>(n), v.data(), static_cast<int>(dims), w.data(), static_cast<int>(n));
+                     ld, v.data(), static_cast<int>(dims), w.data(), static_cast<int>(n));
     const Eigen::MatrixXf q = orthonormalColumns(w);
     gemmOnThisThread(true, false, static_cast<int>(dims), static_cast<int>(block), static_cast<int>(n), y.data(),
-                     static_cast<int>(n), q.data(), static_cast<int>(n), z.data(), static_cast<int>(dims));
+                     ld, q.data(), static_cast<int>(n), z.data(), static_cast<int>(dims));
     const Eigen::MatrixXd zd = z.cast<double>();
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(zd.transpose() * zd);  // = B B^T, ascending
     u.resize(n, want);
@@ -193,7 +195,7 @@ namespace {
 
 // The top `terms` left singular vectors of y (n x dims), each oriented to a positive sum, as
 // columns of u (n x terms; a column stays 0 where the singular value is negligible).
-Eigen::MatrixXd leadingLeftVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed) {
+Eigen::MatrixXd leadingLeftVectors(const Eigen::Ref<const Eigen::MatrixXf>& y, int terms, std::uint64_t seed) {
   const Eigen::Index n = y.rows(), dims = y.cols();
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(n, terms);
   if (std::min(n, dims) > kExactSvdUpTo) {
@@ -246,8 +248,12 @@ namespace {
 // images: each image's texels of the batch are read in ascending order (nearly sequential
 // for a stack in memory, and each image once), and the images are split over the threads.
 // The values are gatherLinear's, as a per-cluster gather reads them.
+// The matrices live in `storage`, kept from batch to batch: a fresh buffer of this size (up to
+// gigabytes) costs more to fault in than its values cost to gather. Each starts on a 64-byte
+// boundary, as a matrix of its own would be aligned.
+using ClusterMatrix = Eigen::Map<Eigen::MatrixXf>;
 void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const std::vector<std::vector<int>>& members,
-                    std::size_t first, std::size_t last, std::vector<Eigen::MatrixXf>& y) {
+                    std::size_t first, std::size_t last, AlignedFloats& storage, std::vector<ClusterMatrix>& y) {
   struct Slot {
     int texel;
     std::uint32_t cluster;  // within the batch
@@ -261,8 +267,20 @@ void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const s
   std::vector<int> texels(slots.size());
   for (std::size_t i = 0; i < slots.size(); ++i) texels[i] = slots[i].texel;
   const Eigen::Index dims = 3 * static_cast<Eigen::Index>(used.size());
-  y.resize(last - first);
-  for (std::size_t g = first; g < last; ++g) y[g - first].resize(static_cast<Eigen::Index>(members[g].size()), dims);
+  constexpr std::size_t kAlignFloats = 16;
+  std::vector<std::size_t> offsets;
+  std::size_t floats = 0;
+  for (std::size_t g = first; g < last; ++g) {
+    offsets.push_back(floats);
+    floats += (members[g].size() * static_cast<std::size_t>(dims) + kAlignFloats - 1) / kAlignFloats * kAlignFloats;
+  }
+  if (storage.size() < floats) {  // freed first, not resized: no copy of the old values beside the new
+    AlignedFloats().swap(storage);
+    storage.resize(floats);
+  }
+  y.clear();
+  for (std::size_t g = first; g < last; ++g)
+    y.emplace_back(storage.data() + offsets[g - first], static_cast<Eigen::Index>(members[g].size()), dims);
   const int count = static_cast<int>(texels.size());
   // A few images per gather: a computed stack reads each texel's factors once per gather.
   constexpr std::size_t kImages = 16;
@@ -312,29 +330,31 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   const std::size_t batchTexels =
       static_cast<std::size_t>(threadCount()) * (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1);
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
-  std::vector<Eigen::MatrixXf> batch;
+  AlignedFloats storage;
+  std::vector<ClusterMatrix> batch;
   for (std::size_t first = 0; first < static_cast<std::size_t>(clusters);) {
     std::size_t last = first, size = 0;
     while (last < static_cast<std::size_t>(clusters) && (last == first || size + members[last].size() <= batchTexels))
       size += members[last++].size();
-    gatherClusters(stack, used, members, first, last, batch);
+    gatherClusters(stack, used, members, first, last, storage, batch);
     parallelFor(last - first, [&](std::size_t begin, std::size_t end) {
-      Eigen::MatrixXf channel;
+      // One channel's columns of a cluster, in a buffer sized once for the largest cluster here.
+      std::size_t largest = 0;
+      for (std::size_t b = begin; b < end; ++b) largest = std::max(largest, members[first + b].size());
+      AlignedFloats channelStorage(channels > 1 ? largest * static_cast<std::size_t>(usedImages) : 0);
       for (std::size_t b = begin; b < end; ++b) {
         const std::size_t g = first + b;
         const std::vector<int>& texelsOf = members[g];
         const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
         if (n == 0) continue;
         // The cluster's ABRDFs as rows (linear / alpha; column 3 j + c: image j, channel c).
-        Eigen::MatrixXf& y = batch[b];
+        ClusterMatrix& y = batch[b];
         y *= invAlpha;
         const double scale = std::sqrt(static_cast<double>(n));
         const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
         for (int c = 0; c < channels; ++c) {
-          if (channels > 1) {
-            channel.resize(n, usedImages);
-            for (Eigen::Index j = 0; j < usedImages; ++j) channel.col(j) = y.col(3 * j + c);
-          }
+          ClusterMatrix channel(channelStorage.data(), n, channels > 1 ? usedImages : 0);
+          for (Eigen::Index j = 0; j < channel.cols(); ++j) channel.col(j) = y.col(3 * j + c);
           const Eigen::MatrixXd u = leadingLeftVectors(channels > 1 ? channel : y, terms, seed);
           for (int r = 0; r < terms; ++r)
             for (Eigen::Index k = 0; k < n; ++k)

@@ -62,7 +62,7 @@ constexpr long kExactSvdUpTo = 256;
 // (n x dims), by block subspace iteration (block terms + 6, Rayleigh-Ritz each iteration,
 // single-threaded BLAS products) until every vector turns by less than about 4e-6 rad per
 // iteration (at most 200 iterations). Deterministic for a seed. Signs are arbitrary.
-void topLeftSingularVectors(const Eigen::MatrixXf& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
+void topLeftSingularVectors(const Eigen::Ref<const Eigen::MatrixXf>& y, int terms, std::uint64_t seed, Eigen::MatrixXd& u,
                             Eigen::VectorXd& sigma, int* iterations = nullptr);
 
 // Refit after training: every texel's coefficients that best mix its cluster's trained terms,
