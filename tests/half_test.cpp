@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <vector>
 
 namespace nbtf {
 namespace {
@@ -78,4 +80,26 @@ TEST(Half, RoundToHalfIsTheConversionsBitForBit) {
 }
 
 }  // namespace
+TEST(Half, RoundToHalfClampedAtZeroIsTheScalarFormBitForBit) {
+  // Every 997th float bit pattern (both signs, subnormals, infinities, NaNs), in arrays whose
+  // length is not a multiple of 4, so the scalar tail runs too.
+  std::vector<float> values, expected;
+  for (std::uint64_t b = 0; b <= 0xFFFFFFFFull; b += 997) {
+    const float v = floatOf(static_cast<std::uint32_t>(b));
+    values.push_back(v);
+    expected.push_back(roundToHalf(std::max(0.0f, v)));
+  }
+  for (std::uint32_t b : {0x7F800000u, 0xFF800000u, 0x7FC00000u, 0x80000000u, 0x477FEFFFu, 0x477FF000u, 0x387FFFFFu}) {
+    values.push_back(floatOf(b));
+    expected.push_back(roundToHalf(std::max(0.0f, floatOf(b))));
+  }
+  if (values.size() % 4 == 0) values.push_back(1.0f), expected.push_back(1.0f);
+  roundToHalfClampedAtZero(values.data(), values.size());
+  ASSERT_EQ(values.size(), expected.size());
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < values.size(); ++i) differing += bitsOf(values[i]) != bitsOf(expected[i]);
+  EXPECT_EQ(differing, 0u);
+  EXPECT_GT(values.size(), 4000000u);
+}
+
 }  // namespace nbtf

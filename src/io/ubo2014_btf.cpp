@@ -432,32 +432,6 @@ void Ubo2014Btf::setProvenance(BtfStack& stack, const Crop& crop) const {
 
 namespace {
 
-// What toStack stores for a computed value, read back: reflectances (a truncated SVD can dip
-// below zero) rounded to half floats.
-inline float storedValue(float v) { return roundToHalf(std::max(0.0f, v)); }
-// storedValue on n values in place, four at a time (GCC vector types: the compiler leaves
-// the scalar loop unvectorized). The clamped value is never negative or NaN, so roundToHalf's
-// sign and NaN cases drop out and its unsigned comparisons become signed ones.
-void toStoredValues(float* v, std::size_t n) {
-  typedef float Floats __attribute__((vector_size(16)));
-  typedef std::int32_t Ints __attribute__((vector_size(16)));
-  std::size_t i = 0;
-  for (; i + 4 <= n; i += 4) {
-    Floats x;
-    std::memcpy(&x, v + i, sizeof x);
-    x = x > 0.0f ? x : Floats{};  // std::max(0.0f, x), NaN included
-    const Floats subnormal = (x + 0.5f) - 0.5f;
-    Ints a, sub;
-    std::memcpy(&a, &x, sizeof a);
-    std::memcpy(&sub, &subnormal, sizeof sub);
-    const Ints normal = (a + 0xFFF + ((a >> 13) & 1)) & ~0x1FFF;
-    Ints r = a < 0x38800000 ? sub : normal;
-    r = a < 0x477FF000 ? r : Ints{} + 0x7F800000;
-    std::memcpy(v + i, &r, sizeof r);
-  }
-  for (; i < n; ++i) v[i] = storedValue(v[i]);
-}
-
 // A crop of a factorized material, its values computed on demand (BtfStack::isComputed).
 //
 // Whole images are made a block of consecutive images at a time (imagesLinear), so that each
@@ -480,7 +454,7 @@ class FactorizedValues : public ComputedStackValues {
   }
   void value(int image, int texel, float rgb[3]) const override {
     btf_->valueLinear(image, fileTexel(texel), rgb);
-    for (int c = 0; c < 3; ++c) rgb[c] = storedValue(rgb[c]);
+    roundToHalfClampedAtZero(rgb, 3);
   }
   void gather(const int* images, int numImages, const int* texels, int count, float* out) const override {
     const int cropTexels = crop_.width * crop_.height;
@@ -494,7 +468,7 @@ class FactorizedValues : public ComputedStackValues {
     std::vector<int> file(count);
     for (int k = 0; k < count; ++k) file[k] = fileTexel(texels[k]);
     btf_->gatherLinear(images, numImages, file.data(), count, out);
-    toStoredValues(out, static_cast<std::size_t>(images ? numImages : btf_->numImages()) * 3 * count);
+    roundToHalfClampedAtZero(out, static_cast<std::size_t>(images ? numImages : btf_->numImages()) * 3 * count);
   }
   std::size_t bytes() const override {
     return btf_->factorBytes() + ubo2014ComputedBlockBytes(crop_.width * crop_.height, btf_->numImages(), blockBytes_);
@@ -536,7 +510,7 @@ class FactorizedValues : public ComputedStackValues {
       const int count = std::min(imagesPerBlock_, btf_->numImages() - first);
       b->rgb.resize(static_cast<std::size_t>(count) * crop_.width * crop_.height * 3);
       btf_->imagesLinear(first, count, crop_, b->rgb.data());
-      toStoredValues(b->rgb.data(), b->rgb.size());
+      roundToHalfClampedAtZero(b->rgb.data(), b->rgb.size());
     } catch (...) {
       lock.lock();
       making_.erase(index);

@@ -2,6 +2,7 @@
 // decoding library can read half-precision parts with the standard library alone.
 #pragma once
 #include <cstdint>
+#include <cstddef>
 #include <cstring>
 
 namespace nbtf {
@@ -76,6 +77,30 @@ inline float roundToHalf(float v) {
   float out;
   std::memcpy(&out, &r, 4);
   return out;
+}
+
+// roundToHalf(max(0, v)) on n values in place: a reflectance stored as a half and read back.
+// Four at a time in GCC vector types (the scalar loop does not vectorize); the clamped value
+// is never negative or NaN, so roundToHalf's sign and NaN cases drop out and its unsigned
+// comparisons become signed ones. The same bits as the scalar form (test in half_test.cpp).
+inline void roundToHalfClampedAtZero(float* v, std::size_t n) {
+  typedef float Floats __attribute__((vector_size(16)));
+  typedef std::int32_t Ints __attribute__((vector_size(16)));
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    Floats x;
+    std::memcpy(&x, v + i, sizeof x);
+    x = x > 0.0f ? x : Floats{};  // max(0, x), NaN included
+    const Floats subnormal = (x + 0.5f) - 0.5f;
+    Ints a, sub;
+    std::memcpy(&a, &x, sizeof a);
+    std::memcpy(&sub, &subnormal, sizeof sub);
+    const Ints normal = (a + 0xFFF + ((a >> 13) & 1)) & ~0x1FFF;
+    Ints r = a < 0x38800000 ? sub : normal;
+    r = a < 0x477FF000 ? r : Ints{} + 0x7F800000;
+    std::memcpy(v + i, &r, sizeof r);
+  }
+  for (; i < n; ++i) v[i] = roundToHalf(v[i] > 0.0f ? v[i] : 0.0f);
 }
 
 }  // namespace nbtf
