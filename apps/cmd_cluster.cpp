@@ -12,6 +12,7 @@
 #include "commands.h"
 #include "io/btf_loader.h"
 #include "io/image_io.h"
+#include "options/memory_options.h"
 #include "pipeline/memory_estimate.h"
 #include "preprocess/abrdf_source.h"
 #include "util/atomic_file.h"
@@ -63,14 +64,20 @@ int clusterStack(const cxxopts::ParseResult& args) {
   if (auto layout = layoutOption(args)) load.layout = *layout;
   if (auto crop = cropOption(args)) load.crop = *crop;
   // Refuse before loading what cannot fit (docs/compress.md, *Memory*).
-  const std::string limitValue = args.count("memory-limit") ? args["memory-limit"].as<std::string>() : "";
-  const std::size_t limit = limitValue.empty() ? defaultMemoryLimit() : parseByteSize(limitValue, "--memory-limit");
+  const MemoryOptions memory = memoryOptions(args);
+  const std::size_t limit = memory.limit ? memory.limit : defaultMemoryLimit();
   load.expandUpTo = expandBudget(limit);
   {
     const StackShape shape = stackShape(input, load);
-    const MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,
-                                                          options.pca.oversampling, threadCount());
-    enforceMemoryLimit(estimate, limit, memoryLimitText(!limitValue.empty(), limitValue), input, shape);
+    MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,
+                                                    options.pca.oversampling, threadCount());
+    // The output folder may not exist yet: its nearest existing folder holds the scratch file.
+    fs::path near = fs::absolute(outDir);
+    while (!near.empty() && !fs::is_directory(near) && near != near.parent_path()) near = near.parent_path();
+    load.scratchDir = stackScratchDir(memory.stack, near.string(), input, shape, estimate, limit, !Progress::quiet());
+    if (!load.scratchDir.empty()) estimate = withStackInScratchFile(estimate);
+    enforceMemoryLimit(estimate, limit, memory.limitText.empty() ? memoryLimitText(false, "") : memory.limitText,
+                       input, shape);
   }
   BtfStack stack = loadBtfStack(input, load);
   info.loadSeconds = secondsSince(step);
@@ -158,11 +165,8 @@ int clusterMain(int argc, char** argv) {
         "representative", "Cluster representative: median or mean",
         cxxopts::value<std::string>()->default_value("median"))(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
-        "memory-limit",
-        "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
-        "physical memory)",
-        cxxopts::value<std::string>())(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
+    addMemoryOptions(options);
     addStackOptions(options);
     cxxopts::ParseResult args;
     if (!parseCommand(options, "input", argc, argv, args)) return 0;

@@ -5,7 +5,8 @@
 #   256: a full 256 x 256 UBO2003-layout material: peak resident memory <= the 8-bit stack
 #        + 1 GiB, wall time < 3 minutes (issue 36); RMSE reported. Also `nbtf cluster` alone.
 #   800: an 800 x 800 UTIA-layout material (nbtf-synth; ~12.6 GB as 8-bit, several GB of PNGs
-#        on disk, synthesis alone 10+ minutes): peak <= 12 GiB, wall time < 10 minutes (issue 36).
+#        on disk, synthesis alone 10+ minutes), run with --memory-limit 12G (the stack goes to a
+#        scratch file): peak <= 12 GiB, wall time < 10 minutes (issue 36).
 #   ubo2014: a 400 x 400 UBO2014 .btf file (22,801 images; nbtf-synth --layout ubo2014 streams
 #        its factorization, 20+ minutes, peak reported), read factorized: peak <= 16 GiB, wall
 #        time < 20 minutes (issue 36).
@@ -58,6 +59,8 @@ if stats:
 ok_mem = peak <= limit
 ok_time = float(seconds) < tmax
 held = f"8-bit stack {stack / gib:.2f} GiB; " if stack else "read factorized; "
+if stats and s.get("stack_scratch_dir"):
+    held = f"the stack in a scratch file in {s['stack_scratch_dir']}; "
 print(f"bench {name}_peak_memory: {peak / gib:.2f} GiB ({held}target <= {limit / gib:.2f} GiB) {'PASS' if ok_mem else 'FAIL'}")
 print(f"bench {name}_time: {float(seconds):.0f} s (target < {tmax:.0f} s){rmse} {'PASS' if ok_time else 'FAIL'}")
 PY
@@ -84,9 +87,11 @@ if [[ $point == 800 || $point == all ]]; then
   fi
   du -sh "$big"
   stack=$((6561 * 800 * 800 * 3))
+  # The 12 GiB target is the limit the run is given: the 11.73 GiB stack goes to a scratch file
+  # beside the data (--stack-storage auto), and the peak counts the process's own memory.
   run full800_compress "$out/compress800.log" "$bin/nbtf" compress "$big" -o "$out/fabric800.nbtf" --clusters 500 \
-    --stats-json "$out/fabric800.json"
-  check full800_compress $stack $(((12 << 30) - stack)) 600 "$out/fabric800.json"
+    --memory-limit 12G --scratch-dir "$(dirname "$big")" --stats-json "$out/fabric800.json"
+  check full800_compress 0 $((12 << 30)) 600 "$out/fabric800.json"
   [[ ${NBTF_KEEP_BIG:-0} == 1 ]] || rm -rf "$big"
 fi
 

@@ -13,6 +13,7 @@
 #include "cluster/cluster_output.h"
 #include "io/btf_names.h"
 #include "io/image_io.h"
+#include "util/atomic_file.h"
 
 namespace nbtf {
 namespace {
@@ -123,6 +124,24 @@ TEST_F(ClusterCliTest, MemoryLimitRefusesBeforeLoadingAndThePeakIsReported) {
   std::ifstream in(out / "summary.json");
   nlohmann::json summary = nlohmann::json::parse(in);
   EXPECT_GT(summary["peak_memory_bytes"].get<double>(), 1e6);
+}
+
+// --stack-storage file: the same clusters from a stack in an unnamed scratch file, nothing left
+// in the folder it was made in (the output folder's nearest existing parent by default).
+TEST_F(ClusterCliTest, AStackInAScratchFileGivesTheSameClusters) {
+  std::string output;
+  const std::string args = (root_ / "stack").string() + " --clusters 2 --components 2 -q -o ";
+  ASSERT_EQ(run(args + (root_ / "memory").string() + " --stack-storage memory", output), 0) << output;
+  fs::create_directories(root_ / "scratch");
+  ASSERT_EQ(run(args + (root_ / "scratch" / "file").string() + " --stack-storage file", output), 0) << output;
+  EXPECT_EQ(readFileBytes((root_ / "scratch" / "file" / "labels.png").string()),
+            readFileBytes((root_ / "memory" / "labels.png").string()));
+  std::vector<fs::path> left;
+  for (const auto& e : fs::directory_iterator(root_ / "scratch")) left.push_back(e.path());
+  EXPECT_EQ(left, std::vector<fs::path>{root_ / "scratch" / "file"});
+  EXPECT_EQ(run(args + (root_ / "x").string() + " --stack-storage file --scratch-dir " + (root_ / "none").string(),
+                output), 1);
+  EXPECT_NE(output.find((root_ / "none").string() + ": --scratch-dir: not a folder"), std::string::npos) << output;
 }
 
 TEST_F(ClusterCliTest, CropIsApplied) {

@@ -197,6 +197,37 @@ TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
   EXPECT_EQ(readFileBytes(again), readFileBytes(out));
 }
 
+// --stack-storage file keeps the samples in an unnamed scratch file (under --scratch-dir): the
+// same file as with the stack in memory, nothing left in the folder, the folder in the stats.
+TEST_F(CmdCompress, StackInAScratchFileGivesTheSameFile) {
+  std::string stack = writeStack();
+  const std::string common = " --clusters 6 --holdout 0.1 --seed 3 --threads 2 --config " + writeQuickConfig(20) + " -q";
+  RunResult r = run("compress " + stack + " -o " + path("memory.nbtf") + common + " --stack-storage memory");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  fs::create_directories(path("scratch"));
+  r = run("compress " + stack + " -o " + path("file.nbtf") + common + " --stack-storage file --scratch-dir " +
+          path("scratch") + " --stats-json " + path("stats.json"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(readFileBytes(path("file.nbtf")), readFileBytes(path("memory.nbtf")));
+  EXPECT_TRUE(fs::is_empty(path("scratch"))) << "the scratch file has no name and goes with the process";
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(path("stats.json")));
+  EXPECT_TRUE(contains(j["stack_scratch_dir"].get<std::string>(), "scratch")) << j.dump();
+  // auto keeps a stack this small in memory.
+  r = run("compress " + stack + " -o " + path("auto.nbtf") + common + " --stats-json " + path("auto.json"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(path("auto.json")))["stack_scratch_dir"].get<std::string>(), "");
+  EXPECT_EQ(readFileBytes(path("auto.nbtf")), readFileBytes(path("memory.nbtf")));
+
+  r = run("compress " + stack + " -o " + path("x.nbtf") + common + " --stack-storage disk");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--stack-storage must be auto, memory or file, got \"disk\"")) << r.output;
+  r = run("compress " + stack + " -o " + path("x.nbtf") + common + " --stack-storage file --scratch-dir " +
+          path("missing"));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, path("missing") + ": --scratch-dir: not a folder")) << r.output;
+  EXPECT_FALSE(fs::exists(path("x.nbtf")));
+}
+
 // A config file's training.threads is capped at the cores like --threads, with the same
 // warning (it was taken as given: 1000 threads ran, and the file recorded 1000).
 TEST_F(CmdCompress, ConfigThreadsAreCappedLikeTheOption) {

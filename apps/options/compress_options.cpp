@@ -8,6 +8,7 @@
 #include "model/config_section.h"
 #include "pipeline/compress_config.h"
 #include "util/atomic_file.h"
+#include "options/memory_options.h"
 #include "util/memory.h"
 
 namespace nbtf::cli {
@@ -168,11 +169,8 @@ void addCompressOptions(cxxopts::Options& options) {
       "size-budget", "--adaptive: the written file is at most BYTES bytes", cxxopts::value<long long>())(
       "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
       "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
-      cxxopts::value<int>())(
-      "memory-limit",
-      "Refuse, before loading, a run whose estimated peak memory is above SIZE (16G, 800M, bytes; default: 75% of "
-      "physical memory)",
-      cxxopts::value<std::string>());
+      cxxopts::value<int>());
+  addMemoryOptions(options);
   addStackOptions(options);
 }
 
@@ -212,11 +210,10 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   if (auto layout = layoutOption(args)) o.load.layout = *layout;
   if (auto crop = cropOption(args)) o.load.crop = *crop;
   if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
-  if (args.count("memory-limit")) {
-    const std::string limit = args["memory-limit"].as<std::string>();
-    o.memoryLimit = parseByteSize(limit, "--memory-limit");
-    o.memoryLimitText = "--memory-limit " + limit;
-  }
+  const MemoryOptions memory = memoryOptions(args);
+  o.memoryLimit = memory.limit;
+  o.memoryLimitText = memory.limitText;
+  o.stackStorage = memory.stack;
   request.statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
   return request;
 }

@@ -251,7 +251,8 @@ BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
   int srcW = 0, srcH = 0;
   const Crop crop = cropFor(path, listing, options, srcW, srcH);
 
-  BtfStack stack(listing.lights, listing.views, crop.width, crop.height, exr ? SampleType::Half : SampleType::Srgb8);
+  BtfStack stack(listing.lights, listing.views, crop.width, crop.height, exr ? SampleType::Half : SampleType::Srgb8,
+                 options.scratchDir);
   stack.source = path;
   stack.layout = listing.layout;
   stack.sourceWidth = srcW;

@@ -18,6 +18,9 @@ struct LoadOptions {
   // (BtfStack::isComputed: the same values, memory of the factors only).
   std::size_t expandUpTo = kExpandUpToDefault;
   static constexpr std::size_t kExpandUpToDefault = std::size_t(2) << 30;
+  // Non-empty: an image stack's samples go to a scratch file in this folder instead of memory
+  // (BtfStack::inScratchFile; the same values, the pages held by the system's file cache).
+  std::string scratchDir;
 };
 
 // Finds the images of a stack under `path`: either a folder per view (tvTTT_pvPPP/) or a

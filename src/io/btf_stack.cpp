@@ -15,9 +15,20 @@ namespace nbtf {
 
 BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height,
                    SampleType type)
+    : BtfStack(std::move(lights), std::move(views), width, height, type, std::string()) {}
+
+BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height,
+                   SampleType type, const std::string& scratchDir)
     : lights_(std::move(lights)), views_(std::move(views)), width_(width), height_(height), type_(type) {
-  data_.resize(static_cast<std::size_t>(numImages()) * bytesPerImage());
+  const std::size_t bytes = static_cast<std::size_t>(numImages()) * bytesPerImage();
+  if (scratchDir.empty())
+    data_.resize(bytes);
+  else
+    scratch_ = std::make_shared<ScratchMapping>(
+        scratchDir, bytes, type == SampleType::Srgb8 ? "the 8-bit stack" : "the half-float stack");
 }
+
+std::string BtfStack::scratchDirectory() const { return scratch_ ? scratch_->directory() : std::string(); }
 
 BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height,
                    SampleType type, std::shared_ptr<const ComputedStackValues> values)
@@ -35,11 +46,11 @@ namespace {
 
 std::uint8_t* BtfStack::imageBytes(int image) {
   if (computed_) noStoredBytes(source);
-  return data_.data() + static_cast<std::size_t>(image) * bytesPerImage();
+  return samples() + static_cast<std::size_t>(image) * bytesPerImage();
 }
 const std::uint8_t* BtfStack::imageBytes(int image) const {
   if (computed_) noStoredBytes(source);
-  return data_.data() + static_cast<std::size_t>(image) * bytesPerImage();
+  return samples() + static_cast<std::size_t>(image) * bytesPerImage();
 }
 
 namespace {
@@ -142,17 +153,17 @@ void BtfStack::valueRange(float& lo, float& hi) const {
     if (numImages() == 0 || numTexels() == 0) lo = hi = 0;
     return;
   }
-  if (data_.empty()) {
+  if (sampleBytes() == 0) {
     lo = hi = 0;
     return;
   }
   if (type_ == SampleType::Srgb8) {
-    auto [mn, mx] = std::minmax_element(data_.begin(), data_.end());
+    auto [mn, mx] = std::minmax_element(samples(), samples() + sampleBytes());
     lo = srgb8ToLinear(*mn), hi = srgb8ToLinear(*mx);
     return;
   }
-  const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(data_.data());
-  for (std::size_t i = 0, n = data_.size() / 2; i < n; ++i) {
+  const std::uint16_t* h = reinterpret_cast<const std::uint16_t*>(samples());
+  for (std::size_t i = 0, n = sampleBytes() / 2; i < n; ++i) {
     float v = halfToFloat(h[i]);
     lo = std::min(lo, v), hi = std::max(hi, v);
   }

@@ -9,6 +9,10 @@
 // factorized UBO2014 material, io/ubo2014_btf.h), so that a material larger than memory as
 // half floats can still be compressed. Every linear accessor works on both; the raw-storage
 // ones (imageBytes, setImageLinear) exist only for stored stacks.
+//
+// A stored stack's samples are in memory, or in an unnamed scratch file mapped into memory
+// (util/scratch_mapping.h) when they would not fit beside the run's working sets: the same
+// bytes and accessors, the pages held by the system's file cache instead of the process.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -18,6 +22,7 @@
 
 #include "util/directions.h"
 #include "util/layout.h"
+#include "util/scratch_mapping.h"
 
 namespace nbtf {
 
@@ -41,6 +46,11 @@ class BtfStack {
  public:
   BtfStack() = default;
   BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type);
+  // The same with the samples in a scratch file under `scratchDir` ("" = in memory). Throws
+  // nbtf::FileAccessError naming the folder when the file cannot be made there. Copies of such
+  // a stack share its samples.
+  BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type,
+           const std::string& scratchDir);
   // A stack whose values are computed (no storage); `type` is the precision they are rounded to.
   BtfStack(std::vector<Direction> lights, std::vector<Direction> views, int width, int height, SampleType type,
            std::shared_ptr<const ComputedStackValues> values);
@@ -57,8 +67,12 @@ class BtfStack {
   const std::vector<Direction>& views() const { return views_; }
   SampleType sampleType() const { return type_; }
   bool isComputed() const { return computed_ != nullptr; }
-  // Bytes the values take: the stored samples, or what a computed stack keeps.
-  std::size_t bytesInMemory() const { return computed_ ? computed_->bytes() : data_.size(); }
+  // Whether the stored samples live in a scratch file (the folder it is in; "" = in memory).
+  bool inScratchFile() const { return scratch_ != nullptr; }
+  std::string scratchDirectory() const;
+  // Bytes the values take in the process's memory: the stored samples, what a computed stack
+  // keeps, or 0 for samples in a scratch file.
+  std::size_t bytesInMemory() const { return computed_ ? computed_->bytes() : scratch_ ? 0 : data_.size(); }
   // Bytes this stack would take as linear float32 RGB (the paper's "raw" size).
   std::size_t rawFloat32Bytes() const { return static_cast<std::size_t>(numImages()) * numTexels() * 3 * 4; }
 
@@ -94,7 +108,12 @@ class BtfStack {
   std::vector<Direction> lights_, views_;
   int width_ = 0, height_ = 0;
   SampleType type_ = SampleType::Srgb8;
+  std::uint8_t* samples() { return scratch_ ? scratch_->data() : data_.data(); }
+  const std::uint8_t* samples() const { return scratch_ ? scratch_->data() : data_.data(); }
+  std::size_t sampleBytes() const { return scratch_ ? scratch_->size() : data_.size(); }
+
   std::vector<std::uint8_t> data_;
+  std::shared_ptr<ScratchMapping> scratch_;  // the samples, when they live in a scratch file
   std::shared_ptr<const ComputedStackValues> computed_;
 };
 

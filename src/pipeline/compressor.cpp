@@ -513,9 +513,13 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     o.load.expandUpTo = expandBudget(stats.memoryLimit);
     const StackShape shape = stackShape(input, o.load);
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
-    const MemoryEstimate estimate = estimateCompressMemory(
+    MemoryEstimate estimate = estimateCompressMemory(
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
         PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
+    const std::string outputDir = std::filesystem::path(output).parent_path().string();
+    o.load.scratchDir = stackScratchDir(o.stackStorage, outputDir, input, shape, estimate, stats.memoryLimit, o.progress);
+    if (!o.load.scratchDir.empty()) estimate = withStackInScratchFile(estimate);
+    stats.stackScratchDir = o.load.scratchDir;
     stats.memoryEstimate = estimate.total();
     enforceMemoryLimit(estimate, stats.memoryLimit,
                        o.memoryLimitText.empty() ? memoryLimitText(false, "") : o.memoryLimitText, input, shape);
@@ -562,6 +566,9 @@ std::string formatMemoryLine(const CompressStats& s) {
   if (s.peakMemory == 0) return "";
   std::string line = "memory: peak " + formatBytes(s.peakMemory) + " resident (estimated before loading: " +
                      formatBytes(s.memoryEstimate) + "; --memory-limit " + formatBytes(s.memoryLimit) + ")\n";
+  if (!s.stackScratchDir.empty())
+    line += "        the image stack was kept in a scratch file in " + s.stackScratchDir +
+            " (the system's file cache holds its pages, not the process)\n";
   if (s.computedStack)
     line += "        the UBO2014 input stayed factorized (its half-float expansion is over half the limit): values "
             "computed from the factors when read\n";
@@ -724,6 +731,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
   j["interrupted"] = s.interrupted;
   j["memory_bytes"] = {{"peak_resident", s.peakMemory}, {"estimate", s.memoryEstimate}, {"limit", s.memoryLimit}};
+  j["stack_scratch_dir"] = s.stackScratchDir;
   j["computed_stack"] = s.computedStack;
   j["world_size"] = s.worldSize;
   j["all_reduce_bytes_per_step"] = s.allReduceBytesPerStep;

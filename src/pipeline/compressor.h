@@ -11,6 +11,7 @@
 
 #include "codec/nbtf_file.h"
 #include "io/btf_loader.h"
+#include "pipeline/memory_estimate.h"
 #include "model/trainer.h"
 #include "util/path_guard.h"
 
@@ -63,6 +64,9 @@ struct CompressOptions {
   // physical memory). memoryLimitText: how the limit was given, for the error ("" = default).
   std::size_t memoryLimit = 0;
   std::string memoryLimitText;
+  // Where an image stack's samples live (memory_estimate.h); the scratch folder defaults to
+  // the output's.
+  StackStorageOptions stackStorage;
 };
 
 // Wall-clock seconds per stage. The cluster stage's parts (clustered runs without --adaptive)
@@ -115,6 +119,7 @@ struct CompressStats {
   // resident set size at the end (getrusage), bytes; 0 = not measured (compressStack alone).
   std::size_t memoryEstimate = 0, memoryLimit = 0, peakMemory = 0;
   bool computedStack = false;  // a UBO2014 input kept factorized (values computed when read)
+  std::string stackScratchDir;  // the folder of the stack's scratch file ("" = the stack was in memory)
 };
 
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).

@@ -1,12 +1,16 @@
 #include "pipeline/memory_estimate.h"
 
 #include <algorithm>
+#include <iostream>
 #include <sstream>
 
 #include "cluster/cluster_values.h"
+#include "io/ubo2014_btf.h"
 #include "preprocess/abrdf_source.h"
 #include "util/error.h"
 #include "util/memory.h"
+#include "util/parallel.h"
+#include "util/scratch_mapping.h"
 
 namespace nbtf {
 
@@ -68,6 +72,33 @@ MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, boo
   return e;
 }
 
+MemoryEstimate withStackInScratchFile(MemoryEstimate e) {
+  e.stack = std::min(e.stack, kScratchResidentWindow);
+  e.stackInScratchFile = true;
+  return e;
+}
+
+std::string stackScratchDir(const StackStorageOptions& options, const std::string& defaultDir,
+                            const std::string& input, const StackShape& shape, const MemoryEstimate& estimate,
+                            std::size_t limit, bool announce) {
+  if (shape.computedBytes || looksLikeUbo2014(input) || options.storage == StackStorage::Memory) return "";
+  std::string dir = options.scratchDir.empty() ? defaultDir : options.scratchDir;
+  if (dir.empty()) dir = ".";
+  if (options.storage == StackStorage::File) {
+    if (announce && isMemoryFileSystem(dir))
+      std::cerr << "note: " << dir << " is a file system in memory: the stack's scratch file there takes as much "
+                << "memory as the stack (choose a folder on disk with --scratch-dir)\n";
+    return dir;
+  }
+  if (estimate.total() <= limit || withStackInScratchFile(estimate).total() > limit || isMemoryFileSystem(dir))
+    return "";
+  if (announce)
+    std::cerr << "stack: its " << formatBytes(estimate.stack) << " go to a scratch file in " << dir
+              << " (in memory the run would need about " << formatBytes(estimate.total()) << ", over the limit of "
+              << formatBytes(limit) << ")\n";
+  return dir;
+}
+
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
                                      int workers) {
   (void)clusters;
@@ -86,8 +117,9 @@ void enforceMemoryLimit(const MemoryEstimate& e, std::size_t limit, const std::s
   std::ostringstream s;
   s << shape.width << " x " << shape.height << " texels x " << shape.images() << " images ("
     << (shape.computedBytes ? "computed from UBO2014 factors" : shape.type == SampleType::Srgb8 ? "8-bit" : "half float")
-    << ") need about " << formatBytes(e.total())
-    << " of memory: the stack " << formatBytes(e.stack) << " + " << formatBytes(e.working) << " for the "
+    << ") need about " << formatBytes(e.total()) << " of memory: "
+    << (e.stackInScratchFile ? "the stack's pages in use (it is in a scratch file) " : "the stack ")
+    << formatBytes(e.stack) << " + " << formatBytes(e.working) << " for the "
     << e.stage << " + " << formatBytes(e.process) << " for the program; " << limitText << " allows "
     << formatBytes(limit);
   if (e.stack + e.process > limit)

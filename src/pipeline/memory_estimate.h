@@ -9,14 +9,16 @@
 #include <string>
 
 #include "io/btf_loader.h"
+#include "util/scratch_mapping.h"
 
 namespace nbtf {
 
 struct MemoryEstimate {
-  std::size_t stack = 0;    // the loaded stack (8-bit or half)
+  std::size_t stack = 0;    // the loaded stack (8-bit or half), or its resident window when in a scratch file
   std::size_t working = 0;  // the largest working set after loading (the stage named below)
   std::size_t process = 0;  // the program itself: libraries (libtorch, OpenCV, BLAS), allocator slack
   std::string stage;        // where the working set peaks
+  bool stackInScratchFile = false;  // the stack's samples in a scratch file (withStackInScratchFile)
   std::size_t total() const { return stack + working + process; }
 };
 
@@ -25,6 +27,26 @@ struct MemoryEstimate {
 // coefficientsPerTexel: the per-texel modulation's (terms x channels; 1 without).
 MemoryEstimate estimateCompressMemory(const StackShape& shape, int clusters, bool pcaBaseline, int components,
                                       int oversampling, int coefficientsPerTexel, int workers);
+// The same estimate with the stack's samples in a scratch file (util/scratch_mapping.h): the
+// stack counts as its resident budget and what one trim interval may add, at most the stack.
+MemoryEstimate withStackInScratchFile(MemoryEstimate estimate);
+constexpr std::size_t kScratchResidentWindow = ScratchMapping::kDefaultResidentBudget + (std::size_t(256) << 20);
+// Where an image stack's samples live (docs/compress.md, *A stack in a scratch file*): Auto puts
+// them in a scratch file only when the run would not fit in the memory limit with them in
+// memory but fits with them in a file; Memory and File force one. scratchDir: the file's
+// folder ("" = the command's default, e.g. the output's folder).
+enum class StackStorage { Auto, Memory, File };
+struct StackStorageOptions {
+  StackStorage storage = StackStorage::Auto;
+  std::string scratchDir;
+};
+// The folder of the stack's scratch file for this run, or "" to keep the stack in memory.
+// Never a file for a UBO2014 input (it is expanded or computed, not stored from images); Auto
+// never onto a file system in memory (tmpfs: the file would take the same memory). With
+// `announce`, says on stderr why the stack goes to a file (Auto) or warns about tmpfs (File).
+std::string stackScratchDir(const StackStorageOptions& options, const std::string& defaultDir,
+                            const std::string& input, const StackShape& shape, const MemoryEstimate& estimate,
+                            std::size_t limit, bool announce);
 // `nbtf cluster` (no training; the texel colour images).
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
                                      int workers);
