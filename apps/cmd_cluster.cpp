@@ -74,8 +74,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
     // The output folder may not exist yet: its nearest existing folder holds the scratch file.
     fs::path near = fs::absolute(outDir);
     while (!near.empty() && !fs::is_directory(near) && near != near.parent_path()) near = near.parent_path();
-    load.scratchDir = stackScratchDir(memory.stack, near.string(), input, shape, estimate, limit, !Progress::quiet());
-    if (!load.scratchDir.empty()) estimate = withStackInScratchFile(estimate);
+    load.scratchDir = stackScratchDir(memory.stack, near.string(), input, estimate, limit, !Progress::quiet());
     enforceMemoryLimit(estimate, limit, memory.limitText.empty() ? memoryLimitText(false, "") : memory.limitText,
                        input, shape);
   }

@@ -4,9 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <thread>
 
 #include "io/btf_stack.h"

@@ -517,8 +517,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
         PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
     const std::string outputDir = std::filesystem::path(output).parent_path().string();
-    o.load.scratchDir = stackScratchDir(o.stackStorage, outputDir, input, shape, estimate, stats.memoryLimit, o.progress);
-    if (!o.load.scratchDir.empty()) estimate = withStackInScratchFile(estimate);
+    o.load.scratchDir = stackScratchDir(o.stackStorage, outputDir, input, estimate, stats.memoryLimit, o.progress);
     stats.stackScratchDir = o.load.scratchDir;
     stats.memoryEstimate = estimate.total();
     enforceMemoryLimit(estimate, stats.memoryLimit,

@@ -79,23 +79,23 @@ MemoryEstimate withStackInScratchFile(MemoryEstimate e) {
 }
 
 std::string stackScratchDir(const StackStorageOptions& options, const std::string& defaultDir,
-                            const std::string& input, const StackShape& shape, const MemoryEstimate& estimate,
-                            std::size_t limit, bool announce) {
-  if (shape.computedBytes || looksLikeUbo2014(input) || options.storage == StackStorage::Memory) return "";
+                            const std::string& input, MemoryEstimate& estimate, std::size_t limit, bool announce) {
+  if (looksLikeUbo2014(input) || options.storage == StackStorage::Memory) return "";
   std::string dir = options.scratchDir.empty() ? defaultDir : options.scratchDir;
   if (dir.empty()) dir = ".";
+  const MemoryEstimate inFile = withStackInScratchFile(estimate);
   if (options.storage == StackStorage::File) {
     if (announce && isMemoryFileSystem(dir))
       std::cerr << "note: " << dir << " is a file system in memory: the stack's scratch file there takes as much "
                 << "memory as the stack (choose a folder on disk with --scratch-dir)\n";
-    return dir;
+  } else {
+    if (estimate.total() <= limit || inFile.total() > limit || isMemoryFileSystem(dir)) return "";
+    if (announce)
+      std::cerr << "stack: its " << formatBytes(estimate.stack) << " go to a scratch file in " << dir
+                << " (in memory the run would need about " << formatBytes(estimate.total())
+                << ", over the limit of " << formatBytes(limit) << ")\n";
   }
-  if (estimate.total() <= limit || withStackInScratchFile(estimate).total() > limit || isMemoryFileSystem(dir))
-    return "";
-  if (announce)
-    std::cerr << "stack: its " << formatBytes(estimate.stack) << " go to a scratch file in " << dir
-              << " (in memory the run would need about " << formatBytes(estimate.total()) << ", over the limit of "
-              << formatBytes(limit) << ")\n";
+  estimate = inFile;
   return dir;
 }
 

@@ -40,13 +40,13 @@ struct StackStorageOptions {
   StackStorage storage = StackStorage::Auto;
   std::string scratchDir;
 };
-// The folder of the stack's scratch file for this run, or "" to keep the stack in memory.
-// Never a file for a UBO2014 input (it is expanded or computed, not stored from images); Auto
-// never onto a file system in memory (tmpfs: the file would take the same memory). With
-// `announce`, says on stderr why the stack goes to a file (Auto) or warns about tmpfs (File).
+// The folder of the stack's scratch file for this run, or "" to keep the stack in memory; with a
+// folder, `estimate` becomes withStackInScratchFile's. Never a file for a UBO2014 input (it is
+// expanded or computed, not stored from images); Auto never onto a file system in memory (tmpfs:
+// the file would take the same memory). With `announce`, says on stderr why the stack goes to a
+// file (Auto) or warns about tmpfs (File).
 std::string stackScratchDir(const StackStorageOptions& options, const std::string& defaultDir,
-                            const std::string& input, const StackShape& shape, const MemoryEstimate& estimate,
-                            std::size_t limit, bool announce);
+                            const std::string& input, MemoryEstimate& estimate, std::size_t limit, bool announce);
 // `nbtf cluster` (no training; the texel colour images).
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
                                      int workers);
