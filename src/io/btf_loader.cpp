@@ -18,6 +18,7 @@
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/scratch_mapping.h"
 
 namespace nbtf {
 namespace fs = std::filesystem;
@@ -284,11 +285,19 @@ BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
     } else {
       Image8 img = readImage8(file);
       checkSize(img.width, img.height);
-      std::uint8_t* dst = stack.imageBytes(static_cast<int>(i));
-      for (int y = 0; y < crop.height; ++y)
-        std::copy_n(img.rgb.data() + (static_cast<std::size_t>(crop.y + y) * srcW + crop.x) * 3, crop.width * 3,
-                    dst + static_cast<std::size_t>(y) * crop.width * 3);
+      if (crop.width == srcW && crop.height == srcH) {
+        stack.writeImageBytes(static_cast<int>(i), img.rgb.data());
+      } else {
+        std::vector<std::uint8_t> rows(static_cast<std::size_t>(crop.width) * crop.height * 3);
+        for (int y = 0; y < crop.height; ++y)
+          std::copy_n(img.rgb.data() + (static_cast<std::size_t>(crop.y + y) * srcW + crop.x) * 3, crop.width * 3,
+                      rows.data() + static_cast<std::size_t>(y) * crop.width * 3);
+        stack.writeImageBytes(static_cast<int>(i), rows.data());
+      }
     }
+    // A stack in a scratch file relies on the file cache holding it: the images, read once,
+    // must not take that room.
+    if (stack.inScratchFile()) dropFromFileCache(file);
     progress.advance();
   });
   progress.finish();

@@ -53,7 +53,24 @@ const std::uint8_t* BtfStack::imageBytes(int image) const {
   return samples() + static_cast<std::size_t>(image) * bytesPerImage();
 }
 
+const std::uint8_t* BtfStack::readImageBytes(int image, std::size_t first, std::size_t count,
+                                             std::vector<std::uint8_t>& buffer) const {
+  if (!scratch_) return imageBytes(image) + first;
+  if (first > bytesPerImage() || count > bytesPerImage() - first)
+    throw Error("BtfStack::readImageBytes: bytes past the end of an image");
+  buffer.resize(count);
+  scratch_->read(static_cast<std::size_t>(image) * bytesPerImage() + first, count, buffer.data());
+  return buffer.data();
+}
+
 namespace {
+// One buffer per thread for the images a stack in a scratch file copies out: reused, so that
+// reading an image does not fault in a fresh allocation every time.
+std::vector<std::uint8_t>& threadImageBuffer() {
+  thread_local std::vector<std::uint8_t> buffer;
+  return buffer;
+}
+
 inline float halfToFloat(std::uint16_t bits) {
   Imath::half h;
   h.setBits(bits);
@@ -77,7 +94,7 @@ float BtfStack::sample(int image, int texel, int channel) const {
 void BtfStack::imageLinear(int image, float* out) const {
   if (computed_) return computed_->image(image, out);
   std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
-  const std::uint8_t* src = imageBytes(image);
+  const std::uint8_t* src = readImageBytes(image, 0, bytesPerImage(), threadImageBuffer());
   if (type_ == SampleType::Srgb8) {
     const float* lut = srgb8ToLinearTable();
     for (std::size_t i = 0; i < n; ++i) out[i] = lut[src[i]];
@@ -115,11 +132,24 @@ void BtfStack::gatherLinear(const int* images, int numImages, const int* texels,
   if (!images) numImages = this->numImages();
   if (computed_) return computed_->gather(images, numImages, texels, count, out);
   const float* lut = type_ == SampleType::Srgb8 ? srgb8ToLinearTable() : nullptr;
+  // In a scratch file, the span of texels the gather covers is copied out of each image when it
+  // is at most 64 times what the gather needs (a slice, or a batch of clusters); a scattered few
+  // texels are read through the mapping.
+  int lo = 0, hi = -1;
+  if (scratch_ && count > 0) {
+    const auto [mn, mx] = std::minmax_element(texels, texels + count);
+    if (static_cast<std::int64_t>(*mx) - *mn + 1 <= std::int64_t(64) * count) lo = *mn, hi = *mx;
+  }
+  const std::size_t spanFirst = static_cast<std::size_t>(lo) * 3 * bytesPerSample();
+  const std::size_t spanBytes = static_cast<std::size_t>(hi - lo + 1) * 3 * bytesPerSample();
   for (int j = 0; j < numImages; ++j) {
-    const std::uint8_t* src = imageBytes(images ? images[j] : j);
+    const int image = images ? images[j] : j;
+    // src starts at texel lo.
+    const std::uint8_t* src =
+        hi >= lo ? readImageBytes(image, spanFirst, spanBytes, threadImageBuffer()) : imageBytes(image);
     float* o = out + static_cast<std::size_t>(3 * j) * count;
     for (int k = 0; k < count; ++k) {
-      const std::size_t i = static_cast<std::size_t>(texels[k]) * 3;
+      const std::size_t i = static_cast<std::size_t>(texels[k] - lo) * 3;
       for (int c = 0; c < 3; ++c) {
         float v;
         if (lut) {
@@ -169,15 +199,26 @@ void BtfStack::valueRange(float& lo, float& hi) const {
   }
 }
 
+void BtfStack::writeImageBytes(int image, const std::uint8_t* bytes) {
+  std::uint8_t* dst = imageBytes(image);  // throws for a computed stack
+  if (scratch_)
+    scratch_->write(static_cast<std::size_t>(image) * bytesPerImage(), bytesPerImage(), bytes);
+  else
+    std::copy_n(bytes, bytesPerImage(), dst);
+}
+
 void BtfStack::setImageLinear(int image, const float* rgb) {
   std::size_t n = static_cast<std::size_t>(numTexels()) * 3;
-  std::uint8_t* dst = imageBytes(image);  // throws for a computed stack
+  std::vector<std::uint8_t>& converted = threadImageBuffer();
+  if (scratch_) converted.resize(bytesPerImage());
+  std::uint8_t* dst = scratch_ ? converted.data() : imageBytes(image);  // imageBytes throws for a computed stack
   if (type_ == SampleType::Srgb8) {
     for (std::size_t i = 0; i < n; ++i) dst[i] = linearToSrgb8(rgb[i]);
   } else {
     std::uint16_t* h = reinterpret_cast<std::uint16_t*>(dst);
     for (std::size_t i = 0; i < n; ++i) h[i] = Imath::half(rgb[i]).bits();
   }
+  if (scratch_) writeImageBytes(image, dst);
 }
 
 }  // namespace nbtf

@@ -93,8 +93,17 @@ class BtfStack {
   // ---- Raw storage (loaders and writers; stored stacks only: a computed one throws)
   std::uint8_t* imageBytes(int image);
   const std::uint8_t* imageBytes(int image) const;
+  // Bytes [first, first + count) of image `image`, for reading: a pointer into memory, or, for a
+  // stack in a scratch file, those bytes copied into `buffer` (resized as needed) by read calls.
+  // Passes over a whole stack read it this way: through the mapping, every pass over a stack
+  // larger than the mapping's budget maps it again fault by fault, several times slower.
+  const std::uint8_t* readImageBytes(int image, std::size_t first, std::size_t count,
+                                     std::vector<std::uint8_t>& buffer) const;
   std::size_t bytesPerImage() const { return static_cast<std::size_t>(numTexels()) * 3 * bytesPerSample(); }
   std::size_t bytesPerSample() const { return type_ == SampleType::Srgb8 ? 1 : 2; }
+  // Stores one image's bytes (bytesPerImage of them): copied into memory, or written to the
+  // scratch file by write calls (no page faults).
+  void writeImageBytes(int image, const std::uint8_t* bytes);
   // Stores linear floats into image `image` (converted to the stack's sample type).
   void setImageLinear(int image, const float* rgb);
 

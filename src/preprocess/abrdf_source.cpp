@@ -147,8 +147,10 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
   const Eigen::Index m = rows();
   const bool srgb = stack_.sampleType() == SampleType::Srgb8;
   std::vector<float> rgb(srgb ? 0 : static_cast<std::size_t>(m) * 3);  // half or computed: one linear image
+  std::vector<std::uint8_t> copy;  // an 8-bit image read out of a scratch file
   for (Eigen::Index image = c0 / 3; image <= (c1 - 1) / 3; ++image) {
-    const std::uint8_t* bytes = srgb ? stack_.imageBytes(static_cast<int>(image)) : nullptr;
+    const std::uint8_t* bytes =
+        srgb ? stack_.readImageBytes(static_cast<int>(image), 0, stack_.bytesPerImage(), copy) : nullptr;
     if (!srgb) stack_.imageLinear(static_cast<int>(image), rgb.data());
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * image + c;
@@ -175,8 +177,9 @@ void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) co
     for (Eigen::Index d = 0; d < cols(); ++d) standardizeRun(out + d * n, n, s_.mean[d], s_.stddev[d]);
     return;
   }
+  std::vector<std::uint8_t> copy;  // the slice of an image read out of a scratch file
   for (int image = 0; image < stack_.numImages(); ++image) {
-    const std::uint8_t* bytes = stack_.imageBytes(image) + 3 * r0;
+    const std::uint8_t* bytes = stack_.readImageBytes(image, 3 * static_cast<std::size_t>(r0), 3 * static_cast<std::size_t>(n), copy);
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
       const float* t = &table_[static_cast<std::size_t>(d) * 256];

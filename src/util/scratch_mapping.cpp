@@ -92,6 +92,39 @@ void ScratchMapping::releaseResident() const {
   ++releases_;
 }
 
+namespace {
+
+// Moves `bytes` bytes at `offset` of a file of `size` bytes with `transfer` (pread or pwrite on
+// `data`), resuming after short transfers and interruptions. `verb` names it in errors.
+template <typename Pointer, typename Transfer>
+void transferAll(const std::string& dir, std::size_t size, std::size_t offset, std::size_t bytes, Pointer data,
+                 const char* verb, Transfer transfer) {
+  if (offset > size || bytes > size - offset)
+    throw Error("scratch file in " + dir + ": a " + verb + " of " + std::to_string(bytes) + " bytes at " +
+                std::to_string(offset) + " is past its end (" + std::to_string(size) + " bytes)");
+  while (bytes > 0) {
+    const ssize_t n = transfer(data, bytes, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : EIO;
+      throw fileAccessError(dir, std::string("cannot ") + verb + " the scratch file: " + std::strerror(err), err);
+    }
+    data += n, offset += static_cast<std::size_t>(n), bytes -= static_cast<std::size_t>(n);
+  }
+}
+
+}  // namespace
+
+void ScratchMapping::read(std::size_t offset, std::size_t bytes, std::uint8_t* out) const {
+  transferAll(dir_, size_, offset, bytes, out, "read",
+              [this](std::uint8_t* p, std::size_t n, off_t at) { return ::pread(fd_, p, n, at); });
+}
+
+void ScratchMapping::write(std::size_t offset, std::size_t bytes, const std::uint8_t* in) {
+  transferAll(dir_, size_, offset, bytes, in, "write",
+              [this](const std::uint8_t* p, std::size_t n, off_t at) { return ::pwrite(fd_, p, n, at); });
+}
+
 std::uint64_t ScratchMapping::releases() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return releases_;
@@ -116,6 +149,13 @@ std::size_t residentFileBytes() {
   const int n = std::fscanf(f, "%lu %lu %lu", &size, &resident, &shared);
   std::fclose(f);
   return n == 3 ? static_cast<std::size_t>(shared) * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE)) : 0;
+}
+
+void dropFromFileCache(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
+  ::close(fd);
 }
 
 bool isMemoryFileSystem(const std::string& dir) {

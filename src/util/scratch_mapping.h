@@ -12,8 +12,10 @@
 // (slower when the cache cannot hold it). Handing back on a budget rather than on every tick
 // matters: a pass that reads the array texel by texel across all images touches thousands of
 // pages per step, and each page handed back too early is faulted in again. The mapping is
-// advised MADV_RANDOM, so that faults map single pages (docs/compress.md, *A stack in a scratch
-// file*, says what that costs).
+// advised MADV_RANDOM, so that faults map single pages. Mapping a large array again on every
+// pass still costs a fault per page, so passes that read much of it at a time use read() and
+// write() (pread, pwrite: the same file cache, no mapping); docs/compress.md, *A stack in a
+// scratch file*, has the figures.
 #pragma once
 #include <chrono>
 #include <condition_variable>
@@ -44,6 +46,14 @@ class ScratchMapping {
   std::uint8_t* data() const { return data_; }
   std::size_t size() const { return size_; }
   const std::string& directory() const { return dir_; }
+  // Copies bytes [offset, offset + bytes) into `out` with read calls (pread), which see what was
+  // written through the mapping. A pass over an array larger than the budget reads it this way
+  // faster than through the mapping, page fault by page fault, and the copy is not mapped.
+  // Throws nbtf::FileAccessError naming the folder when the read fails.
+  void read(std::size_t offset, std::size_t bytes, std::uint8_t* out) const;
+  // Copies `bytes` bytes from `in` to [offset, offset + bytes) with write calls (pwrite): no page
+  // faults, and the mapping sees the bytes at once. Throws like read.
+  void write(std::size_t offset, std::size_t bytes, const std::uint8_t* in);
   // Hands every mapped page back now (what the background thread does each interval).
   void releaseResident() const;
   // How many times the pages were handed back so far.
@@ -65,6 +75,13 @@ class ScratchMapping {
 
 // This process's resident pages mapped from files (RssFile + RssShmem; /proc/self/statm), bytes.
 std::size_t residentFileBytes();
+
+// Asks the kernel to drop `path`'s clean pages from the file cache (posix_fadvise
+// POSIX_FADV_DONTNEED); a file that cannot be opened is left alone. A loader that fills a
+// scratch array from source files calls it after each file: the sources are read once, and
+// keeping them cached would push the array's own cached pages out, which are then read back
+// from disk one page at a time.
+void dropFromFileCache(const std::string& path);
 
 // Whether `dir` is on a file system that lives in memory (tmpfs, ramfs): a scratch file there
 // takes as much memory as the array it replaces.
