@@ -11,21 +11,18 @@
 #include <thread>
 
 #include "io/btf_stack.h"
+#include "test_util.h"
 #include "util/error.h"
 
 namespace nbtf {
 namespace {
 namespace fs = std::filesystem;
 
+// Each test in a fresh folder of its own.
 class ScratchMappingTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("nbtf_scratch_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  test::TempDir tmp_;
+  fs::path dir_{tmp_.path()};
 };
 
 // The contents survive the pages being handed back (the file cache keeps them), the pages

@@ -179,7 +179,8 @@ void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) co
   }
   std::vector<std::uint8_t> copy;  // the slice of an image read out of a scratch file
   for (int image = 0; image < stack_.numImages(); ++image) {
-    const std::uint8_t* bytes = stack_.readImageBytes(image, 3 * static_cast<std::size_t>(r0), 3 * static_cast<std::size_t>(n), copy);
+    const std::uint8_t* bytes =
+        stack_.readImageBytes(image, 3 * static_cast<std::size_t>(r0), 3 * static_cast<std::size_t>(n), copy);
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
       const float* t = &table_[static_cast<std::size_t>(d) * 256];
