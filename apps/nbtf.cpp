@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "util/memory.h"
 
 namespace nbtf::cli {
 namespace {
@@ -40,6 +41,7 @@ int unknownCommand(const char* name) {
 
 int main(int argc, char** argv) {
   using namespace nbtf::cli;
+  nbtf::reuseFreedMemory();
   if (argc >= 2 && (!std::strcmp(argv[1], "--version") || !std::strcmp(argv[1], "version"))) {
     std::printf("nbtf %s\n", NBTF_VERSION);
     return 0;

@@ -135,6 +135,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  nbtf::reuseFreedMemory();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {

@@ -67,6 +67,35 @@ TEST(BtfStack, GatherLinearReadsTexelsInImages) {
   }
 }
 
+// gatherStored: gatherLinear's values as stored (1 byte for 8-bit, 2 for half), which
+// storedToLinear turns into gatherLinear's floats times a scale, bit for bit.
+TEST(BtfStack, GatherStoredGivesGatherLinearsValuesAfterConversion) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {30, 0}}, 3, 2, type);
+    std::vector<float> rgb(6 * 3);
+    for (int i = 0; i < 4; ++i) {
+      for (std::size_t v = 0; v < rgb.size(); ++v) rgb[v] = 0.013f * static_cast<float>(i * 18 + v);
+      s.setImageLinear(i, rgb.data());
+    }
+    EXPECT_EQ(s.storedValueBytes(), type == SampleType::Srgb8 ? 1u : 2u);
+    const std::vector<int> images = {3, 1, 2}, texels = {5, 0, 2, 4};
+    const std::size_t n = 3 * images.size() * texels.size();
+    std::vector<float> linear(n);
+    s.gatherLinear(images.data(), 3, texels.data(), 4, linear.data());
+    std::vector<std::uint8_t> stored(n * s.storedValueBytes());
+    s.gatherStored(images.data(), 3, texels.data(), 4, stored.data());
+    for (float scale : {1.0f, 1.0f / 0.83f}) {
+      std::vector<float> converted(n);
+      s.storedToLinear(stored.data(), n, scale, converted.data());
+      for (std::size_t v = 0; v < n; ++v) EXPECT_EQ(converted[v], linear[v] * scale) << "value " << v;
+    }
+    // Part of a run converts alone: the second image's values.
+    std::vector<float> part(12);
+    s.storedToLinear(stored.data() + 12 * s.storedValueBytes(), 12, 1.0f, part.data());
+    EXPECT_EQ(part, std::vector<float>(linear.begin() + 12, linear.begin() + 24));
+  }
+}
+
 TEST(BtfStack, ParseCropAndLayout) {
   Crop c = parseCrop("10,20,100,50");
   EXPECT_EQ(c.x, 10);

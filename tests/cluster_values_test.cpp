@@ -305,6 +305,39 @@ TEST(ClusterValues, CoefficientsUseOnlyTheGivenImagesAndAnyThreadCount) {
   EXPECT_NE(texelCoefficients(changed, m.alpha, m.ids, m.clusters, use, 2, false), one);
 }
 
+// Many clusters take several batches (a batch holds threads x 8 x the mean cluster size texels'
+// worth of floats, in the stack's sample bytes): each cluster's coefficients are still its own,
+// whichever batch and place it is gathered in (here the clusters renumbered back to front).
+TEST(ClusterValues, CoefficientsDoNotDependOnTheBatchAClusterIsIn) {
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    const auto& h81 = hemisphere81();
+    std::vector<Direction> dirs(h81.begin(), h81.begin() + 3);
+    BtfStack stack(dirs, dirs, 24, 20, type);
+    std::mt19937 random(7);
+    std::uniform_real_distribution<float> value(0.02f, 0.9f);
+    std::vector<float> rgb(3 * static_cast<std::size_t>(stack.numTexels()));
+    for (int i = 0; i < stack.numImages(); ++i) {
+      for (float& v : rgb) v = value(random);
+      stack.setImageLinear(i, rgb.data());
+    }
+    const int clusters = 120;  // 4 texels each on average, sizes 1 to 8
+    std::vector<std::int32_t> ids(stack.numTexels()), renumbered(ids.size());
+    for (int t = 0; t < stack.numTexels(); ++t) {
+      ids[t] = static_cast<std::int32_t>((t * t + 3 * t) % clusters);
+      renumbered[t] = clusters - 1 - ids[t];
+    }
+    const std::vector<std::uint8_t> use(stack.numImages(), 1);
+    const float alpha = 0.9f;
+    const auto a = texelCoefficients(stack, alpha, ids, clusters, use, 1, false, 3);
+    const auto b = texelCoefficients(stack, alpha, renumbered, clusters, use, 1, false, 3);
+    ASSERT_EQ(a.size(), 3u * stack.numTexels());
+    EXPECT_EQ(a, b);
+    double square = 0;  // unit mean square per channel and cluster: not all zero
+    for (float c : a) square += double(c) * c;
+    EXPECT_NEAR(square / a.size(), 1.0, 1e-3);
+  }
+}
+
 // Whichever side of a cluster's ABRDF matrix its SVD is taken from (texels x texels when the
 // cluster is smaller than 3 x images, else 3 x images squared), the coefficients are sqrt(n_c)
 // times the top left singular vectors: checked against Eigen's SVD of the matrix itself, with

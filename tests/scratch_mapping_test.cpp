@@ -152,6 +152,10 @@ TEST_F(ScratchMappingTest, AStackInAScratchFileHoldsTheSameValues) {
     memory.gatherLinear(images, 3, texels.data(), static_cast<int>(texels.size()), g1.data());
     file.gatherLinear(images, 3, texels.data(), static_cast<int>(texels.size()), g2.data());
     EXPECT_EQ(g1, g2) << texels.size() << " texels from " << texels.front();
+    std::vector<std::uint8_t> s1(g1.size()), s2(g1.size());
+    memory.gatherStored(images, 3, texels.data(), static_cast<int>(texels.size()), s1.data());
+    file.gatherStored(images, 3, texels.data(), static_cast<int>(texels.size()), s2.data());
+    EXPECT_EQ(s1, s2) << texels.size() << " texels from " << texels.front();
   }
   // A few texels scattered over a large image are read through the mapping, and agree too.
   BtfStack wideMemory(lights, views, 200, 1, SampleType::Srgb8), wideFile(lights, views, 200, 1, SampleType::Srgb8, dir_.string());
@@ -162,6 +166,10 @@ TEST_F(ScratchMappingTest, AStackInAScratchFileHoldsTheSameValues) {
   std::vector<float> w1(3 * 6 * 2), w2(w1.size());
   wideMemory.gatherLinear(nullptr, 0, far, 2, w1.data());
   wideFile.gatherLinear(nullptr, 0, far, 2, w2.data());
+  EXPECT_EQ(w1, w2);
+  std::vector<std::uint8_t> ws(w1.size());
+  wideFile.gatherStored(nullptr, 0, far, 2, ws.data());
+  wideFile.storedToLinear(ws.data(), ws.size(), 1.0f, w2.data());
   EXPECT_EQ(w1, w2);
   float lo1, hi1, lo2, hi2;
   memory.valueRange(lo1, hi1);

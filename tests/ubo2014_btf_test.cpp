@@ -233,6 +233,12 @@ TEST(Ubo2014Btf, ComputedStackGivesEveryImageFromManyThreads) {
     stored.gatherLinear(&order[j], 1, texels.data(), static_cast<int>(texels.size()), ga.data());
     computed.gatherLinear(&order[j], 1, texels.data(), static_cast<int>(texels.size()), gb.data());
     if (ga != gb) ++wrong;
+    // as stored: a computed stack's are the floats themselves
+    std::vector<std::uint8_t> raw(gb.size() * computed.storedValueBytes());
+    computed.gatherStored(&order[j], 1, texels.data(), static_cast<int>(texels.size()), raw.data());
+    std::vector<float> gc(gb.size());
+    computed.storedToLinear(raw.data(), gc.size(), 1.0f, gc.data());
+    if (gc != gb || computed.storedValueBytes() != sizeof(float)) ++wrong;
   });
   setThreadCount(before);
   EXPECT_EQ(wrong.load(), 0);

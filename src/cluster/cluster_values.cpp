@@ -243,60 +243,76 @@ Eigen::MatrixXd leadingLeftVectors(const Eigen::Ref<const Eigen::MatrixXf>& y, i
 
 namespace {
 
-// The ABRDFs of clusters [first, last) as one matrix each (y[g - first]: the cluster's texels
-// as rows in `members` order, column 3 j + c: image used[j], channel c), in one pass over the
-// images: each image's texels of the batch are read in ascending order (nearly sequential
-// for a stack in memory, and each image once), and the images are split over the threads.
-// The values are gatherLinear's, as a per-cluster gather reads them.
-// The matrices live in `storage`, kept from batch to batch: a fresh buffer of this size (up to
-// gigabytes) costs more to fault in than its values cost to gather. Each starts on a 64-byte
-// boundary, as a matrix of its own would be aligned.
-using ClusterMatrix = Eigen::Map<Eigen::MatrixXf>;
+// The ABRDFs of clusters [first, last) as one column-major matrix each (raw[g - first]: the
+// cluster's texels as rows in `members` order, column 3 j + c: image used[j], channel c), as the
+// stack holds the values (BtfStack::gatherStored: a quarter of the floats' bytes for an 8-bit
+// stack, so a batch holds four times the texels and the stack is read a quarter as often), in
+// one pass over the images: each image's texels of the batch are read in ascending order (nearly
+// sequential for a stack in memory, and each image once), and the images are split over the
+// threads. The matrices live in `storage`, kept from batch to batch: a fresh buffer of this size
+// (up to gigabytes) costs more to fault in than its values cost to gather.
+template <class Value>
+void scatterToClusters(const std::uint8_t* gathered, int count, std::size_t images, std::size_t firstColumn,
+                       const std::vector<std::pair<std::uint32_t, std::uint32_t>>& slots,
+                       const std::vector<std::uint8_t*>& raw, const std::vector<std::size_t>& rows) {
+  const Value* from = reinterpret_cast<const Value*>(gathered);
+  // Column by column: each cluster's column is written in row order.
+  for (std::size_t j = 0; j < images; ++j)
+    for (int c = 0; c < 3; ++c) {
+      const Value* values = from + (3 * j + c) * static_cast<std::size_t>(count);
+      const std::size_t column = 3 * (firstColumn + j) + c;
+      for (int i = 0; i < count; ++i) {
+        const auto [cluster, row] = slots[i];
+        reinterpret_cast<Value*>(raw[cluster])[column * rows[cluster] + row] = values[i];
+      }
+    }
+}
+
 void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const std::vector<std::vector<int>>& members,
-                    std::size_t first, std::size_t last, AlignedFloats& storage, std::vector<ClusterMatrix>& y) {
+                    std::size_t first, std::size_t last, std::vector<std::uint8_t>& storage,
+                    std::vector<std::uint8_t*>& raw) {
   struct Slot {
     int texel;
     std::uint32_t cluster;  // within the batch
     std::uint32_t row;
   };
-  std::vector<Slot> slots;
+  std::vector<Slot> sorted;
   for (std::size_t g = first; g < last; ++g)
     for (std::size_t k = 0; k < members[g].size(); ++k)
-      slots.push_back({members[g][k], static_cast<std::uint32_t>(g - first), static_cast<std::uint32_t>(k)});
-  std::sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) { return a.texel < b.texel; });
-  std::vector<int> texels(slots.size());
-  for (std::size_t i = 0; i < slots.size(); ++i) texels[i] = slots[i].texel;
-  const Eigen::Index dims = 3 * static_cast<Eigen::Index>(used.size());
-  constexpr std::size_t kAlignFloats = 16;
-  std::vector<std::size_t> offsets;
-  std::size_t floats = 0;
+      sorted.push_back({members[g][k], static_cast<std::uint32_t>(g - first), static_cast<std::uint32_t>(k)});
+  std::sort(sorted.begin(), sorted.end(), [](const Slot& a, const Slot& b) { return a.texel < b.texel; });
+  std::vector<int> texels(sorted.size());
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> slots(sorted.size());
+  for (std::size_t i = 0; i < sorted.size(); ++i) texels[i] = sorted[i].texel, slots[i] = {sorted[i].cluster, sorted[i].row};
+  const std::size_t dims = 3 * used.size(), valueBytes = stack.storedValueBytes();
+  constexpr std::size_t kAlign = 64;
+  std::vector<std::size_t> offsets, rows;
+  std::size_t bytes = 0;
   for (std::size_t g = first; g < last; ++g) {
-    offsets.push_back(floats);
-    floats += (members[g].size() * static_cast<std::size_t>(dims) + kAlignFloats - 1) / kAlignFloats * kAlignFloats;
+    offsets.push_back(bytes);
+    rows.push_back(members[g].size());
+    bytes += (members[g].size() * dims * valueBytes + kAlign - 1) / kAlign * kAlign;
   }
-  if (storage.size() < floats) {  // freed first, not resized: no copy of the old values beside the new
-    AlignedFloats().swap(storage);
-    storage.resize(floats);
+  if (storage.size() < bytes) {  // freed first, not resized: no copy of the old values beside the new
+    std::vector<std::uint8_t>().swap(storage);
+    storage.resize(bytes);
   }
-  y.clear();
-  for (std::size_t g = first; g < last; ++g)
-    y.emplace_back(storage.data() + offsets[g - first], static_cast<Eigen::Index>(members[g].size()), dims);
+  raw.clear();
+  for (std::size_t offset : offsets) raw.push_back(storage.data() + offset);
   const int count = static_cast<int>(texels.size());
   // A few images per gather: a computed stack reads each texel's factors once per gather.
   constexpr std::size_t kImages = 16;
   parallelFor((used.size() + kImages - 1) / kImages, [&](std::size_t begin, std::size_t end) {
-    std::vector<float> values(3 * kImages * static_cast<std::size_t>(count));
+    std::vector<std::uint8_t> gathered(3 * kImages * static_cast<std::size_t>(count) * valueBytes);
     for (std::size_t j0 = begin * kImages; j0 < std::min(end * kImages, used.size()); j0 += kImages) {
       const std::size_t m = std::min(kImages, used.size() - j0);
-      stack.gatherLinear(&used[j0], static_cast<int>(m), texels.data(), count, values.data());
-      // Column by column: each cluster's column is written in row order (one write stream
-      // per cluster of the batch instead of three).
-      for (std::size_t j = 0; j < m; ++j)
-        for (int c = 0; c < 3; ++c) {
-          const float* from = &values[(3 * j + c) * count];
-          const Eigen::Index column = static_cast<Eigen::Index>(3 * (j0 + j) + c);
-          for (int i = 0; i < count; ++i) y[slots[i].cluster](slots[i].row, column) = from[i];
-        }
+      stack.gatherStored(&used[j0], static_cast<int>(m), texels.data(), count, gathered.data());
+      if (valueBytes == 1)
+        scatterToClusters<std::uint8_t>(gathered.data(), count, m, j0, slots, raw, rows);
+      else if (valueBytes == 2)
+        scatterToClusters<std::uint16_t>(gathered.data(), count, m, j0, slots, raw, rows);
+      else
+        scatterToClusters<std::uint32_t>(gathered.data(), count, m, j0, slots, raw, rows);
     }
   });
 }
@@ -325,37 +341,45 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   const Eigen::Index usedImages = static_cast<Eigen::Index>(used.size());
   const int columns = terms * channels;
   std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
-  // Batches of clusters of up to threads x 8 x the mean cluster size texels (at least one
-  // cluster): the memory the estimate allows this stage (pipeline/memory_estimate.cpp).
-  const std::size_t batchTexels =
-      static_cast<std::size_t>(threadCount()) * (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1);
+  // Batches of clusters whose stored values take at most the bytes of threads x 8 x the mean
+  // cluster size texels as floats (at least one cluster), and one cluster's values as floats per
+  // thread: the memory the estimate allows this stage (pipeline/memory_estimate.cpp).
+  const std::size_t valueBytes = stack.storedValueBytes();
+  const std::size_t batchTexels = static_cast<std::size_t>(threadCount()) *
+                                  (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1) * sizeof(float) /
+                                  valueBytes;
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
-  AlignedFloats storage;
-  std::vector<ClusterMatrix> batch;
+  std::vector<std::uint8_t> storage;
+  std::vector<std::uint8_t*> batch;
   for (std::size_t first = 0; first < static_cast<std::size_t>(clusters);) {
     std::size_t last = first, size = 0;
     while (last < static_cast<std::size_t>(clusters) && (last == first || size + members[last].size() <= batchTexels))
       size += members[last++].size();
     gatherClusters(stack, used, members, first, last, storage, batch);
     parallelFor(last - first, [&](std::size_t begin, std::size_t end) {
-      // One channel's columns of a cluster, in a buffer sized once for the largest cluster here.
+      // A cluster's values as floats (one channel's columns with per-channel coefficients), in a
+      // buffer sized once for the largest cluster here.
       std::size_t largest = 0;
       for (std::size_t b = begin; b < end; ++b) largest = std::max(largest, members[first + b].size());
-      AlignedFloats channelStorage(channels > 1 ? largest * static_cast<std::size_t>(usedImages) : 0);
+      const Eigen::Index valueColumns = channels > 1 ? usedImages : 3 * usedImages;
+      AlignedFloats valueStorage(largest * static_cast<std::size_t>(valueColumns));
       for (std::size_t b = begin; b < end; ++b) {
         const std::size_t g = first + b;
         const std::vector<int>& texelsOf = members[g];
         const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
         if (n == 0) continue;
-        // The cluster's ABRDFs as rows (linear / alpha; column 3 j + c: image j, channel c).
-        ClusterMatrix& y = batch[b];
-        y *= invAlpha;
         const double scale = std::sqrt(static_cast<double>(n));
         const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
         for (int c = 0; c < channels; ++c) {
-          ClusterMatrix channel(channelStorage.data(), n, channels > 1 ? usedImages : 0);
-          for (Eigen::Index j = 0; j < channel.cols(); ++j) channel.col(j) = y.col(3 * j + c);
-          const Eigen::MatrixXd u = leadingLeftVectors(channels > 1 ? channel : y, terms, seed);
+          // The cluster's ABRDFs as rows, linear / alpha: with per-channel coefficients column
+          // j holds image j's channel c, else column 3 j + c does.
+          Eigen::Map<Eigen::MatrixXf> y(valueStorage.data(), n, valueColumns);
+          for (Eigen::Index j = 0; j < valueColumns; ++j) {
+            const Eigen::Index column = channels > 1 ? 3 * j + c : j;
+            stack.storedToLinear(batch[b] + static_cast<std::size_t>(column * n) * valueBytes,
+                                 static_cast<std::size_t>(n), invAlpha, y.col(j).data());
+          }
+          const Eigen::MatrixXd u = leadingLeftVectors(y, terms, seed);
           for (int r = 0; r < terms; ++r)
             for (Eigen::Index k = 0; k < n; ++k)
               out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
@@ -424,37 +448,60 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   const float invAlpha = 1.0f / alpha;
   std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
   Progress bar("refit texel coefficients", static_cast<std::size_t>(texels), progress);
-  constexpr std::size_t kChunk = 256;
+  // Chunks of consecutive texels, gathered as the stack stores them: each image is read once per
+  // chunk (one read call for a stack in a scratch file), so that larger chunks make fewer
+  // calls; 256 to 4096 texels, within the modulation stage's budget per thread (8 x the mean
+  // cluster size texels as floats: pipeline/memory_estimate.cpp).
+  const std::size_t valueBytes = stack.storedValueBytes();
+  const std::size_t chunkTexels = std::clamp<std::size_t>(
+      (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1) * sizeof(float) / valueBytes, 256, 4096);
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
     Eigen::VectorXd rhs(r);
     std::vector<int> chunk;
-    std::vector<float> values;  // the chunk's texels in the images, image by image (gatherLinear)
-    for (std::size_t first = begin; first < end; first += kChunk) {
-      const int count = static_cast<int>(std::min(kChunk, end - first));
+    std::vector<std::uint8_t> stored;  // the chunk's texels in the images, image by image (gatherStored)
+    std::vector<float> row;            // one image's channel of them, linear / alpha
+    std::vector<const float*> termsOf;  // each texel's cluster's terms
+    std::vector<double> texelSums, rhsSums;  // per texel: sums by channel; right-hand sides (channel group, term)
+    for (std::size_t first = begin; first < end; first += chunkTexels) {
+      const int count = static_cast<int>(std::min(chunkTexels, end - first));
       chunk.resize(count);
       std::iota(chunk.begin(), chunk.end(), static_cast<int>(first));
-      values.resize(3 * n * count);
-      stack.gatherLinear(images.data(), static_cast<int>(n), chunk.data(), count, values.data());
+      stored.resize(3 * n * count * valueBytes);
+      row.resize(count);
+      stack.gatherStored(images.data(), static_cast<int>(n), chunk.data(), count, stored.data());
+      termsOf.resize(count);
+      for (int k = 0; k < count; ++k) {
+        const std::int32_t g = ids[first + k];
+        if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
+        termsOf[k] = &terms[static_cast<std::size_t>(g) * n * o];
+      }
+      // The sums image by image, across the chunk's texels. Each texel's sums add the same
+      // terms in the same order as a texel-by-texel loop would.
+      texelSums.assign(3 * static_cast<std::size_t>(count), 0.0);
+      rhsSums.assign(static_cast<std::size_t>(count) * channels * r, 0.0);
+      for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+          stack.storedToLinear(&stored[(3 * i + c) * count * valueBytes], static_cast<std::size_t>(count), invAlpha,
+                               row.data());
+          const int q = channels > 1 ? c : 0;
+          const std::size_t at = i * o + c;
+          for (int k = 0; k < count; ++k) {
+            const double y = row[k];
+            if (meanWeight > 0) texelSums[3 * k + c] += y;
+            double* sums = &rhsSums[(static_cast<std::size_t>(k) * channels + q) * r];
+            const float* f = termsOf[k] + at;
+            for (int a = 0; a < r; ++a) sums[a] += y * f[3 * a];
+          }
+        }
       for (int k = 0; k < count; ++k) {
         const std::size_t t = first + k;
         const std::int32_t g = ids[t];
-        if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
-        const float* f = &terms[static_cast<std::size_t>(g) * n * o];
-        double texelSum[3] = {0, 0, 0};
-        if (meanWeight > 0)
-          for (std::size_t i = 0; i < n; ++i)
-            for (int c = 0; c < 3; ++c) texelSum[c] += values[(3 * i + c) * count + k] * invAlpha;
         for (int q = 0; q < channels; ++q) {
-          rhs.setZero();
-          for (std::size_t i = 0; i < n; ++i)
-            for (int c = firstChannel(q); c < endChannel(q); ++c) {
-              const double y = values[(3 * i + c) * count + k] * invAlpha;
-              for (int a = 0; a < r; ++a) rhs(a) += y * f[i * o + 3 * a + c];
-            }
+          for (int a = 0; a < r; ++a) rhs(a) = rhsSums[(static_cast<std::size_t>(k) * channels + q) * r + a];
           if (meanWeight > 0) {
             const double* mean = &termMeans[static_cast<std::size_t>(g) * o];
             for (int c = firstChannel(q); c < endChannel(q); ++c)
-              for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSum[c];  // w n F (sum / n)
+              for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSums[3 * k + c];  // w n F (sum / n)
           }
           Eigen::VectorXd e = solvers[static_cast<std::size_t>(g) * channels + q].solve(rhs);
           for (int a = 0; a < r; ++a)
@@ -463,7 +510,7 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
       }
       bar.advance(static_cast<std::size_t>(count));
     }
-  }, kChunk);
+  }, chunkTexels);
   bar.finish();
   return out;
 }

@@ -128,10 +128,9 @@ std::vector<float> BtfStack::abrdfLinear(int texel) const {
   return out;
 }
 
-void BtfStack::gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const {
+template <class Put>
+void BtfStack::forEachGathered(const int* images, int numImages, const int* texels, int count, Put put) const {
   if (!images) numImages = this->numImages();
-  if (computed_) return computed_->gather(images, numImages, texels, count, out);
-  const float* lut = type_ == SampleType::Srgb8 ? srgb8ToLinearTable() : nullptr;
   // In a scratch file, the span of texels the gather covers is copied out of each image when it
   // is at most 64 times what the gather needs (a slice, or a batch of clusters); a scattered few
   // texels are read through the mapping.
@@ -140,27 +139,70 @@ void BtfStack::gatherLinear(const int* images, int numImages, const int* texels,
     const auto [mn, mx] = std::minmax_element(texels, texels + count);
     if (static_cast<std::int64_t>(*mx) - *mn + 1 <= std::int64_t(64) * count) lo = *mn, hi = *mx;
   }
-  const std::size_t spanFirst = static_cast<std::size_t>(lo) * 3 * bytesPerSample();
-  const std::size_t spanBytes = static_cast<std::size_t>(hi - lo + 1) * 3 * bytesPerSample();
+  const std::size_t sample = bytesPerSample();
+  const std::size_t spanFirst = static_cast<std::size_t>(lo) * 3 * sample;
+  const std::size_t spanBytes = static_cast<std::size_t>(hi - lo + 1) * 3 * sample;
   for (int j = 0; j < numImages; ++j) {
     const int image = images ? images[j] : j;
     // src starts at texel lo.
     const std::uint8_t* src =
         hi >= lo ? readImageBytes(image, spanFirst, spanBytes, threadImageBuffer()) : imageBytes(image);
-    float* o = out + static_cast<std::size_t>(3 * j) * count;
     for (int k = 0; k < count; ++k) {
-      const std::size_t i = static_cast<std::size_t>(texels[k] - lo) * 3;
-      for (int c = 0; c < 3; ++c) {
-        float v;
-        if (lut) {
-          v = lut[src[i + c]];
-        } else {
-          std::uint16_t bits;
-          std::memcpy(&bits, src + 2 * (i + c), 2);
-          v = halfToFloat(bits);
-        }
-        o[static_cast<std::size_t>(c) * count + k] = v;
-      }
+      const std::uint8_t* texel = src + static_cast<std::size_t>(texels[k] - lo) * 3 * sample;
+      for (int c = 0; c < 3; ++c) put(j, c, k, texel + c * sample);
+    }
+  }
+}
+
+void BtfStack::gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const {
+  if (computed_) return computed_->gather(images, numImages, texels, count, out);
+  const float* lut = type_ == SampleType::Srgb8 ? srgb8ToLinearTable() : nullptr;
+  forEachGathered(images, numImages, texels, count, [&](int j, int c, int k, const std::uint8_t* sample) {
+    float v;
+    if (lut) {
+      v = lut[*sample];
+    } else {
+      std::uint16_t bits;
+      std::memcpy(&bits, sample, 2);
+      v = halfToFloat(bits);
+    }
+    out[static_cast<std::size_t>(3 * j + c) * count + k] = v;
+  });
+}
+
+void BtfStack::gatherStored(const int* images, int numImages, const int* texels, int count, std::uint8_t* out) const {
+  if (computed_) {
+    const std::size_t n = static_cast<std::size_t>(3) * (images ? numImages : this->numImages()) * count;
+    std::vector<float> values(n);
+    computed_->gather(images, numImages, texels, count, values.data());
+    std::memcpy(out, values.data(), n * sizeof(float));
+    return;
+  }
+  if (type_ == SampleType::Srgb8)
+    forEachGathered(images, numImages, texels, count, [&](int j, int c, int k, const std::uint8_t* sample) {
+      out[static_cast<std::size_t>(3 * j + c) * count + k] = *sample;
+    });
+  else
+    forEachGathered(images, numImages, texels, count, [&](int j, int c, int k, const std::uint8_t* sample) {
+      std::memcpy(out + 2 * (static_cast<std::size_t>(3 * j + c) * count + k), sample, 2);
+    });
+}
+
+void BtfStack::storedToLinear(const std::uint8_t* values, std::size_t count, float scale, float* out) const {
+  if (computed_) {
+    for (std::size_t i = 0; i < count; ++i) {
+      float v;
+      std::memcpy(&v, values + sizeof(float) * i, sizeof(float));
+      out[i] = v * scale;
+    }
+  } else if (type_ == SampleType::Srgb8) {
+    const float* lut = srgb8ToLinearTable();
+    for (std::size_t i = 0; i < count; ++i) out[i] = lut[values[i]] * scale;
+  } else {
+    for (std::size_t i = 0; i < count; ++i) {
+      std::uint16_t bits;
+      std::memcpy(&bits, values + 2 * i, 2);
+      out[i] = halfToFloat(bits) * scale;
     }
   }
 }

@@ -87,6 +87,13 @@ class BtfStack {
   // dimension-major: out[(3 j + c) x count + k] is texels[k] in images[j] (a count x 3 images
   // column-major matrix). Reads image by image, so a stored stack is read in order.
   void gatherLinear(const int* images, int numImages, const int* texels, int count, float* out) const;
+  // gatherLinear's values as the stack holds them, storedValueBytes() bytes each: the 8-bit
+  // code, the half's bits, or (a computed stack) the float. A batch of them takes a quarter
+  // (8-bit) or half the memory of floats; storedToLinear turns `count` consecutive ones into
+  // gatherLinear's values times `scale` (the same floats as multiplying those afterwards).
+  std::size_t storedValueBytes() const { return computed_ ? sizeof(float) : bytesPerSample(); }
+  void gatherStored(const int* images, int numImages, const int* texels, int count, std::uint8_t* out) const;
+  void storedToLinear(const std::uint8_t* values, std::size_t count, float scale, float* out) const;
   // Smallest and largest linear value over the whole stack.
   void valueRange(float& lo, float& hi) const;
 
@@ -120,6 +127,10 @@ class BtfStack {
   std::uint8_t* samples() { return scratch_ ? scratch_->data() : data_.data(); }
   const std::uint8_t* samples() const { return scratch_ ? scratch_->data() : data_.data(); }
   std::size_t sampleBytes() const { return scratch_ ? scratch_->size() : data_.size(); }
+  // Calls put(j, c, k, sample) for texels[k] in images[j], channel c, with a pointer to the
+  // stored sample (bytesPerSample bytes); image by image, reading each image's span once.
+  template <class Put>
+  void forEachGathered(const int* images, int numImages, const int* texels, int count, Put put) const;
 
   std::vector<std::uint8_t> data_;
   std::shared_ptr<ScratchMapping> scratch_;  // the samples, when they live in a scratch file

@@ -1,6 +1,9 @@
 #include "util/memory.h"
 
 #include <sys/resource.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <cctype>
 #include <cmath>
@@ -42,6 +45,14 @@ std::size_t parseByteSize(const std::string& text, const std::string& option) {
   if (!std::isfinite(bytes) || bytes > 1e18) throw bad("too large: at most 1e18 bytes");
   if (!(bytes >= 1)) throw bad("must be at least 1 byte");
   return static_cast<std::size_t>(bytes);
+}
+
+void reuseFreedMemory() {
+#if defined(__GLIBC__)
+  // Setting either also stops glibc from moving the thresholds itself.
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
 }
 
 std::size_t physicalMemoryBytes() {
