@@ -44,15 +44,21 @@ TEST(BtfStack, Srgb8StorageLinearizesOnAccess) {
   EXPECT_FLOAT_EQ(img[2], 1.0f);
 }
 
+// 2 x 2 images of 3 x 2 texels whose values rise by `step`, image after image.
+static BtfStack rampStack(SampleType type, float step) {
+  BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {30, 0}}, 3, 2, type);
+  std::vector<float> rgb(6 * 3);
+  for (int i = 0; i < 4; ++i) {
+    for (std::size_t v = 0; v < rgb.size(); ++v) rgb[v] = step * static_cast<float>(i * 18 + v);
+    s.setImageLinear(i, rgb.data());
+  }
+  return s;
+}
+
 // gatherLinear: any texels in any images, dimension-major, the values sample() gives.
 TEST(BtfStack, GatherLinearReadsTexelsInImages) {
   for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
-    BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {30, 0}}, 3, 2, type);
-    std::vector<float> rgb(6 * 3);
-    for (int i = 0; i < 4; ++i) {
-      for (std::size_t v = 0; v < rgb.size(); ++v) rgb[v] = 0.01f * static_cast<float>(i * 18 + v);
-      s.setImageLinear(i, rgb.data());
-    }
+    const BtfStack s = rampStack(type, 0.01f);
     const std::vector<int> images = {3, 1}, texels = {5, 0, 2};
     std::vector<float> out(2 * 3 * 3, -1.0f);
     s.gatherLinear(images.data(), 2, texels.data(), 3, out.data());
@@ -71,12 +77,7 @@ TEST(BtfStack, GatherLinearReadsTexelsInImages) {
 // storedToLinear turns into gatherLinear's floats times a scale, bit for bit.
 TEST(BtfStack, GatherStoredGivesGatherLinearsValuesAfterConversion) {
   for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
-    BtfStack s({{0, 0}, {15, 0}}, {{0, 0}, {30, 0}}, 3, 2, type);
-    std::vector<float> rgb(6 * 3);
-    for (int i = 0; i < 4; ++i) {
-      for (std::size_t v = 0; v < rgb.size(); ++v) rgb[v] = 0.013f * static_cast<float>(i * 18 + v);
-      s.setImageLinear(i, rgb.data());
-    }
+    const BtfStack s = rampStack(type, 0.013f);
     EXPECT_EQ(s.storedValueBytes(), type == SampleType::Srgb8 ? 1u : 2u);
     const std::vector<int> images = {3, 1, 2}, texels = {5, 0, 2, 4};
     const std::size_t n = 3 * images.size() * texels.size();
