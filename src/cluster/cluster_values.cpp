@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <numeric>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "linalg/blas.h"
@@ -255,15 +256,16 @@ template <class Value>
 void scatterToClusters(const std::uint8_t* gathered, int count, std::size_t images, std::size_t firstColumn,
                        const std::vector<std::pair<std::uint32_t, std::uint32_t>>& slots,
                        const std::vector<std::uint8_t*>& raw, const std::vector<std::size_t>& rows) {
-  const Value* from = reinterpret_cast<const Value*>(gathered);
-  // Column by column: each cluster's column is written in row order.
+  // Column by column: each cluster's column is written in row order. The values are copied
+  // as bytes (memcpy of one Value: a single load and store), which any buffer may hold.
   for (std::size_t j = 0; j < images; ++j)
     for (int c = 0; c < 3; ++c) {
-      const Value* values = from + (3 * j + c) * static_cast<std::size_t>(count);
+      const std::uint8_t* values = gathered + (3 * j + c) * static_cast<std::size_t>(count) * sizeof(Value);
       const std::size_t column = 3 * (firstColumn + j) + c;
       for (int i = 0; i < count; ++i) {
         const auto [cluster, row] = slots[i];
-        reinterpret_cast<Value*>(raw[cluster])[column * rows[cluster] + row] = values[i];
+        std::memcpy(raw[cluster] + (column * rows[cluster] + row) * sizeof(Value), values + i * sizeof(Value),
+                    sizeof(Value));
       }
     }
 }
