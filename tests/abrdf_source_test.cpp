@@ -11,6 +11,7 @@
 
 #include "cluster/clustering.h"
 #include "cluster/pca.h"
+#include "test_util.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -21,11 +22,13 @@ namespace {
 // A small material with structure (three "threads" of different reflectance, a light- and
 // view-dependent lobe) and per-texel noise. texels = width x height; odd sizes so that columns
 // start at every offset modulo the SIMD width and the row slices of 1024 texels end mid-way.
-BtfStack structuredStack(int width, int height, int lights, int views, SampleType type, unsigned seed) {
+// With `scratchDir`, the samples live in a scratch file there.
+BtfStack structuredStack(int width, int height, int lights, int views, SampleType type, unsigned seed,
+                         const std::string& scratchDir = "") {
   std::vector<Direction> l, v;
   for (int i = 0; i < lights; ++i) l.push_back({10.0 * i, 40.0 * i});
   for (int i = 0; i < views; ++i) v.push_back({12.0 * i, 60.0 * i});
-  BtfStack stack(l, v, width, height, type);
+  BtfStack stack(l, v, width, height, type, scratchDir);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> noise(-0.04f, 0.04f);
   std::vector<float> rgb(static_cast<std::size_t>(width) * height * 3);
@@ -56,19 +59,25 @@ class AbrdfSourceTest : public ::testing::Test {
   void TearDown() override { setThreadCount(0); }
 };
 
+// An 8-bit stack's pass takes the logarithms from a table of its 256 values, in memory or read
+// out of a scratch file; a half stack's computes them: the same statistics either way.
 TEST_F(AbrdfSourceTest, FitStandardizationMatchesTheInMemoryStatisticsBitForBit) {
-  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
-    BtfStack stack = structuredStack(37, 29, 4, 3, type, 1);
-    Standardization dense;
-    standardizedMatrix(stack, dense);
-    float alpha = 0;
-    Standardization streamed = fitStandardization(stack, false, &alpha);
-    EXPECT_EQ(alpha, targetAlpha(stack)) << sampleTypeName(type);  // from the same pass
-    ASSERT_EQ(streamed.mean.size(), dense.mean.size());
-    EXPECT_TRUE((streamed.mean.array() == dense.mean.array()).all()) << sampleTypeName(type);
-    EXPECT_TRUE((streamed.stddev.array() == dense.stddev.array()).all()) << sampleTypeName(type);
-    if (type == SampleType::Srgb8) EXPECT_EQ(streamed.stddev[3], 0.0f);  // image 1 is black: a constant dimension
-  }
+  test::TempDir scratch;
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half})
+    for (const std::string& dir : {std::string(), scratch.path()}) {
+      const std::string where = std::string(sampleTypeName(type)) + (dir.empty() ? " in memory" : " in a scratch file");
+      BtfStack stack = structuredStack(37, 29, 4, 3, type, 1, dir);
+      ASSERT_EQ(stack.inScratchFile(), !dir.empty());
+      Standardization dense;
+      standardizedMatrix(stack, dense);
+      float alpha = 0;
+      Standardization streamed = fitStandardization(stack, false, &alpha);
+      EXPECT_EQ(alpha, targetAlpha(stack)) << where;  // from the same pass
+      ASSERT_EQ(streamed.mean.size(), dense.mean.size());
+      EXPECT_TRUE((streamed.mean.array() == dense.mean.array()).all()) << where;
+      EXPECT_TRUE((streamed.stddev.array() == dense.stddev.array()).all()) << where;
+      if (type == SampleType::Srgb8) EXPECT_EQ(streamed.stddev[3], 0.0f) << where;  // image 1 is black: constant
+    }
 }
 
 TEST_F(AbrdfSourceTest, BlocksHoldExactlyWhatTheMatrixHolds) {
@@ -178,6 +187,38 @@ TEST_F(AbrdfSourceTest, StreamingClusteringGivesTheSameLabelsAndMedians) {
     for (Representative kind : {Representative::Median, Representative::Mean})
       EXPECT_TRUE(clusterRepresentatives(source, dense.ids, o.clusters, kind) ==
                   clusterRepresentatives(x, dense.ids, o.clusters, kind));
+  }
+}
+
+// An 8-bit stack's medians come from counts of its codes, in memory or from a scratch file:
+// the selection's values bit for bit, for clusters of one texel, of even and odd sizes, an
+// empty one, and a constant column (image 1 is black).
+TEST_F(AbrdfSourceTest, MediansFromCodeCountsAreTheSelectionsBitForBit) {
+  test::TempDir scratch;
+  for (const std::string& dir : {std::string(), scratch.path()}) {
+    BtfStack stack = structuredStack(23, 19, 3, 4, SampleType::Srgb8, 6, dir);  // 437 texels
+    Standardization s;
+    const MatrixXfCol x = standardizedMatrix(stack, s);
+    StackAbrdfSource source(stack, s);
+    int coded = 0;
+    EXPECT_TRUE(source.forEachCodedImage([&](Eigen::Index, const std::uint8_t*, const float*, int) { ++coded; }));
+    EXPECT_EQ(coded, stack.numImages());
+    EXPECT_FALSE(DenseAbrdfSource(x).forEachCodedImage([](Eigen::Index, const std::uint8_t*, const float*, int) {}));
+    // Clusters 0-5: 73 or 72 texels; 6: one texel; 7: two; 8: none.
+    std::vector<std::int32_t> ids(static_cast<std::size_t>(x.rows()));
+    for (std::size_t t = 0; t < ids.size(); ++t) ids[t] = static_cast<std::int32_t>(t % 6);
+    ids[0] = 6, ids[1] = ids[2] = 7;
+    for (int threads : {1, 2}) {
+      setThreadCount(threads);
+      const MatrixXfCol fromCodes = clusterRepresentatives(source, ids, 9, Representative::Median);
+      const MatrixXfCol selected = clusterRepresentatives(x, ids, 9, Representative::Median);
+      EXPECT_TRUE(fromCodes == selected) << (dir.empty() ? "in memory" : "in a scratch file") << ", " << threads
+                                         << " threads";
+      EXPECT_EQ(fromCodes(6, 10), x(0, 10));
+      EXPECT_EQ(fromCodes(7, 10), 0.5f * (std::min(x(1, 10), x(2, 10)) + std::max(x(1, 10), x(2, 10))));
+      EXPECT_TRUE((fromCodes.row(8).array() == 0.0f).all());
+      EXPECT_TRUE((fromCodes.col(3).array() == 0.0f).all());  // the black image's red column
+    }
   }
 }
 

@@ -51,8 +51,8 @@ TEST(ClusterValues, PlainFloorMatchesADirectComputation) {
   EXPECT_NEAR(cv.means[(static_cast<std::size_t>(cluster) * m.stack.numImages() + image) * 3 + 1], sum / count, 1e-6);
 }
 
-// The plain floor from the modulated pass (plainFloorToo) is the plain pass's, bit for bit, and
-// leaves the modulated values as they were.
+// The plain floor from the modulated pass (plainFloorToo: both fits side by side in one pass
+// over each image) is the plain pass's, bit for bit, and leaves the modulated values as they were.
 TEST(ClusterValues, PlainFloorBesideTheModulatedOneIsThePlainPasses) {
   auto m = makeTestMaterial();
   std::vector<float> raw(static_cast<std::size_t>(m.stack.numTexels()) * 3);

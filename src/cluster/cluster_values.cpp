@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <numeric>
 #include <cmath>
 #include <cstring>
@@ -35,53 +36,103 @@ double ClusterValues::plainFloorRmse(const std::vector<int>& images, std::int64_
 namespace {
 
 // One image's cluster values: the (modulated) means of every cluster and the leftover, the sum
-// over texels and channels of the squared difference between a value and its model.
+// over texels and channels of the squared difference between a value and its model. In phases
+// (fitImage runs them), texel by texel, so that two models of one image can share the passes.
+// kTerms and kChannels fix the shape at compile time (0: given at run time), so that the loops
+// over a texel's terms and channels unroll; without kCoef every coefficient is exactly 1 (the
+// plain means, the same doubles).
+template <int kTerms, int kChannels, bool kCoef>
 class ImageFit {
  public:
   ImageFit(const std::vector<std::int32_t>& ids, const std::vector<int>& sizes, const float* coef, int terms, int channels)
-      : ids_(ids), sizes_(sizes), coef_(coef), terms_(terms), channels_(channels), columns_(terms * channels),
-        outputs_(3 * terms), sums_(sizes.size() * outputs_), mean_(sizes.size() * outputs_) {}
-  // The image's linear RGB (texels x 3), times invAlpha: the leftover; means() holds the means.
-  double fit(const float* rgb, float invAlpha) {
-    const std::int64_t texels = static_cast<std::int64_t>(ids_.size());
-    std::fill(sums_.begin(), sums_.end(), 0.0);
-    // Without coefficients every texel's is exactly 1: the plain means, the same doubles.
-    for (std::int64_t t = 0; t < texels; ++t) {
-      double* s = &sums_[static_cast<std::size_t>(ids_[t]) * outputs_];
-      for (int r = 0; r < terms_; ++r)
-        for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coefficient(t, r, c);
-    }
+      : ids_(ids), sizes_(sizes), coef_(coef), terms_(kTerms ? kTerms : terms), channels_(kChannels ? kChannels : channels),
+        sums_(sizes.size() * 3 * terms_), mean_(sizes.size() * 3 * terms_) {}
+  void clear() { std::fill(sums_.begin(), sums_.end(), 0.0); }
+  // Texel t of the image's linear RGB (texels x 3), times invAlpha, into its cluster's sums.
+  void add(std::int64_t t, const float* rgb, float invAlpha) {
+    double* s = &sums_[static_cast<std::size_t>(ids_[t]) * outputs()];
+    for (int r = 0; r < terms(); ++r)
+      for (int c = 0; c < 3; ++c) s[3 * r + c] += static_cast<double>(rgb[3 * t + c] * invAlpha) * coefficient(t, r, c);
+  }
+  void finishMeans() {
     for (std::size_t g = 0; g < sizes_.size(); ++g)
-      for (int o = 0; o < outputs_; ++o) {
-        const std::size_t at = g * outputs_ + o;
+      for (int o = 0; o < outputs(); ++o) {
+        const std::size_t at = g * outputs() + o;
         mean_[at] = sizes_[g] ? static_cast<float>(sums_[at] / sizes_[g]) : 0.0f;
       }
-    double sse = 0;
-    for (std::int64_t t = 0; t < texels; ++t) {
-      const float* m = &mean_[static_cast<std::size_t>(ids_[t]) * outputs_];
-      for (int c = 0; c < 3; ++c) {
-        double model = 0;
-        for (int r = 0; r < terms_; ++r) model += coefficient(t, r, c) * m[3 * r + c];
-        double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
-        sse += d * d;
-      }
+  }
+  // Texel t's squared differences from its model, added to sse channel by channel.
+  void addLeftover(std::int64_t t, const float* rgb, float invAlpha, double& sse) const {
+    const float* m = &mean_[static_cast<std::size_t>(ids_[t]) * outputs()];
+    for (int c = 0; c < 3; ++c) {
+      double model = 0;
+      for (int r = 0; r < terms(); ++r) model += coefficient(t, r, c) * m[3 * r + c];
+      double d = static_cast<double>(rgb[3 * t + c] * invAlpha) - model;
+      sse += d * d;
     }
-    return sse;
   }
   const std::vector<float>& means() const { return mean_; }  // clusters x outputs, of the last fit
+  const std::vector<std::int32_t>& ids() const { return ids_; }
+  const std::vector<int>& sizes() const { return sizes_; }
 
  private:
+  int terms() const { return kTerms ? kTerms : terms_; }
+  int channels() const { return kChannels ? kChannels : channels_; }
+  int outputs() const { return 3 * terms(); }
   // Texel t's coefficient of term r in channel c (channels 1: the same for all three).
   double coefficient(std::int64_t t, int r, int c) const {
-    return coef_ ? coef_[t * columns_ + r * channels_ + (channels_ > 1 ? c : 0)] : 1.0;
+    if constexpr (!kCoef) return 1.0;
+    return coef_[t * terms() * channels() + r * channels() + (channels() > 1 ? c : 0)];
   }
   const std::vector<std::int32_t>& ids_;
   const std::vector<int>& sizes_;
   const float* coef_;
-  int terms_, channels_, columns_, outputs_;
+  int terms_, channels_;
   std::vector<double> sums_;
   std::vector<float> mean_;
 };
+
+// Fits one image with each of `fits`, their leftovers into sse[0], sse[1], ...: every fit's
+// sums and leftover take the same doubles in the same order as it would alone, but the fits'
+// additions (each a chain of dependent adds, the leftover one long chain) run side by side in
+// one pass over the image.
+template <class... Fits>
+void fitImage(const float* rgb, float invAlpha, std::int64_t texels, double* sse, Fits&... fits) {
+  (fits.clear(), ...);
+  for (std::int64_t t = 0; t < texels; ++t) (fits.add(t, rgb, invAlpha), ...);
+  (fits.finishMeans(), ...);
+  std::array<double, sizeof...(Fits)> sums{};
+  for (std::int64_t t = 0; t < texels; ++t) {
+    std::size_t j = 0;
+    (fits.addLeftover(t, rgb, invAlpha, sums[j++]), ...);
+  }
+  std::copy(sums.begin(), sums.end(), sse);
+}
+
+// clusterValues' pass with the model's shape fixed: images [begin, end) on one thread.
+template <class Model>
+void fitImages(const BtfStack& stack, Model model, std::size_t begin, std::size_t end, float invAlpha, bool keepMeans,
+               bool plainFloorToo, int clusters, std::size_t outputs, ClusterValues& out, Progress& bar) {
+  const std::int64_t texels = stack.numTexels();
+  const std::size_t images = static_cast<std::size_t>(stack.numImages());
+  std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
+  ImageFit<1, 1, false> plain(model.ids(), model.sizes(), nullptr, 1, 1);
+  for (std::size_t i = begin; i < end; ++i) {
+    stack.imageLinear(static_cast<int>(i), rgb.data());
+    if (plainFloorToo) {
+      double sse[2];
+      fitImage(rgb.data(), invAlpha, texels, sse, model, plain);
+      out.withinSse[i] = sse[0];
+      out.plainWithinSse[i] = sse[1];
+    } else {
+      fitImage(rgb.data(), invAlpha, texels, &out.withinSse[i], model);
+    }
+    if (keepMeans)
+      for (int g = 0; g < clusters; ++g)
+        std::copy_n(&model.means()[g * outputs], outputs, &out.means[(static_cast<std::size_t>(g) * images + i) * outputs]);
+    bar.advance();
+  }
+}
 
 }  // namespace
 
@@ -107,17 +158,18 @@ ClusterValues clusterValues(const BtfStack& stack, float alpha, const std::vecto
   Progress bar("cluster means", images, progress);
   const float invAlpha = 1.0f / alpha;
   parallelFor(images, [&](std::size_t begin, std::size_t end) {
-    std::vector<float> rgb(static_cast<std::size_t>(texels) * 3);
-    ImageFit model(ids, sizes, coef, terms, channels), plain(ids, sizes, nullptr, 1, 1);
-    for (std::size_t i = begin; i < end; ++i) {
-      stack.imageLinear(static_cast<int>(i), rgb.data());
-      out.withinSse[i] = model.fit(rgb.data(), invAlpha);
-      if (keepMeans)
-        for (int g = 0; g < clusters; ++g)
-          std::copy_n(&model.means()[g * outputs], outputs, &out.means[(static_cast<std::size_t>(g) * images + i) * outputs]);
-      if (plainFloorToo) out.plainWithinSse[i] = plain.fit(rgb.data(), invAlpha);
-      bar.advance();
-    }
+    auto run = [&](auto model) {
+      fitImages(stack, std::move(model), begin, end, invAlpha, keepMeans, plainFloorToo, clusters, outputs, out, bar);
+    };
+    // The shapes the recipes use, unrolled; any other at run time.
+    if (!coef)
+      run(ImageFit<1, 1, false>(ids, sizes, nullptr, 1, 1));
+    else if (terms == 1 && channels == 3)
+      run(ImageFit<1, 3, true>(ids, sizes, coef, 1, 3));
+    else if (terms == 1 && channels == 1)
+      run(ImageFit<1, 1, true>(ids, sizes, coef, 1, 1));
+    else
+      run(ImageFit<0, 0, true>(ids, sizes, coef, terms, channels));
   });
   bar.finish();
   return out;
@@ -343,13 +395,11 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   const Eigen::Index usedImages = static_cast<Eigen::Index>(used.size());
   const int columns = terms * channels;
   std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
-  // Batches of clusters whose stored values take at most the bytes of threads x 8 x the mean
-  // cluster size texels as floats (at least one cluster), and one cluster's values as floats per
-  // thread: the memory the estimate allows this stage (pipeline/memory_estimate.cpp).
+  // Batches of clusters whose stored values take at most the bytes of modulationTexelsPerThread
+  // floats per thread (at least one cluster), and one cluster's values as floats per thread.
   const std::size_t valueBytes = stack.storedValueBytes();
   const std::size_t batchTexels = static_cast<std::size_t>(threadCount()) *
-                                  (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1) * sizeof(float) /
-                                  valueBytes;
+                                  modulationTexelsPerThread(texels, clusters) * sizeof(float) / valueBytes;
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
   std::vector<std::uint8_t> storage;
   std::vector<std::uint8_t*> batch;
@@ -452,11 +502,10 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   Progress bar("refit texel coefficients", static_cast<std::size_t>(texels), progress);
   // Chunks of consecutive texels, gathered as the stack stores them: each image is read once per
   // chunk (one read call for a stack in a scratch file), so that larger chunks make fewer
-  // calls; 256 to 4096 texels, within the modulation stage's budget per thread (8 x the mean
-  // cluster size texels as floats: pipeline/memory_estimate.cpp).
+  // calls; 256 to 4096 texels, within the stage's budget per thread (modulationTexelsPerThread).
   const std::size_t valueBytes = stack.storedValueBytes();
-  const std::size_t chunkTexels = std::clamp<std::size_t>(
-      (8 * static_cast<std::size_t>(texels) / std::max(1, clusters) + 1) * sizeof(float) / valueBytes, 256, 4096);
+  const std::size_t chunkTexels =
+      std::clamp<std::size_t>(modulationTexelsPerThread(texels, clusters) * sizeof(float) / valueBytes, 256, 4096);
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
     Eigen::VectorXd rhs(r);
     std::vector<int> chunk;

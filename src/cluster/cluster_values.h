@@ -8,6 +8,8 @@
 // Also the coefficients themselves, derived from the data (a rank-R model per cluster).
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -57,6 +59,14 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
 // wanted) costs more than the iteration: at 800 x 800 texels (n_c about 1,300) it took 800 s
 // of 1,860 with the threshold at 1,024.
 constexpr long kExactSvdUpTo = 256;
+
+// Texels whose values, as floats, the modulation stage may hold per thread: 8 x the mean cluster
+// size (and one), at most all of them. The coefficient batches and the refit's chunks take
+// their size from it; the memory estimate counts it (pipeline/memory_estimate.cpp).
+inline std::size_t modulationTexelsPerThread(std::int64_t texels, int clusters) {
+  const std::size_t m = static_cast<std::size_t>(texels);
+  return std::min(m, 8 * m / static_cast<std::size_t>(clusters > 1 ? clusters : 1) + 1);
+}
 
 // The top `terms` left singular vectors u (n x terms, unit columns) and singular values of y
 // (n x dims), by block subspace iteration (block terms + 6, Rayleigh-Ritz each iteration,

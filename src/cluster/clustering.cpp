@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <sstream>
 
 #include "util/error.h"
@@ -55,6 +56,45 @@ float selectKth(float* a, int n, int kth) {
   return a[kth];
 }
 
+// The value of rank `rank` (from 0) among a cluster's values, from the counts of its 256 codes.
+float rankedCode(const std::uint32_t* counts, std::uint32_t rank, const float* table) {
+  std::uint32_t below = 0;
+  int code = 0;
+  while (below + counts[code] <= rank) below += counts[code++];
+  return table[code];
+}
+
+// The medians of a source whose values are 256 codes per column (an 8-bit stack): a count of
+// each cluster's codes per column, one pass over the bytes, no selection. The tables never fall
+// as the code rises, so the value of the middle code is the middle value, and the mean of the
+// two middle ones is the same float arithmetic on the same floats: bit for bit the selection's
+// result. Returns false for other sources.
+bool medianCodes(const AbrdfSource& x, const std::vector<std::int32_t>& ids, const std::vector<std::int32_t>& offset,
+                 MatrixXfCol& out, const std::string& progressLabel) {
+  const int k = static_cast<int>(offset.size()) - 1;
+  std::vector<std::vector<std::uint32_t>> counts(threadCount());  // per worker: k x 256, zero between columns
+  return x.forEachCodedImage([&](Eigen::Index image, const std::uint8_t* bytes, const float* tables, int worker) {
+    std::vector<std::uint32_t>& count = counts[static_cast<std::size_t>(worker)];
+    if (count.empty()) count.assign(static_cast<std::size_t>(k) * 256, 0);
+    for (int c = 0; c < 3; ++c) {
+      for (std::size_t t = 0; t < ids.size(); ++t) ++count[static_cast<std::size_t>(ids[t]) * 256 + bytes[3 * t + c]];
+      float* rep = out.col(3 * image + c).data();
+      const float* table = tables + 256 * c;
+      for (int g = 0; g < k; ++g) {
+        const std::uint32_t n = static_cast<std::uint32_t>(offset[g + 1] - offset[g]);
+        std::uint32_t* cluster = &count[static_cast<std::size_t>(g) * 256];
+        if (n == 0) {
+          rep[g] = 0.0f;  // as the selection gives an empty cluster
+        } else {
+          const float upperMiddle = rankedCode(cluster, n / 2, table);
+          rep[g] = n % 2 == 1 ? upperMiddle : 0.5f * (rankedCode(cluster, n / 2 - 1, table) + upperMiddle);
+        }
+        std::fill(cluster, cluster + 256, 0u);
+      }
+    }
+  }, progressLabel);
+}
+
 }  // namespace
 
 // ---- Representatives
@@ -90,11 +130,13 @@ MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::
   std::int32_t largest = 0;
   for (int c = 0; c < k; ++c) largest = std::max(largest, offset[c + 1] - offset[c]);
 
+  MatrixXfCol out(k, x.cols());
+  if (kind == Representative::Median && medianCodes(x, ids, offset, out, progressLabel)) return out;
+
   // Dimension by dimension: a column of X is contiguous and small enough to stay in cache
   // while every cluster gathers its values from it, and no cluster is ever copied whole
   // (a single cluster of a full material would be gigabytes). Columns come in slices
   // (preprocess/abrdf_source.h): from the stack, X never exists whole either.
-  MatrixXfCol out(k, x.cols());
   const Eigen::Index rows = x.rows();
   x.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
     std::vector<float> values(largest);

@@ -36,7 +36,9 @@ struct ClusteringResult {
 };
 
 // Per-dimension median (or mean) of each cluster's rows of x. k x D. One read of x, column
-// slice by column slice (progressLabel: a bar in dimensions; empty: none).
+// slice by column slice; the medians of an 8-bit stack's source from counts of its codes,
+// image by image (AbrdfSource::forEachCodedImage), the same bits. progressLabel: a bar in
+// dimensions (empty: none).
 MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::int32_t>& ids, int k,
                                    Representative kind, const std::string& progressLabel = "");
 MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::int32_t>& ids, int k,

@@ -38,12 +38,11 @@ Stage clusteringStage(const StackShape& shape, int components, int oversampling,
 }
 
 // Per-texel modulation coefficients: per thread, a batch's share of clusters' ABRDFs as the stack
-// stores them (the bytes of 8 x the mean cluster size texels as floats, at most all texels),
-// one such cluster as floats for its SVD, its Gram matrix when it is small; the texels'
-// coefficients.
+// stores them (the bytes of modulationTexelsPerThread texels as floats), one such cluster as
+// floats for its SVD, its Gram matrix when it is small; the texels' coefficients.
 Stage modulationStage(const StackShape& shape, int clusters, int coefficientsPerTexel, int workers) {
   const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
-  const std::size_t large = std::min(m, 8 * m / static_cast<std::size_t>(std::max(1, clusters)) + 1);
+  const std::size_t large = modulationTexelsPerThread(shape.texels(), clusters);
   const std::size_t side = std::min<std::size_t>(std::min(large, d), kExactSvdUpTo);  // the exact SVD's Gram matrix
   const std::size_t perWorker = 2 * large * d * kFloat + side * side * 8 * 2;
   const std::size_t perTexel = m * static_cast<std::size_t>(std::max(1, coefficientsPerTexel)) * kFloat * 4 + m * 3 * kFloat * 2;

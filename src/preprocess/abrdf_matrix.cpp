@@ -8,6 +8,7 @@
 #include <sstream>
 #include <vector>
 
+#include "io/color.h"
 #include "util/error.h"
 #include "util/half.h"
 #include "util/parallel.h"
@@ -172,10 +173,9 @@ namespace {
 // in double, then scaled in place. The float sums run over Eigen maps whose vectorized
 // reduction depends on the column's address modulo the SIMD alignment, so callers that
 // stream (fitStandardization) lay columns out at the address offsets X would give them.
-void standardizeColumn(float* column, Eigen::Index rows, Eigen::Index d, float& meanOut, float& stddevOut) {
-  checkLogDomain(column, rows, d);
+// Its second half: the column already holds log(x + 1).
+void standardizeLoggedColumn(float* column, Eigen::Index rows, float& meanOut, float& stddevOut) {
   auto col = Eigen::Map<Eigen::ArrayXf>(column, rows);
-  log1pInPlace(column, rows);
   double mean, variance;
   columnMoments(column, rows, mean, variance);
   double stddev = std::sqrt(variance);
@@ -187,6 +187,12 @@ void standardizeColumn(float* column, Eigen::Index rows, Eigen::Index d, float& 
     col = (col - meanOut) * (1.0f / stddevOut);
   else
     col = 0.0f;
+}
+
+void standardizeColumn(float* column, Eigen::Index rows, Eigen::Index d, float& meanOut, float& stddevOut) {
+  checkLogDomain(column, rows, d);
+  log1pInPlace(column, rows);
+  standardizeLoggedColumn(column, rows, meanOut, stddevOut);
 }
 
 }  // namespace
@@ -227,19 +233,38 @@ Standardization fitStandardization(const BtfStack& stack, bool progress, float* 
   std::vector<std::vector<float>> images(workers);
   std::vector<float> highest(workers, -std::numeric_limits<float>::infinity());
   if (standardized) standardized->mean.resize(dims), standardized->variance.resize(dims);
+  // An 8-bit stack holds 256 values: their logarithms (log1pInPlace works value by value, so a
+  // table gives its bits) spare a logarithm per sample, most of this pass's time otherwise.
+  const bool srgb = stack.sampleType() == SampleType::Srgb8 && !stack.isComputed();
+  const float* linear = srgb8ToLinearTable();
+  std::vector<float> logs(linear, linear + 256);
+  log1pRun(logs.data(), 256);
+  std::vector<std::vector<std::uint8_t>> copies(workers);  // 8-bit images read out of a scratch file
   Progress bar("standardize", stack.numImages(), progress);
   parallelForDynamic(stack.numImages(), [&](std::size_t image, int worker) {
     Eigen::VectorXf& buffer = buffers[worker];
     std::vector<float>& rgb = images[worker];
     if (buffer.size() == 0) buffer.resize(texels + kAlign);
-    if (rgb.empty()) rgb.resize(static_cast<std::size_t>(texels) * 3);
-    stack.imageLinear(static_cast<int>(image), rgb.data());
-    if (alpha) highest[worker] = std::max(highest[worker], *std::max_element(rgb.begin(), rgb.end()));
+    const std::uint8_t* bytes = nullptr;
+    if (srgb) {
+      bytes = stack.readImageBytes(static_cast<int>(image), 0, stack.bytesPerImage(), copies[worker]);
+      // The table rises with the byte: the largest byte's value is the image's maximum.
+      if (alpha) highest[worker] = std::max(highest[worker], linear[*std::max_element(bytes, bytes + 3 * texels)]);
+    } else {
+      if (rgb.empty()) rgb.resize(static_cast<std::size_t>(texels) * 3);
+      stack.imageLinear(static_cast<int>(image), rgb.data());
+      if (alpha) highest[worker] = std::max(highest[worker], *std::max_element(rgb.begin(), rgb.end()));
+    }
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
       float* column = buffer.data() + (d * texels) % kAlign;
-      for (Eigen::Index t = 0; t < texels; ++t) column[t] = rgb[3 * t + c];
-      standardizeColumn(column, texels, d, s.mean[d], s.stddev[d]);
+      if (srgb) {
+        for (Eigen::Index t = 0; t < texels; ++t) column[t] = logs[bytes[3 * t + c]];
+        standardizeLoggedColumn(column, texels, s.mean[d], s.stddev[d]);
+      } else {
+        for (Eigen::Index t = 0; t < texels; ++t) column[t] = rgb[3 * t + c];
+        standardizeColumn(column, texels, d, s.mean[d], s.stddev[d]);
+      }
       if (standardized) {  // the standardized column, where X would hold it: PCA's moments
         double mean;
         columnMoments(column, texels, mean, standardized->variance[d]);

@@ -115,6 +115,19 @@ StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standa
   });
 }
 
+bool StackAbrdfSource::forEachCodedImage(const CodedImageVisit& visit, const std::string& label) const {
+  if (table_.empty()) return false;
+  std::vector<std::vector<std::uint8_t>> copies(threadCount());  // images read out of a scratch file
+  Progress bar(label, static_cast<std::size_t>(cols()), !label.empty());
+  parallelForDynamic(static_cast<std::size_t>(stack_.numImages()), [&](std::size_t image, int worker) {
+    const std::uint8_t* bytes = stack_.readImageBytes(static_cast<int>(image), 0, stack_.bytesPerImage(), copies[worker]);
+    visit(static_cast<Eigen::Index>(image), bytes, &table_[image * 3 * 256], worker);
+    bar.advance(3);
+  });
+  bar.finish();
+  return true;
+}
+
 std::size_t StackAbrdfSource::workingBytes(std::int64_t texels, int images, SampleType type, int workers) {
   const std::size_t d = 3 * static_cast<std::size_t>(images), m = static_cast<std::size_t>(texels);
   const std::size_t tables = type == SampleType::Srgb8 ? d * 256 * sizeof(float) : 0;

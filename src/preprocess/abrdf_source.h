@@ -18,6 +18,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -56,6 +57,17 @@ class AbrdfSource {
   // The columns' moments when known without a pass over X (PCA then skips its first pass).
   virtual const ColumnMoments* knownMoments() const { return nullptr; }
 
+  // Sources whose values are one of 256 per column (an 8-bit stack) visit their images, each
+  // once, in parallel: visit(image, bytes, tables, worker), bytes the image's M x 3 interleaved
+  // codes, column 3 x image + c of texel t holding tables[256 c + bytes[3 t + c]] (each table
+  // never falls as the byte rises), worker the thread's index below threadCount(); `label`: a
+  // progress bar in columns (empty: none). Others return false and visit nothing.
+  using CodedImageVisit =
+      std::function<void(Eigen::Index image, const std::uint8_t* bytes, const float* tables, int worker)>;
+  virtual bool forEachCodedImage(const CodedImageVisit& /*visit*/, const std::string& /*label*/ = "") const {
+    return false;
+  }
+
  protected:
   // An in-memory X returns its data (column-major, leading dimension rows()); others nullptr
   // and fill blocks on demand.
@@ -89,6 +101,7 @@ class StackAbrdfSource : public AbrdfSource {
   const Standardization& standardization() const { return s_; }
   std::size_t sliceBytes(int workers) const override;
   const ColumnMoments* knownMoments() const override { return moments_.mean.size() == cols() ? &moments_ : nullptr; }
+  bool forEachCodedImage(const CodedImageVisit& visit, const std::string& label = "") const override;
   // Working memory for a stack of this shape (tables + per-worker slices), before it exists.
   static std::size_t workingBytes(std::int64_t texels, int images, SampleType type, int workers);
 
