@@ -173,7 +173,7 @@ namespace {
 // in double, then scaled in place. The float sums run over Eigen maps whose vectorized
 // reduction depends on the column's address modulo the SIMD alignment, so callers that
 // stream (fitStandardization) lay columns out at the address offsets X would give them.
-// Its second half: the column already holds log(x + 1).
+// standardizeLoggedColumn is its second half, for a column that already holds log(x + 1).
 void standardizeLoggedColumn(float* column, Eigen::Index rows, float& meanOut, float& stddevOut) {
   auto col = Eigen::Map<Eigen::ArrayXf>(column, rows);
   double mean, variance;
@@ -237,8 +237,7 @@ Standardization fitStandardization(const BtfStack& stack, bool progress, float* 
   // table gives its bits) spare a logarithm per sample, most of this pass's time otherwise.
   const bool srgb = stack.sampleType() == SampleType::Srgb8 && !stack.isComputed();
   const float* linear = srgb8ToLinearTable();
-  std::vector<float> logs(linear, linear + 256);
-  log1pRun(logs.data(), 256);
+  const std::vector<float> logs = log1pOfSrgb8();
   std::vector<std::vector<std::uint8_t>> copies(workers);  // 8-bit images read out of a scratch file
   Progress bar("standardize", stack.numImages(), progress);
   parallelForDynamic(stack.numImages(), [&](std::size_t image, int worker) {
@@ -279,6 +278,13 @@ Standardization fitStandardization(const BtfStack& stack, bool progress, float* 
 }
 
 void log1pRun(float* values, Eigen::Index n) { log1pInPlace(values, n); }
+
+std::vector<float> log1pOfSrgb8() {
+  const float* linear = srgb8ToLinearTable();
+  std::vector<float> logs(linear, linear + 256);
+  log1pInPlace(logs.data(), 256);
+  return logs;
+}
 
 // ---- Target normalization
 

@@ -6,6 +6,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
+#include <vector>
 
 #include "io/btf_stack.h"
 #include "linalg/blas.h"
@@ -52,6 +53,10 @@ Standardization fitStandardization(const BtfStack& stack, bool progress = true, 
 // log(x + 1) elementwise, in place: the transform standardization applies (value by value,
 // so any layout of the values gives the same results).
 void log1pRun(float* values, Eigen::Index n);
+
+// log(x + 1) of the 256 linear values of an 8-bit stack, indexed by the byte (log1pRun's
+// bits): what X holds for each byte before it is standardized.
+std::vector<float> log1pOfSrgb8();
 
 // alpha of eq. (5): the global maximum of the linear values; targets are values / alpha.
 // Throws nbtf::Error if the stack is all zero (nothing to normalize by).

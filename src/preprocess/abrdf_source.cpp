@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <numeric>
 
-#include "io/color.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -98,9 +97,7 @@ StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standa
   if (stack_.sampleType() != SampleType::Srgb8) return;
   // log(x + 1) of the 256 linear values, through the same function X is transformed with, then
   // standardized with the arithmetic of Standardization::apply: the value X holds for each byte.
-  std::vector<float> logs(256);
-  for (int v = 0; v < 256; ++v) logs[v] = srgb8ToLinearTable()[v];
-  log1pRun(logs.data(), 256);
+  const std::vector<float> logs = log1pOfSrgb8();
   table_.resize(static_cast<std::size_t>(d) * 256);
   parallelFor(static_cast<std::size_t>(d), [&](std::size_t begin, std::size_t end) {
     for (std::size_t j = begin; j < end; ++j) {
