@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <random>
+#include <utility>
+#include <vector>
 
 namespace nbtf {
 namespace {
@@ -86,6 +88,36 @@ TEST(DirectionPlanes, GradientMatchesFiniteDifferences) {
     touched += gradient[i] != 0;
   }
   EXPECT_EQ(touched, 3 * 4 * 2);  // 4 corners per plane, 2 features, 3 planes
+}
+
+// Training computes each pair's taps once and scatters the features in ranges, one range
+// per thread: sampling from taps is sampling from the points, and the ranges' scatters,
+// each over all rows in order, give the whole scatter's bits.
+TEST(DirectionPlanes, TapsAndFeatureRangesGiveTheSameBits) {
+  const int R = 6, F = 5, rows = 300;
+  const DirectionPlanes planes = randomPlanes(R, F, 11);
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> u(-1.1f, 1.1f);
+  std::vector<float> points(6 * rows), dOut(3 * F * rows);
+  for (float& c : points) c = u(rng);
+  for (float& d : dOut) d = u(rng);
+  std::vector<float> whole(planes.valueCount(), 0.5f), ranged = whole;
+  for (int r = 0; r < rows; ++r) {
+    const PlaneTaps taps = planeTaps(R, &points[6 * r]);
+    float fromPoints[3 * F], fromTaps[3 * F];
+    sampleDirectionPlanes(planes, &points[6 * r], fromPoints);
+    sampleDirectionPlanes(taps, R, F, planes.values.data(), fromTaps);
+    for (int i = 0; i < 3 * F; ++i) ASSERT_EQ(fromTaps[i], fromPoints[i]) << "row " << r << " input " << i;
+    scatterDirectionPlanesGradient(planes, &points[6 * r], &dOut[3 * F * r], whole.data());
+  }
+  for (auto [first, end] : {std::pair{0, 2}, std::pair{2, 3}, std::pair{3, F}})
+    for (int r = 0; r < rows; ++r)
+      scatterDirectionPlanesGradient(planeTaps(R, &points[6 * r]), R, F, &dOut[3 * F * r], ranged.data(), first, end);
+  EXPECT_EQ(ranged, whole);
+  // Points near one another share cells, so values collect several rows' terms.
+  int moved = 0;
+  for (float g : whole) moved += g != 0.5f;
+  EXPECT_GT(moved, 3 * F * 4);
 }
 
 // Cluster planes: row r's values are a DirectionPlanes block of their own, sampled and

@@ -351,6 +351,25 @@ TEST(Trainer, DirectionPlanesTrainAndAgreeWithAutograd) {
   }
 }
 
+// The direction planes' gradient is scattered by features on each thread
+// (TrainingSet::addPlaneGradient), every value's terms in row order: a run on two threads
+// learns the planes and the model of a run on one, bit for bit.
+TEST(Trainer, DirectionPlanesAreTheSameOnAnyThreadCount) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 30;
+  c.model.planeFeatures = 3;
+  c.model.planeResolution = 6;
+  c.threads = 1;
+  const TrainResult one = trainModel(m.clustered(), c);
+  c.threads = 2;
+  const TrainResult two = trainModel(m.clustered(), c);
+  ASSERT_EQ(one.planes.values.size(), 3u * 6 * 6 * 3);
+  EXPECT_EQ(one.planes.values, two.planes.values);
+  EXPECT_TRUE(sameModel(one, two));
+  EXPECT_EQ(one.rmseTrain, two.rmseTrain);
+}
+
 // Cluster planes (ModelConfig::clusterPlaneFeatures): every encoder input's own planes. Training
 // with them lowers the error below the run without them, the RMSE the trainer reports is what
 // the exported decoder, latents and planes give texel by texel, the torch backend (autograd's

@@ -243,7 +243,8 @@ class TrainingRun {
       : config_(config),
         callStart_(callStart),
         set_(inputs, config.holdoutFraction, config.seed, config.progress, config.model.directionInputs,
-             config.model.planeFeatures, config.model.clusterPlaneFeatures, config.model.clusterPlaneResolution),
+             config.model.planeFeatures, config.model.planeResolution, config.model.clusterPlaneFeatures,
+             config.model.clusterPlaneResolution),
         x_(*inputs.encoderInputs),
         inputSource_(x_),
         encoder_(nullptr),
@@ -582,7 +583,7 @@ void TrainingRun::addPlaneGradient() {
   const int* images = &plan_.images[static_cast<std::size_t>(tileShare_.first) * perTile];
   if (planeInputs_ > 0) {
     torch::Tensor gradient = torch::zeros_like(decoder_->planes);
-    set_.addPlaneGradient(stepPlanes_, images, rowGradients, static_cast<std::int64_t>(stepTiles()) * perTile,
+    set_.addPlaneGradient(images, rowGradients, static_cast<std::int64_t>(stepTiles()) * perTile,
                           gradient.data_ptr<float>(), trailingInputs_);
     decoder_->planes.mutable_grad() = gradient;
   }

@@ -5,6 +5,8 @@
 #include <cstring>
 #include <string>
 
+#include <ATen/Parallel.h>
+
 #include "cluster/cluster_values.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -18,8 +20,8 @@ constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
 }  // namespace
 
 TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress,
-                         DirectionEncoding directionInputs, int planeFeatures, int clusterPlaneFeatures,
-                         int clusterPlaneResolution)
+                         DirectionEncoding directionInputs, int planeFeatures, int planeResolution,
+                         int clusterPlaneFeatures, int clusterPlaneResolution)
     : stack_(in.stack), alpha_(in.alpha), perTexel_(in.ids.empty()) {
   // ---- Validate: every mismatch here would otherwise be a wrong answer, not a crash.
   if (!in.stack) throw Error("training: no BTF stack given");
@@ -65,6 +67,10 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
 
   // ---- Decoder direction inputs (eq. 7-9).
   planeInputs_ = DirectionPlanes::kPlanes * planeFeatures;
+  planeFeatures_ = planeFeatures;
+  planeResolution_ = planeResolution;
+  if (planeFeatures > 0 && planeResolution < 2)
+    throw Error("training: direction planes of " + std::to_string(planeResolution) + " grid points per side (at least 2)");
   clusterPlaneInputs_ = DirectionPlanes::kPlanes * clusterPlaneFeatures;
   clusterPlaneResolution_ = clusterPlaneResolution;
   clusterPlaneSize_ = static_cast<std::size_t>(clusterPlaneInputs_) * clusterPlaneResolution * clusterPlaneResolution;
@@ -78,6 +84,9 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
     encodeDirections(directionInputs, light, view, &directions_[static_cast<std::size_t>(i) * directionWidth_]);
     if (planePoints) directionPlanePoints(light.unitVector(), view.unitVector(), &planePoints_[6 * static_cast<std::size_t>(i)]);
   }
+  if (planeInputs_ > 0)
+    for (int i = 0; i < images_; ++i)
+      planeTaps_.push_back(planeTaps(planeResolution_, &planePoints_[6 * static_cast<std::size_t>(i)]));
 
   if (!perTexel_) {
     const float* coefficients = nullptr;
@@ -186,18 +195,31 @@ void planStep(const TrainingSet& set, std::uint64_t seed, std::int64_t step, int
 
 void TrainingSet::setPlaneFeatures(const DirectionPlanes& planes) {
   if (planeInputs_ == 0) return;
+  if (planes.resolution != planeResolution_ || planes.features != planeFeatures_)
+    throw Error("training: direction planes of " + std::to_string(planes.resolution) + " x " +
+                std::to_string(planes.features) + " given to a set built for " + std::to_string(planeResolution_) +
+                " x " + std::to_string(planeFeatures_));
   const int first = directionWidth_ - clusterPlaneInputs_ - planeInputs_;
-  for (int i = 0; i < images_; ++i)
-    sampleDirectionPlanes(planes, &planePoints_[6 * static_cast<std::size_t>(i)],
-                          &directions_[static_cast<std::size_t>(i) * directionWidth_ + first]);
+  at::parallel_for(0, images_, 256, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      sampleDirectionPlanes(planeTaps_[i], planeResolution_, planeFeatures_, planes.values.data(),
+                            &directions_[static_cast<std::size_t>(i) * directionWidth_ + first]);
+  });
 }
 
-void TrainingSet::addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients,
-                                   std::int64_t rows, float* gradient, int stride) const {
+void TrainingSet::addPlaneGradient(const int* images, const float* rowGradients, std::int64_t rows, float* gradient,
+                                   int stride) const {
   if (stride == 0) stride = planeInputs_;
-  for (std::int64_t r = 0; r < rows; ++r)
-    scatterDirectionPlanesGradient(planes, &planePoints_[6 * static_cast<std::size_t>(images[r])],
-                                   rowGradients + r * stride, gradient);
+  const std::size_t values = static_cast<std::size_t>(planeInputs_) * planeResolution_ * planeResolution_;
+  at::parallel_for(0, planeFeatures_, 1, [&](std::int64_t firstFeature, std::int64_t endFeature) {
+    // A copy of its own, so that threads do not write to one another's cache lines.
+    std::vector<float> own(gradient, gradient + values);
+    for (std::int64_t r = 0; r < rows; ++r)
+      scatterDirectionPlanesGradient(planeTaps_[images[r]], planeResolution_, planeFeatures_, rowGradients + r * stride,
+                                     own.data(), static_cast<int>(firstFeature), static_cast<int>(endFeature));
+    for (std::size_t v = 0; v < values; v += planeFeatures_)
+      std::copy(&own[v + firstFeature], &own[v + endFeature], gradient + v + firstFeature);
+  });
 }
 
 void TrainingSet::writeClusterPlaneFeatures(const float* values, const int* images, int count, float* rows) const {

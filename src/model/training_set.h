@@ -31,7 +31,7 @@ class TrainingSet {
   // Validates the inputs (throws nbtf::Error) and precomputes the cluster means in parallel.
   TrainingSet(const TrainInputs& inputs, double holdoutFraction, std::uint64_t seed, bool progress,
               DirectionEncoding directionInputs = DirectionEncoding::Stereographic, int planeFeatures = 0,
-              int clusterPlaneFeatures = 0, int clusterPlaneResolution = 0);
+              int planeResolution = 0, int clusterPlaneFeatures = 0, int clusterPlaneResolution = 0);
 
   bool perTexel() const { return perTexel_; }
   int groups() const { return groups_; }        // encoder inputs (rows of encoderInputs)
@@ -62,13 +62,15 @@ class TrainingSet {
   // of dLoss/d(cluster plane features), `stride` floats apart.
   void addClusterPlaneGradient(const int* images, int count, const float* rowGradients, int stride,
                                float* gradient) const;
-  // Samples `planes` at every image's directions into the last planeInputs() columns.
+  // Samples `planes` (of the constructor's planeFeatures and planeResolution) at every
+  // image's directions into the last planeInputs() columns. Parallel over images.
   void setPlaneFeatures(const DirectionPlanes& planes);
-  // Adds to `gradient` (laid out as planes.values) the planes' gradient from rows of
+  // Adds to `gradient` (laid out as the planes' values) their gradient from rows of
   // dLoss/d(plane features): row r (planeInputs() floats) belongs to image images[r].
-  // Rows are `stride` floats apart (planeInputs() when 0).
-  void addPlaneGradient(const DirectionPlanes& planes, const int* images, const float* rowGradients, std::int64_t rows,
-                        float* gradient, int stride = 0) const;
+  // Rows are `stride` floats apart (planeInputs() when 0). Parallel over features, each
+  // value's terms added in row order: the same bits on any number of threads.
+  void addPlaneGradient(const int* images, const float* rowGradients, std::int64_t rows, float* gradient,
+                        int stride = 0) const;
   // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.
   std::uint64_t texelCoefficientHash() const { return coefficientHash_; }
 
@@ -98,6 +100,8 @@ class TrainingSet {
   int clusterPlaneInputs_ = 0, clusterPlaneResolution_ = 0;
   std::size_t clusterPlaneSize_ = 0;
   std::vector<float> planePoints_; // images x 6 (util/direction_planes.h), when there are planes
+  int planeFeatures_ = 0, planeResolution_ = 0;
+  std::vector<PlaneTaps> planeTaps_;  // images: the points on the shared planes' grid
   std::uint64_t coefficientHash_ = 0;
   int terms_ = 1;
 };

@@ -51,36 +51,54 @@ void scatterDirectionPlanesGradient(const DirectionPlanes& planes, const float* 
   scatterDirectionPlanesGradient(planes.resolution, planes.features, points, dOut, gradient);
 }
 
-void sampleDirectionPlanes(int R, int F, const float* values, const float* points, float* out) {
-  const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
+PlaneTaps planeTaps(int R, const float* points) {
+  PlaneTaps taps{};
   for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
     const Taps t = tapsOf(R, points[2 * p], points[2 * p + 1]);
-    const float* v00 = values + p * planeSize + (static_cast<std::size_t>(t.y0) * R + t.x0) * F;
+    taps.corner[p] = t.y0 * R + t.x0;
+    float* w = taps.weight[p];
+    w[0] = (1 - t.fx) * (1 - t.fy), w[1] = t.fx * (1 - t.fy), w[2] = (1 - t.fx) * t.fy, w[3] = t.fx * t.fy;
+  }
+  return taps;
+}
+
+void sampleDirectionPlanes(const PlaneTaps& taps, int R, int F, const float* values, float* out) {
+  const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
+  for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
+    const float* v00 = values + p * planeSize + static_cast<std::size_t>(taps.corner[p]) * F;
     const float* v01 = v00 + F;                                  // x + 1
     const float* v10 = v00 + static_cast<std::size_t>(R) * F;    // y + 1
     const float* v11 = v10 + F;
-    const float w00 = (1 - t.fx) * (1 - t.fy), w01 = t.fx * (1 - t.fy), w10 = (1 - t.fx) * t.fy, w11 = t.fx * t.fy;
-    for (int f = 0; f < F; ++f) out[p * F + f] = w00 * v00[f] + w01 * v01[f] + w10 * v10[f] + w11 * v11[f];
+    const float* w = taps.weight[p];
+    for (int f = 0; f < F; ++f) out[p * F + f] = w[0] * v00[f] + w[1] * v01[f] + w[2] * v10[f] + w[3] * v11[f];
   }
 }
 
-void scatterDirectionPlanesGradient(int R, int F, const float* points, const float* dOut, float* gradient) {
+void scatterDirectionPlanesGradient(const PlaneTaps& taps, int R, int F, const float* dOut, float* gradient,
+                                    int firstFeature, int endFeature) {
   const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
   for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
-    const Taps t = tapsOf(R, points[2 * p], points[2 * p + 1]);
-    float* g00 = gradient + p * planeSize + (static_cast<std::size_t>(t.y0) * R + t.x0) * F;
+    float* g00 = gradient + p * planeSize + static_cast<std::size_t>(taps.corner[p]) * F;
     float* g01 = g00 + F;
     float* g10 = g00 + static_cast<std::size_t>(R) * F;
     float* g11 = g10 + F;
-    const float w00 = (1 - t.fx) * (1 - t.fy), w01 = t.fx * (1 - t.fy), w10 = (1 - t.fx) * t.fy, w11 = t.fx * t.fy;
+    const float* w = taps.weight[p];
     const float* d = dOut + p * F;
-    for (int f = 0; f < F; ++f) {
-      g00[f] += w00 * d[f];
-      g01[f] += w01 * d[f];
-      g10[f] += w10 * d[f];
-      g11[f] += w11 * d[f];
+    for (int f = firstFeature; f < endFeature; ++f) {
+      g00[f] += w[0] * d[f];
+      g01[f] += w[1] * d[f];
+      g10[f] += w[2] * d[f];
+      g11[f] += w[3] * d[f];
     }
   }
+}
+
+void sampleDirectionPlanes(int R, int F, const float* values, const float* points, float* out) {
+  sampleDirectionPlanes(planeTaps(R, points), R, F, values, out);
+}
+
+void scatterDirectionPlanesGradient(int R, int F, const float* points, const float* dOut, float* gradient) {
+  scatterDirectionPlanesGradient(planeTaps(R, points), R, F, dOut, gradient, 0, F);
 }
 
 }  // namespace nbtf

@@ -68,6 +68,22 @@ void sampleDirectionPlanes(int resolution, int features, const float* values, co
 void scatterDirectionPlanesGradient(int resolution, int features, const float* points, const float* dOut,
                                     float* gradient);
 
+// Where one pair's points fall on an R-point grid, for every plane: the cell's first corner
+// (y0 x R + x0) and the bilinear weights of its corners (x0, y0), (x0 + 1, y0), (x0, y0 + 1),
+// (x0 + 1, y0 + 1). Training samples the same pairs every step, so it computes these once.
+struct PlaneTaps {
+  int corner[DirectionPlanes::kPlanes];
+  float weight[DirectionPlanes::kPlanes][4];
+};
+PlaneTaps planeTaps(int resolution, const float* points);
+
+// sampleDirectionPlanes and scatterDirectionPlanesGradient from taps, the same arithmetic.
+// The scatter adds features [firstFeature, endFeature) of every plane only, so that threads
+// owning disjoint features can share one gradient and still add each value in row order.
+void sampleDirectionPlanes(const PlaneTaps& taps, int resolution, int features, const float* values, float* out);
+void scatterDirectionPlanesGradient(const PlaneTaps& taps, int resolution, int features, const float* dOut,
+                                    float* gradient, int firstFeature, int endFeature);
+
 // The transpose of sampleDirectionPlanes: adds the gradient dOut (inputCount() floats) of
 // the sampled features at `points` to gradient (valueCount() floats, laid out as values).
 void scatterDirectionPlanesGradient(const DirectionPlanes& planes, const float* points, const float* dOut,
