@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include <ATen/Parallel.h>
 
@@ -69,24 +70,28 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
   planeInputs_ = DirectionPlanes::kPlanes * planeFeatures;
   planeFeatures_ = planeFeatures;
   planeResolution_ = planeResolution;
-  if (planeFeatures > 0 && planeResolution < 2)
-    throw Error("training: direction planes of " + std::to_string(planeResolution) + " grid points per side (at least 2)");
+  for (auto [features, resolution] : {std::pair{planeFeatures, planeResolution},
+                                      std::pair{clusterPlaneFeatures, clusterPlaneResolution}})
+    if (features > 0 && resolution < 2)
+      throw Error("training: planes of " + std::to_string(resolution) + " grid points per side (at least 2)");
   clusterPlaneInputs_ = DirectionPlanes::kPlanes * clusterPlaneFeatures;
   clusterPlaneResolution_ = clusterPlaneResolution;
   clusterPlaneSize_ = static_cast<std::size_t>(clusterPlaneInputs_) * clusterPlaneResolution * clusterPlaneResolution;
   directionWidth_ = directionInputCount(directionInputs) + planeInputs_ + clusterPlaneInputs_;
   directions_.assign(static_cast<std::size_t>(images_) * directionWidth_, 0.0f);
-  const bool planePoints = planeInputs_ + clusterPlaneInputs_ > 0;
-  if (planePoints) planePoints_.resize(static_cast<std::size_t>(images_) * 6);
   for (int i = 0; i < images_; ++i) {
     const Direction& light = stack.lights()[i / stack.numViews()];
     const Direction& view = stack.views()[i % stack.numViews()];
     encodeDirections(directionInputs, light, view, &directions_[static_cast<std::size_t>(i) * directionWidth_]);
-    if (planePoints) directionPlanePoints(light.unitVector(), view.unitVector(), &planePoints_[6 * static_cast<std::size_t>(i)]);
+    // Where the pair falls on each kind of planes' grid, found once: every step samples and
+    // scatters the same pairs.
+    if (planeInputs_ + clusterPlaneInputs_ > 0) {
+      float points[6];
+      directionPlanePoints(light.unitVector(), view.unitVector(), points);
+      if (planeInputs_ > 0) planeTaps_.push_back(planeTaps(planeResolution_, points));
+      if (clusterPlaneInputs_ > 0) clusterPlaneTaps_.push_back(planeTaps(clusterPlaneResolution_, points));
+    }
   }
-  if (planeInputs_ > 0)
-    for (int i = 0; i < images_; ++i)
-      planeTaps_.push_back(planeTaps(planeResolution_, &planePoints_[6 * static_cast<std::size_t>(i)]));
 
   if (!perTexel_) {
     const float* coefficients = nullptr;
@@ -225,7 +230,7 @@ void TrainingSet::addPlaneGradient(const int* images, const float* rowGradients,
 void TrainingSet::writeClusterPlaneFeatures(const float* values, const int* images, int count, float* rows) const {
   const int first = directionWidth_ - clusterPlaneInputs_, G = clusterPlaneInputs_ / DirectionPlanes::kPlanes;
   for (int r = 0; r < count; ++r)
-    sampleDirectionPlanes(clusterPlaneResolution_, G, values, &planePoints_[6 * static_cast<std::size_t>(images[r])],
+    sampleDirectionPlanes(clusterPlaneTaps_[images[r]], clusterPlaneResolution_, G, values,
                           rows + static_cast<std::size_t>(r) * directionWidth_ + first);
 }
 
@@ -233,8 +238,8 @@ void TrainingSet::addClusterPlaneGradient(const int* images, int count, const fl
                                           float* gradient) const {
   const int G = clusterPlaneInputs_ / DirectionPlanes::kPlanes;
   for (int r = 0; r < count; ++r)
-    scatterDirectionPlanesGradient(clusterPlaneResolution_, G, &planePoints_[6 * static_cast<std::size_t>(images[r])],
-                                   rowGradients + static_cast<std::size_t>(r) * stride, gradient);
+    scatterDirectionPlanesGradient(clusterPlaneTaps_[images[r]], clusterPlaneResolution_, G,
+                                   rowGradients + static_cast<std::size_t>(r) * stride, gradient, 0, G);
 }
 
 }  // namespace nbtf

@@ -99,9 +99,10 @@ class TrainingSet {
   int planeInputs_ = 0;
   int clusterPlaneInputs_ = 0, clusterPlaneResolution_ = 0;
   std::size_t clusterPlaneSize_ = 0;
-  std::vector<float> planePoints_; // images x 6 (util/direction_planes.h), when there are planes
   int planeFeatures_ = 0, planeResolution_ = 0;
-  std::vector<PlaneTaps> planeTaps_;  // images: the points on the shared planes' grid
+  // Per image, where its (light, view) pair falls on the shared and on the cluster planes'
+  // grids (util/direction_planes.h); empty without such planes.
+  std::vector<PlaneTaps> planeTaps_, clusterPlaneTaps_;
   std::uint64_t coefficientHash_ = 0;
   int terms_ = 1;
 };
