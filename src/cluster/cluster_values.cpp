@@ -10,6 +10,7 @@
 
 #include "linalg/blas.h"
 #include "util/error.h"
+#include "util/page_buffer.h"
 #include "util/random.h"
 #include "util/parallel.h"
 #include "util/progress.h"
@@ -323,8 +324,7 @@ void scatterToClusters(const std::uint8_t* gathered, int count, std::size_t imag
 }
 
 void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const std::vector<std::vector<int>>& members,
-                    std::size_t first, std::size_t last, std::vector<std::uint8_t>& storage,
-                    std::vector<std::uint8_t*>& raw) {
+                    std::size_t first, std::size_t last, PageBuffer& storage, std::vector<std::uint8_t*>& raw) {
   struct Slot {
     int texel;
     std::uint32_t cluster;  // within the batch
@@ -347,9 +347,9 @@ void gatherClusters(const BtfStack& stack, const std::vector<int>& used, const s
     rows.push_back(members[g].size());
     bytes += (members[g].size() * dims * valueBytes + kAlign - 1) / kAlign * kAlign;
   }
-  if (storage.size() < bytes) {  // freed first, not resized: no copy of the old values beside the new
-    std::vector<std::uint8_t>().swap(storage);
-    storage.resize(bytes);
+  if (storage.size() < bytes) {  // freed first: never the old values beside the new
+    storage = PageBuffer();
+    storage = PageBuffer(bytes);
   }
   raw.clear();
   for (std::size_t offset : offsets) raw.push_back(storage.data() + offset);
@@ -401,43 +401,46 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   const std::size_t batchTexels = static_cast<std::size_t>(threadCount()) *
                                   modulationTexelsPerThread(texels, clusters) * sizeof(float) / valueBytes;
   Progress bar("texel coefficients", static_cast<std::size_t>(texels), progress);
-  std::vector<std::uint8_t> storage;
+  PageBuffer storage;
   std::vector<std::uint8_t*> batch;
+  const Eigen::Index valueColumns = channels > 1 ? usedImages : 3 * usedImages;
+  std::vector<AlignedFloats> valueStorage(threadCount());
   for (std::size_t first = 0; first < static_cast<std::size_t>(clusters);) {
     std::size_t last = first, size = 0;
     while (last < static_cast<std::size_t>(clusters) && (last == first || size + members[last].size() <= batchTexels))
       size += members[last++].size();
     gatherClusters(stack, used, members, first, last, storage, batch);
-    parallelFor(last - first, [&](std::size_t begin, std::size_t end) {
-      // A cluster's values as floats (one channel's columns with per-channel coefficients), in a
-      // buffer sized once for the largest cluster here.
-      std::size_t largest = 0;
-      for (std::size_t b = begin; b < end; ++b) largest = std::max(largest, members[first + b].size());
-      const Eigen::Index valueColumns = channels > 1 ? usedImages : 3 * usedImages;
-      AlignedFloats valueStorage(largest * static_cast<std::size_t>(valueColumns));
-      for (std::size_t b = begin; b < end; ++b) {
-        const std::size_t g = first + b;
-        const std::vector<int>& texelsOf = members[g];
-        const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
-        if (n == 0) continue;
-        const double scale = std::sqrt(static_cast<double>(n));
-        const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
-        for (int c = 0; c < channels; ++c) {
-          // The cluster's ABRDFs as rows, linear / alpha: with per-channel coefficients column
-          // j holds image j's channel c, else column 3 j + c does.
-          Eigen::Map<Eigen::MatrixXf> y(valueStorage.data(), n, valueColumns);
-          for (Eigen::Index j = 0; j < valueColumns; ++j) {
-            const Eigen::Index column = channels > 1 ? 3 * j + c : j;
-            stack.storedToLinear(batch[b] + static_cast<std::size_t>(column * n) * valueBytes,
-                                 static_cast<std::size_t>(n), invAlpha, y.col(j).data());
-          }
-          const Eigen::MatrixXd u = leadingLeftVectors(y, terms, seed);
-          for (int r = 0; r < terms; ++r)
-            for (Eigen::Index k = 0; k < n; ++k)
-              out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
+    // One cluster at a time to whichever thread is free: their costs grow with the square of
+    // their sizes (20 to 900 texels), so equal counts per thread left one thread idle.
+    std::size_t largest = 0;
+    for (std::size_t g = first; g < last; ++g) largest = std::max(largest, members[g].size());
+    parallelForDynamic(last - first, [&](std::size_t b, int worker) {
+      const std::size_t g = first + b;
+      const std::vector<int>& texelsOf = members[g];
+      const Eigen::Index n = static_cast<Eigen::Index>(texelsOf.size());
+      if (n == 0) return;
+      // A cluster's values as floats (one channel's columns with per-channel coefficients), in
+      // the worker's buffer, sized once for the batch's largest cluster.
+      AlignedFloats& values = valueStorage[worker];
+      if (values.size() < largest * static_cast<std::size_t>(valueColumns))
+        values.resize(largest * static_cast<std::size_t>(valueColumns));
+      const double scale = std::sqrt(static_cast<double>(n));
+      const std::uint64_t seed = SplitMix64::mix(0x5eed5eedULL, g);
+      for (int c = 0; c < channels; ++c) {
+        // The cluster's ABRDFs as rows, linear / alpha: with per-channel coefficients column
+        // j holds image j's channel c, else column 3 j + c does.
+        Eigen::Map<Eigen::MatrixXf> y(values.data(), n, valueColumns);
+        for (Eigen::Index j = 0; j < valueColumns; ++j) {
+          const Eigen::Index column = channels > 1 ? 3 * j + c : j;
+          stack.storedToLinear(batch[b] + static_cast<std::size_t>(column * n) * valueBytes,
+                               static_cast<std::size_t>(n), invAlpha, y.col(j).data());
         }
-        bar.advance(static_cast<std::size_t>(n));
+        const Eigen::MatrixXd u = leadingLeftVectors(y, terms, seed);
+        for (int r = 0; r < terms; ++r)
+          for (Eigen::Index k = 0; k < n; ++k)
+            out[static_cast<std::size_t>(texelsOf[k]) * columns + r * channels + c] = static_cast<float>(scale * u(k, r));
       }
+      bar.advance(static_cast<std::size_t>(n));
     });
     first = last;
   }
@@ -509,7 +512,8 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
     Eigen::VectorXd rhs(r);
     std::vector<int> chunk;
-    std::vector<std::uint8_t> stored;  // the chunk's texels in the images, image by image (gatherStored)
+    // The chunk's texels in the images, image by image (gatherStored); sized for a whole chunk.
+    PageBuffer stored(3 * n * std::min(chunkTexels, end - begin) * valueBytes);
     std::vector<float> row;            // one image's channel of them, linear / alpha
     std::vector<const float*> termsOf;  // each texel's cluster's terms
     std::vector<double> texelSums, rhsSums;  // per texel: sums by channel; right-hand sides (channel group, term)
@@ -517,7 +521,6 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
       const int count = static_cast<int>(std::min(chunkTexels, end - first));
       chunk.resize(count);
       std::iota(chunk.begin(), chunk.end(), static_cast<int>(first));
-      stored.resize(3 * n * count * valueBytes);
       row.resize(count);
       stack.gatherStored(images.data(), static_cast<int>(n), chunk.data(), count, stored.data());
       termsOf.resize(count);
@@ -532,7 +535,7 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
       rhsSums.assign(static_cast<std::size_t>(count) * channels * r, 0.0);
       for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c) {
-          stack.storedToLinear(&stored[(3 * i + c) * count * valueBytes], static_cast<std::size_t>(count), invAlpha,
+          stack.storedToLinear(stored.data() + (3 * i + c) * count * valueBytes, static_cast<std::size_t>(count), invAlpha,
                                row.data());
           const int q = channels > 1 ? c : 0;
           const std::size_t at = i * o + c;

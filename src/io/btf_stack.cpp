@@ -22,7 +22,7 @@ BtfStack::BtfStack(std::vector<Direction> lights, std::vector<Direction> views, 
     : lights_(std::move(lights)), views_(std::move(views)), width_(width), height_(height), type_(type) {
   const std::size_t bytes = static_cast<std::size_t>(numImages()) * bytesPerImage();
   if (scratchDir.empty())
-    data_.resize(bytes);
+    data_ = PageBuffer(bytes);
   else
     scratch_ = std::make_shared<ScratchMapping>(
         scratchDir, bytes, type == SampleType::Srgb8 ? "the 8-bit stack" : "the half-float stack");

@@ -22,6 +22,7 @@
 
 #include "util/directions.h"
 #include "util/layout.h"
+#include "util/page_buffer.h"
 #include "util/scratch_mapping.h"
 
 namespace nbtf {
@@ -132,7 +133,7 @@ class BtfStack {
   template <class Put>
   void forEachGathered(const int* images, int numImages, const int* texels, int count, Put put) const;
 
-  std::vector<std::uint8_t> data_;
+  PageBuffer data_;  // the samples in memory (zero until written; see util/page_buffer.h)
   std::shared_ptr<ScratchMapping> scratch_;  // the samples, when they live in a scratch file
   std::shared_ptr<const ComputedStackValues> computed_;
 };

@@ -8,7 +8,6 @@
 #include <ATen/Parallel.h>
 
 #if defined(__GLIBC__)
-#include <malloc.h>
 #endif
 
 #include <chrono>
@@ -25,6 +24,7 @@
 #include "model/train_eval.h"
 #include "model/training_set.h"
 #include "util/error.h"
+#include "util/memory.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 #include "util/timer.h"
@@ -718,22 +718,14 @@ TrainResult TrainingRun::finish() {
   return result;
 }
 
-// A step allocates and frees the same few-megabyte activation tensors every time. glibc
-// serves blocks that large with mmap and unmaps them on free, so every step paid fresh page
-// faults (a few percent of its time); from the heap, the pages are reused.
-void reuseHeapForActivations() {
-#if defined(__GLIBC__)
-  mallopt(M_MMAP_THRESHOLD, 64 << 20);
-  mallopt(M_TRIM_THRESHOLD, 128 << 20);
-#endif
-}
-
 }  // namespace
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   detail::quietTorchLogging();
   validateTrainConfig(config, "training config");
-  reuseHeapForActivations();
+  // A step allocates and frees the same few-megabyte activation tensors every time: from the
+  // heap their pages are reused, where fresh mmap blocks would fault in on every step.
+  reuseFreedMemory();
   const auto callStart = Clock::now();
   torch::set_num_threads(config.threads > 0 ? config.threads : threadCount());
   TrainingRun run(inputs, config, callStart);

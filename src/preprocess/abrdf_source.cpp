@@ -4,6 +4,7 @@
 #include <numeric>
 
 #include "util/error.h"
+#include "util/page_buffer.h"
 #include "util/parallel.h"
 #include "util/progress.h"
 
@@ -14,15 +15,17 @@ namespace {
 // SIMD alignment of Eigen's vectorized code in this build, in floats (X's start is aligned to it).
 constexpr Eigen::Index kAlign = 16 / sizeof(float);
 
-// One buffer per worker thread, allocated on first use.
+// One buffer per worker thread, allocated on first use, in pages of its own (util/page_buffer.h:
+// a slice of 128 MiB faults in 2 MiB at a time where huge pages are granted).
 struct WorkerBuffers {
   explicit WorkerBuffers(int workers) : buffers(workers) {}
   float* get(int worker, Eigen::Index size) {
-    Eigen::VectorXf& b = buffers[worker];
-    if (b.size() < size) b.resize(size);
-    return b.data();
+    PageBuffer& b = buffers[worker];
+    const std::size_t bytes = static_cast<std::size_t>(size) * sizeof(float);
+    if (b.size() < bytes) b = PageBuffer(bytes);
+    return reinterpret_cast<float*>(b.data());
   }
-  std::vector<Eigen::VectorXf> buffers;
+  std::vector<PageBuffer> buffers;
 };
 
 }  // namespace
