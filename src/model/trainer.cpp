@@ -7,9 +7,6 @@
 
 #include <ATen/Parallel.h>
 
-#if defined(__GLIBC__)
-#endif
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
