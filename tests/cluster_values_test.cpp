@@ -37,6 +37,17 @@ std::vector<std::int32_t> roundRobinIds(int texels, int clusters) {
   for (int t = 0; t < texels; ++t) ids[t] = t % clusters;
   return ids;
 }
+// Per-cluster values written cluster by cluster (clusters x images x width), rearranged image by
+// image (images x clusters x width) as fitTexelCoefficients takes them.
+std::vector<float> imageMajor(const std::vector<float>& byCluster, int clusters, int images, int width) {
+  std::vector<float> out(byCluster.size());
+  for (int g = 0; g < clusters; ++g)
+    for (int i = 0; i < images; ++i)
+      for (int j = 0; j < width; ++j)
+        out[(static_cast<std::size_t>(i) * clusters + g) * width + j] =
+            byCluster[(static_cast<std::size_t>(g) * images + i) * width + j];
+  return out;
+}
 
 TEST(ClusterValues, PlainFloorMatchesADirectComputation) {
   auto m = makeTestMaterial();
@@ -169,7 +180,7 @@ TEST(ClusterValues, FitRecoversExactMixesOfTheTerms) {
   for (int i = 0; i < images; ++i) all[i] = i;
   std::vector<float> scaled(f);
   for (float& x : scaled) x /= 2.0f;
-  std::vector<float> fit = fitTexelCoefficients(stack, 2.0f, ids, clusters, all, scaled, terms, false);
+  std::vector<float> fit = fitTexelCoefficients(stack, 2.0f, ids, clusters, all, imageMajor(scaled, clusters, images, 3 * terms), terms, false);
   ASSERT_EQ(fit.size(), mix.size());
   // Half-float storage of the stack limits the precision of the values, not the method.
   for (std::size_t j = 0; j < mix.size(); ++j) EXPECT_NEAR(fit[j], mix[j], 2e-3) << j;
@@ -209,14 +220,14 @@ TEST(ClusterValues, PerChannelCoefficientsRemoveThePerTexelColour) {
   EXPECT_GT(shared, 0.02 * plain) << "a brightness factor alone cannot explain a per-texel colour";
   EXPECT_LT(perChannel, 2e-3 * plain) << "(half-float storage of the stack is all that is left)";
   // The refit per channel to the cluster profiles gives each texel's colour back.
-  std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), profile, 1, false, 0, 3);
+  std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), imageMajor(profile, clusters, images, 3), 1, false, 0, 3);
   ASSERT_EQ(fit.size(), tint.size());
   for (std::size_t j = 0; j < tint.size(); ++j) EXPECT_NEAR(fit[j], tint[j], 2e-3) << j;
   // A large mean weight keeps every texel's per-channel mean over the images (its colour in
   // the mean brightness map) whatever the terms: here terms that are not the profiles.
   std::vector<float> wrong(profile);
   for (std::size_t j = 0; j < wrong.size(); ++j) wrong[j] *= 0.5f + static_cast<float>(j % 5) * 0.25f;
-  std::vector<float> kept = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), wrong, 1, false, 1e6, 3);
+  std::vector<float> kept = fitTexelCoefficients(stack, 1.0f, ids, clusters, allImages(images), imageMajor(wrong, clusters, images, 3), 1, false, 1e6, 3);
   for (int t = 0; t < texels; ++t)
     for (int c = 0; c < 3; ++c) {
       double decoded = 0, data = 0;
@@ -265,7 +276,7 @@ TEST(ClusterValues, MeanWeightedFitMatchesTheClosedFormAndKeepsTexelMeans) {
   };
   double previous = std::numeric_limits<double>::infinity();
   for (double w : {0.0, 1.0, 100.0}) {
-    std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, all, f, 1, false, w);
+    std::vector<float> fit = fitTexelCoefficients(stack, 1.0f, ids, clusters, all, imageMajor(f, clusters, images, 3), 1, false, w);
     for (int t = 0; t < texels; ++t) {
       double fy = 0, ff = 0, F[3] = {0, 0, 0}, Y[3] = {0, 0, 0};
       for (int i = 0; i < images; ++i)

@@ -455,7 +455,9 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   const std::size_t n = images.size(), o = 3 * static_cast<std::size_t>(r);
   if (r < 1 || terms.size() != static_cast<std::size_t>(clusters) * n * o)
     throw Error("fit texel coefficients: " + std::to_string(terms.size()) + " term values for " +
-                std::to_string(clusters) + " clusters x " + std::to_string(n) + " images x " + std::to_string(o));
+                std::to_string(n) + " images x " + std::to_string(clusters) + " clusters x " + std::to_string(o));
+  // Cluster g's values at image i start here.
+  auto termsAt = [&](std::size_t g, std::size_t i) { return &terms[(i * clusters + g) * o]; };
   if (channels != 1 && channels != 3) throw Error("fit texel coefficients: channels must be 1 or 3");
   if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("fit texel coefficients: one id per texel needed");
   // One least-squares problem per texel and channel group: all of RGB with one coefficient
@@ -473,19 +475,20 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   std::vector<double> termMeans(meanWeight > 0 ? static_cast<std::size_t>(clusters) * o : 0, 0.0);
   parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
     for (std::size_t g = begin; g < end; ++g) {
-      const float* f = &terms[g * n * o];
       if (meanWeight > 0) {
         double* mean = &termMeans[g * o];
         for (std::size_t i = 0; i < n; ++i)
-          for (std::size_t j = 0; j < o; ++j) mean[j] += f[i * o + j];
+          for (std::size_t j = 0; j < o; ++j) mean[j] += termsAt(g, i)[j];
         for (std::size_t j = 0; j < o; ++j) mean[j] /= static_cast<double>(n);
       }
       for (int q = 0; q < channels; ++q) {
         Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
-        for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t i = 0; i < n; ++i) {
+          const float* f = termsAt(g, i);
           for (int c = firstChannel(q); c < endChannel(q); ++c)
             for (int a = 0; a < r; ++a)
-              for (int b = 0; b <= a; ++b) gram(a, b) += double(f[i * o + 3 * a + c]) * f[i * o + 3 * b + c];
+              for (int b = 0; b <= a; ++b) gram(a, b) += double(f[3 * a + c]) * f[3 * b + c];
+        }
         if (meanWeight > 0) {
           const double* mean = &termMeans[g * o];
           for (int c = firstChannel(q); c < endChannel(q); ++c)
@@ -515,7 +518,7 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
     // The chunk's texels in the images, image by image (gatherStored); sized for a whole chunk.
     PageBuffer stored(3 * n * std::min(chunkTexels, end - begin) * valueBytes);
     std::vector<float> row;            // one image's channel of them, linear / alpha
-    std::vector<const float*> termsOf;  // each texel's cluster's terms
+    std::vector<std::size_t> termOffset;  // each texel's cluster's values within an image's
     std::vector<double> texelSums, rhsSums;  // per texel: sums by channel; right-hand sides (channel group, term)
     for (std::size_t first = begin; first < end; first += chunkTexels) {
       const int count = static_cast<int>(std::min(chunkTexels, end - first));
@@ -523,11 +526,11 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
       std::iota(chunk.begin(), chunk.end(), static_cast<int>(first));
       row.resize(count);
       stack.gatherStored(images.data(), static_cast<int>(n), chunk.data(), count, stored.data());
-      termsOf.resize(count);
+      termOffset.resize(count);
       for (int k = 0; k < count; ++k) {
         const std::int32_t g = ids[first + k];
         if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
-        termsOf[k] = &terms[static_cast<std::size_t>(g) * n * o];
+        termOffset[k] = static_cast<std::size_t>(g) * o;
       }
       // The sums image by image, across the chunk's texels. Each texel's sums add the same
       // terms in the same order as a texel-by-texel loop would.
@@ -538,13 +541,19 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
           stack.storedToLinear(stored.data() + (3 * i + c) * count * valueBytes, static_cast<std::size_t>(count), invAlpha,
                                row.data());
           const int q = channels > 1 ? c : 0;
-          const std::size_t at = i * o + c;
-          for (int k = 0; k < count; ++k) {
-            const double y = row[k];
-            if (meanWeight > 0) texelSums[3 * k + c] += y;
-            double* sums = &rhsSums[(static_cast<std::size_t>(k) * channels + q) * r];
-            const float* f = termsOf[k] + at;
-            for (int a = 0; a < r; ++a) sums[a] += y * f[3 * a];
+          const float* image = termsAt(0, i) + c;  // every cluster's values at this image: a few KB
+          if (meanWeight > 0)
+            for (int k = 0; k < count; ++k) texelSums[3 * k + c] += row[k];
+          if (r == 1) {  // the default, as one tight loop
+            for (int k = 0; k < count; ++k)
+              rhsSums[static_cast<std::size_t>(k) * channels + q] += double(row[k]) * image[termOffset[k]];
+          } else {
+            for (int k = 0; k < count; ++k) {
+              const double y = row[k];
+              double* sums = &rhsSums[(static_cast<std::size_t>(k) * channels + q) * r];
+              const float* f = image + termOffset[k];
+              for (int a = 0; a < r; ++a) sums[a] += y * f[3 * a];
+            }
           }
         }
       for (int k = 0; k < count; ++k) {

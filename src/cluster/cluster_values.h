@@ -77,9 +77,10 @@ void topLeftSingularVectors(const Eigen::Ref<const Eigen::MatrixXf>& y, int term
 
 // Refit after training: every texel's coefficients that best mix its cluster's trained terms,
 // least squares over `images` (linear / alpha): per cluster the R x R Gram matrix of its terms,
-// per texel their dot products with its own values, one small solve. `terms` holds, for each
-// cluster and each of `images` in order, its 3 x terms values (term r, channel c at 3 r + c):
-// clusters x images.size() x 3 terms. Texels x terms; deterministic for any thread count.
+// per texel their dot products with its own values, one small solve. `terms` holds, for each of
+// `images` in order and each cluster, its 3 x terms values (term r, channel c at 3 r + c):
+// images.size() x clusters x 3 terms, image-major so that the pass over the stack, image by
+// image, reads one small block per image. Texels x terms; deterministic for any thread count.
 // meanWeight w > 0 also fits each texel's mean over the images (per channel), weighted as w x
 // images squared errors: w n |mean of the texel's decoded values - mean of its values|^2 joins
 // the sum, so the per-texel mean brightness (what a viewer sees as grain) is kept closer.

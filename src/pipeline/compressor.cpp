@@ -188,15 +188,12 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
     b.modulation = quantizeTexelCoefficients(texelCoefficients, mc.terms, mc.bits, mc.channels);  // any valid codes
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     const std::size_t k = static_cast<std::size_t>(clusters), n = trainImages.size(), outs = 3 * mc.terms;
-    std::vector<float> terms(k * n * outs);
+    std::vector<float> terms(k * n * outs);  // image by image, every cluster's terms
     const int views = stack.numViews();
     parallelFor(n, [&](std::size_t begin, std::size_t end) {
-      std::vector<float> rows(k * outs);
       for (std::size_t i = begin; i < end; ++i) {
         const int image = trainImages[i];
-        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], rows.data());
-        for (std::size_t g = 0; g < k; ++g)
-          std::copy(&rows[g * outs], &rows[g * outs] + outs, &terms[(g * n + i) * outs]);
+        decoder.decodeRowTerms(stack.lights()[image / views], stack.views()[image % views], &terms[i * k * outs]);
       }
     });
     std::vector<float> fitted =
