@@ -61,13 +61,15 @@ mkdir -p "$out"
 bench_banner
 echo "== training budget $budget s per neural row; clusters $clusters; config $config; work folder $out"
 
-# The baseline: the default recipe with the direction planes off (format 1.7's default).
+# The baseline: the default recipe with the direction planes off and linear codes (format 1.7's
+# default).
 baseline=$out/baseline.json
 python3 - "$root/configs/default.json" "$baseline" <<'PY'
 import json, sys
 cfg = json.load(open(sys.argv[1]))
 cfg["direction_planes"] = {"features": 0}
 cfg["optimizer"].pop("plane_learning_rate", None)
+cfg["modulation"]["codes"] = "linear"
 json.dump(cfg, open(sys.argv[2], "w"), indent=2)
 PY
 

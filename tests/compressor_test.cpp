@@ -171,6 +171,33 @@ TEST(Compressor, EightBitClusterPlanesAreMeasuredAsStored) {
   EXPECT_FALSE(nlohmann::json::parse(floats.metadataJson)["config"]["storage"].contains("cluster_planes"));
 }
 
+// Decorrelated modulation codes (format 1.11, the default): the same training as linear codes, a
+// file whose reported RMSE is its own and about the linear file's, and a recorded recipe that
+// says which.
+TEST(Compressor, DecorrelatedCodesAreMeasuredAsStored) {
+  testing::TestMaterial m = testing::makeTestMaterial();
+  CompressOptions o = quickOptions(4);
+  o.train.epochs = 300;
+  o.train.modulation = ModulationConfig{"svd", 1, 6};
+  o.train.modulation.channels = 3;
+  o.train.modulation.codes = "linear";
+  CompressStats linearStats, decorrelatedStats;
+  const CompressedBtf linear = compressStack(m.stack, o, linearStats);
+  o.train.modulation.codes = "decorrelated";
+  const CompressedBtf decorrelated = compressStack(m.stack, o, decorrelatedStats);
+  EXPECT_FALSE(linear.modulation.decorrelated);
+  ASSERT_TRUE(decorrelated.modulation.decorrelated);
+  EXPECT_EQ(decorrelated.decoder.layers[0].weight, linear.decoder.layers[0].weight);  // the same training
+  EXPECT_LT(serializeNbtf(linear)[10], 11);
+  const std::vector<std::uint8_t> bytes = serializeNbtf(decorrelated);
+  EXPECT_EQ(bytes[10], 11);
+  const CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+  EXPECT_NEAR(decorrelatedStats.rmseTrain, decodedFileRmse(back, m.stack), 1e-5);
+  EXPECT_LT(decorrelatedStats.rmseTrain, 1.02 * linearStats.rmseTrain);
+  EXPECT_EQ(nlohmann::json::parse(back.metadataJson)["config"]["modulation"]["codes"], "decorrelated");
+  EXPECT_EQ(nlohmann::json::parse(linear.metadataJson)["config"]["modulation"]["codes"], "linear");
+}
+
 // Per-texel modulation with compact storage: the file decodes (through its own decoder, every
 // texel) to the RMSE the compressor reports, below the plain cluster-mean floor on a material
 // whose texels differ by brightness, and its parts are stored compactly.

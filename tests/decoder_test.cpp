@@ -354,6 +354,17 @@ TEST(Decoder, CommittedFormat110FileDecodesAsBefore) {
   EXPECT_EQ(b.modulation.terms, 3);
 }
 
+// Format 1.11 (decorrelated modulation codes, TXCR; the default since format 1.11), written on
+// 2026-11-29 when the format was introduced, by `nbtf compress` of the same satin with the same
+// options and the default config.
+TEST(Decoder, CommittedFormat111FileDecodesAsBefore) {
+  expectCommittedFourierFile("compact_v1_11", 11, DirectionEncoding::StereographicFourier2, 20 + 12);
+  const CompressedBtf b = readNbtf(std::string(NBTF_SOURCE_DIR) + "/tests/data/compact_v1_11.nbtf");
+  EXPECT_TRUE(b.modulation.decorrelated);
+  EXPECT_EQ(b.modulation.terms, 1);
+  EXPECT_EQ(b.modulation.bits, 7);
+}
+
 TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
   CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
   NbtfDecoder dec(b);

@@ -46,6 +46,18 @@ CompressedBtf makeCompactBtf(int k = 5, int terms = 3, int bits = 6, int channel
   return b;
 }
 
+// A format-1.11 file: per-channel coefficients in decorrelated codes (two terms).
+CompressedBtf makeDecorrelatedBtf() {
+  CompressedBtf b = makeBtf(5);
+  std::vector<float> coefficients(static_cast<std::size_t>(b.numTexels()) * 6);
+  for (std::size_t i = 0; i < coefficients.size(); ++i)
+    coefficients[i] = 1.0f + 0.1f * static_cast<float>(i / 6 % 7) * (1 + i % 3) - 0.03f * static_cast<float>(i % 5);
+  b.modulation = quantizeTexelCoefficients(coefficients, 2, 6, 3, ModulationCodes::Decorrelated);
+  setTerms(b, 2);
+  b.storage.idsZstd = true;
+  return b;
+}
+
 // A format-1.10 file: direction planes, and cluster planes in 8 bits.
 CompressedBtf makeClusterPlanes8BitBtf() {
   CompressedBtf b =
@@ -57,7 +69,8 @@ CompressedBtf makeClusterPlanes8BitBtf() {
 
 // The files every damage test runs on: clustered neural, the PCA baseline (whose sections
 // have their own size fields and checks), compact 1.2 and 1.4 files (zstd frames, half floats,
-// 8-bit decoder) and a 1.10 file (direction planes, 8-bit cluster planes).
+// 8-bit decoder), a 1.10 file (direction planes, 8-bit cluster planes) and a 1.11 file
+// (decorrelated modulation codes, a zstd frame per column).
 std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles() {
   CompressedBtf compactMetadata = makeCompactBtf();  // and an 8-bit decoder
   compactMetadata.storage.metadataZstd = compactMetadata.storage.decoderInt8 = true;
@@ -68,7 +81,8 @@ std::vector<std::pair<std::string, std::vector<std::uint8_t>>> damageTestFiles()
           {"pca", serializeNbtf(makePcaBtf())},
           {"compact", serializeNbtf(makeCompactBtf())},
           {"compact metadata", serializeNbtf(compactMetadata)},
-          {"8-bit cluster planes", serializeNbtf(makeClusterPlanes8BitBtf())}};
+          {"8-bit cluster planes", serializeNbtf(makeClusterPlanes8BitBtf())},
+          {"decorrelated modulation", serializeNbtf(makeDecorrelatedBtf())}};
 }
 
 std::string errorOf(const std::vector<std::uint8_t>& bytes, std::size_t size = SIZE_MAX,
@@ -464,6 +478,23 @@ TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
     bad.modulation.channels = 2;
     EXPECT_THROW(serializeNbtf(bad), Error);
   }
+  // Decorrelated codes (format 1.11, section TXCR): the rotation too, raw or a zstd frame per column.
+  for (bool zstd : {true, false}) {
+    CompressedBtf b = makeDecorrelatedBtf();
+    b.storage.modulationZstd = zstd;
+    std::vector<std::uint8_t> bytes = serializeNbtf(b);
+    EXPECT_EQ(bytes[10], 11);  // format 1.11
+    EXPECT_NE(findSection(bytes, "TXCR"), 0u);
+    EXPECT_EQ(findSection(bytes, "TXCH"), 0u);
+    CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(serializeNbtf(back), bytes);
+    EXPECT_TRUE(back.modulation.decorrelated);
+    EXPECT_EQ(back.modulation.codes, b.modulation.codes);
+    EXPECT_EQ(back.modulation.minimum, b.modulation.minimum);
+    EXPECT_EQ(back.modulation.rotation, b.modulation.rotation);
+    EXPECT_EQ(dequantizeTexelCoefficients(back.modulation), dequantizeTexelCoefficients(b.modulation));
+    EXPECT_TRUE(contains(modulationDescription(back.modulation), "decorrelated")) << modulationDescription(back.modulation);
+  }
   // Each compact part alone also round-trips, and raw modulation codes too.
   for (int part = 0; part < 4; ++part) {
     CompressedBtf b = makeBtf(300, 20, 20);
@@ -769,7 +800,7 @@ TEST(NbtfFile, EveryCommittedFileReserializesToItsBytes) {
   }
   std::sort(minors.begin(), minors.end());
   minors.erase(std::unique(minors.begin(), minors.end()), minors.end());
-  EXPECT_EQ(minors, (std::vector<int>{0, 1, 2, 4, 5, 6, 7, 8, 9, 10}));
+  EXPECT_EQ(minors, (std::vector<int>{0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 11}));
 }
 
 TEST(NbtfFile, CompactContentIsCheckedByName) {
@@ -782,6 +813,23 @@ TEST(NbtfFile, CompactContentIsCheckedByName) {
     CompressedBtf b = makeCompactBtf();
     b.modulation.codes[3] = 64;  // 6-bit codes
     test::expectErrorContaining([&] { serializeNbtf(b); }, {"modulation code 64", "exceeds 6 bits"});
+  }
+  {
+    CompressedBtf b = makeDecorrelatedBtf();
+    b.modulation.rotation[9 + 4] = 1.5f;  // term 1's second axis
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"modulation rotation of term 1", "not orthonormal"});
+    // A damaged rotation in a file is refused by name too.
+    std::vector<std::uint8_t> bytes = serializeNbtf(makeDecorrelatedBtf());
+    const std::size_t at = findSection(bytes, "TXCR");
+    const std::size_t rotation = at + 24 + 8 + 6 * 8;  // header, fixed fields, six ranges
+    putU32(bytes, rotation, 0x40000000u);  // 2.0f
+    resealSection(bytes, at);
+    EXPECT_TRUE(contains(errorOf(bytes), "not orthonormal")) << errorOf(bytes);
+  }
+  {
+    CompressedBtf b = makeCompactBtf();
+    b.modulation.decorrelated = true;  // one channel
+    test::expectErrorContaining([&] { serializeNbtf(b); }, {"decorrelated modulation codes need 3 channels"});
   }
   {
     CompressedBtf b = makeCompactBtf();

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
+#include "codec/nbtf_format.h"
 #include "test_util.h"
 #include "util/error.h"
 
@@ -118,6 +120,117 @@ TEST(TexelModulation, DecodingUsesTheDequantizedCodesAsTheyAre) {
     EXPECT_EQ(e[i], dequantizeTexelCoefficient(m, static_cast<int>(i % 2), m.codes[i]));
     EXPECT_NEAR(e[i], a[i], 1e-3);
   }
+}
+
+// Colour factors whose channels share most of their variation (a brightness factor) plus a
+// little colour of their own: texels x terms x 3.
+std::vector<float> correlatedColourFactors(int texels, int terms, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> bright(1.0f, 0.3f), tint(0.0f, 0.02f);
+  std::vector<float> a(static_cast<std::size_t>(texels) * terms * 3);
+  for (int t = 0; t < texels; ++t)
+    for (int r = 0; r < terms; ++r) {
+      const float b = bright(rng) * (r + 1);
+      for (int c = 0; c < 3; ++c) a[(t * terms + r) * 3 + c] = b * (0.8f + 0.2f * c) + tint(rng);
+    }
+  return a;
+}
+
+TEST(TexelModulation, PrincipalAxesDiagonalizeASymmetricMatrix) {
+  const std::array<std::array<double, 9>, 4> cases = {{
+      {4, 1, 0.5, 1, 3, 0.2, 0.5, 0.2, 1},
+      {1, 0, 0, 0, 1, 0, 0, 0, 1},        // already diagonal, equal eigenvalues
+      {2, 2, 2, 2, 2, 2, 2, 2, 2},        // rank one
+      {1e-6, 3e-7, 0, 3e-7, 2e-6, 1e-7, 0, 1e-7, 5e-7},
+  }};
+  for (const auto& a : cases) {
+    const std::array<double, 9> v = principalAxes3(a);
+    double previous = INFINITY;
+    for (int k = 0; k < 3; ++k) {
+      // A v_k = lambda_k v_k, lambda_k = v_k^T A v_k, in decreasing order; unit, orthogonal columns.
+      double lambda = 0, scale = 0;
+      for (int i = 0; i < 9; ++i) scale = std::max(scale, std::fabs(a[i]));
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) lambda += v[3 * i + k] * a[3 * i + j] * v[3 * j + k];
+      for (int i = 0; i < 3; ++i) {
+        double av = 0;
+        for (int j = 0; j < 3; ++j) av += a[3 * i + j] * v[3 * j + k];
+        EXPECT_NEAR(av, lambda * v[3 * i + k], 1e-12 * scale + 1e-300);
+      }
+      EXPECT_LE(lambda, previous + 1e-12 * scale);
+      previous = lambda;
+      for (int l = 0; l < 3; ++l) {
+        double dot = 0;
+        for (int i = 0; i < 3; ++i) dot += v[3 * i + k] * v[3 * i + l];
+        EXPECT_NEAR(dot, k == l ? 1.0 : 0.0, 1e-12);
+      }
+      int largest = 0;
+      for (int i = 1; i < 3; ++i)
+        if (std::fabs(v[3 * i + k]) > std::fabs(v[3 * largest + k])) largest = i;
+      EXPECT_GT(v[3 * largest + k], 0.0);
+    }
+  }
+}
+
+TEST(TexelModulation, DecorrelatedCodesRotateBackWithinTheirStep) {
+  const int texels = 2000;
+  for (int terms : {1, 2}) {
+    const int columns = 3 * terms;
+    const std::vector<float> a = correlatedColourFactors(texels, terms, 7 + terms);
+    const TexelModulation m = quantizeTexelCoefficients(a, terms, 6, 3, ModulationCodes::Decorrelated);
+    EXPECT_TRUE(m.decorrelated);
+    ASSERT_EQ(m.codes.size(), a.size());
+    const TexelModulation linear = quantizeTexelCoefficients(a, terms, 6, 3);
+    const std::vector<float> back = dequantizeTexelCoefficients(m), backLinear = dequantizeTexelCoefficients(linear);
+    for (int r = 0; r < terms; ++r) {
+      // One step for the term's three columns: the mean of the linear codes' steps.
+      const double step = (static_cast<double>(m.maximum[3 * r]) - m.minimum[3 * r]) / ((1 << m.bits) - 1);
+      double linearSteps = 0;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR((static_cast<double>(m.maximum[3 * r + c]) - m.minimum[3 * r + c]) / ((1 << m.bits) - 1), step,
+                    1e-6 * step);
+        linearSteps += (static_cast<double>(linear.maximum[3 * r + c]) - linear.minimum[3 * r + c]) / 63;
+      }
+      EXPECT_NEAR(step, linearSteps / 3, 1e-5 * step);
+      // Within the codes' range every rotated value is within half a step, so a channel within
+      // sqrt(3) / 2 steps; the squared error about that of the linear codes.
+      double squared = 0, squaredLinear = 0;
+      int inside = 0;
+      for (int t = 0; t < texels; ++t) {
+        double err = 0;
+        for (int c = 0; c < 3; ++c) {
+          const std::size_t i = static_cast<std::size_t>(t) * columns + 3 * r + c;
+          err += (back[i] - a[i]) * (back[i] - a[i]);
+          squaredLinear += (backLinear[i] - a[i]) * (backLinear[i] - a[i]);
+        }
+        bool within = true;
+        for (int k = 0; k < 3; ++k) {
+          double y = 0;
+          for (int c = 0; c < 3; ++c) y += m.rotation[9 * r + 3 * c + k] * a[static_cast<std::size_t>(t) * columns + 3 * r + c];
+          within = within && y >= m.minimum[3 * r + k] && y <= m.maximum[3 * r + k];
+        }
+        if (within) {
+          ++inside;
+          EXPECT_LE(std::sqrt(err), std::sqrt(3.0) / 2 * step + 1e-5) << "texel " << t;
+        }
+        squared += err;
+      }
+      EXPECT_GT(inside, texels * 99 / 100);
+      EXPECT_LT(squared, 1.5 * squaredLinear);
+    }
+    // What it is for: the same error in fewer bytes than per-channel codes.
+    EXPECT_LT(format::codedModulation(m, true).size(), format::codedModulation(linear, true).size());
+    // The first axis is the brightness direction (0.8, 1, 1.2) / |.|.
+    const double n = std::sqrt(0.64 + 1 + 1.44);
+    EXPECT_NEAR(m.rotation[0], 0.8 / n, 0.01);
+    EXPECT_NEAR(m.rotation[3], 1.0 / n, 0.01);
+    EXPECT_NEAR(m.rotation[6], 1.2 / n, 0.01);
+  }
+  EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f}, 1, 6, 1, ModulationCodes::Decorrelated), Error);
+  // A constant term codes as 0 and decodes to its value (to float rounding through the rotation).
+  const TexelModulation c = quantizeTexelCoefficients({2.f, 1.f, 0.5f, 2.f, 1.f, 0.5f}, 1, 6, 3, ModulationCodes::Decorrelated);
+  const std::vector<float> cb = dequantizeTexelCoefficients(c);
+  for (std::size_t i = 0; i < cb.size(); ++i) EXPECT_NEAR(cb[i], (i % 3 == 0 ? 2.f : i % 3 == 1 ? 1.f : 0.5f), 1e-6);
 }
 
 TEST(TexelModulation, DependentColumnsBecomeZero) {

@@ -627,7 +627,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
                  "min_steps": 100, "min_steps_per_input": 3, "max_steps": 900, "schedule": "step", "warmup_fraction": 0, "polish_fraction": 0.2, "holdout_fraction": 0.1,
                  "seed": 9, "threads": 1, "checkpoint_seconds": 30, "checkpoint_path": "x.ckpt",
                  "resume": true, "progress": false},
-    "modulation": {"mode": "svd", "terms": 2, "bits": 5, "mean_weight": 4, "channels": 3}
+    "modulation": {"mode": "svd", "terms": 2, "bits": 5, "mean_weight": 4, "channels": 3, "codes": "linear"}
   })");
   TrainConfig c = loadTrainConfig(path);
   EXPECT_EQ(c.model.latentDim, 6);
@@ -660,6 +660,7 @@ TEST(TrainConfig, ReadsEveryComponent) {
   EXPECT_EQ(c.modulation.bits, 5);
   EXPECT_DOUBLE_EQ(c.modulation.meanWeight, 4);
   EXPECT_EQ(c.modulation.channels, 3);
+  EXPECT_EQ(c.modulation.codes, "linear");  // the default is "decorrelated"
   std::filesystem::remove(path);
 }
 
@@ -690,6 +691,7 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
        "'storage.cluster_planes' must be \"auto\" (as the direction planes) or \"8bit\", got \"half\""},
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
       {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
+      {R"({"modulation": {"codes": "pca"}})", "'modulation.codes' must be \"linear\" or \"decorrelated\", got \"pca\""},
       {R"({"direction_planes": {"features": 9}})", "'direction_planes.features' must be in 0..8"},
       {R"({"cluster_planes": {"features": 9}})", "'cluster_planes.features' must be in 0..8"},
       {R"({"cluster_planes": {"features": 2, "resolution": 1}})", "'cluster_planes.resolution' must be in 2..64"},

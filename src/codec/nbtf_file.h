@@ -27,7 +27,7 @@ namespace nbtf {
 // writer writes the lowest version that describes the file: the highest version among the
 // sections it writes (the section table, codec/nbtf_sections.h; docs/file_format.md).
 constexpr std::uint16_t kNbtfFormatMajor = 1;
-constexpr std::uint16_t kNbtfFormatMinor = 10;
+constexpr std::uint16_t kNbtfFormatMinor = 11;
 // "\x89NBTF\r\n\x1a": the high byte catches 7-bit transfers, CR LF catches newline
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
@@ -50,6 +50,10 @@ enum class ValueSpace : std::uint8_t { LinearOverAlpha = 1 };
 // (terms 0) = no modulation (the decoder outputs one RGB term).
 // Format 1.5 (section TXCH): `channels` 3 gives every texel one coefficient per term and RGB
 // channel (a colour factor with one term) instead of one per term for all three.
+// Format 1.11 (section TXCR, channels 3 only): decorrelated codes. Each term's three columns
+// hold the colour factor in its principal axes over the texels, coded at one common step, and
+// channel c of term r decodes as sum_k rotation[9r + 3c + k] x a_{r,k} (a the column values
+// above). Correlated channels then cost fewer bytes at the same error.
 constexpr int kMaxModulationTerms = 8;
 struct TexelModulation {
   int terms = 0;     // 0 = none, else 1..kMaxModulationTerms
@@ -58,6 +62,8 @@ struct TexelModulation {
   // Per column (term r, channel c at r x channels + c).
   std::array<float, 3 * kMaxModulationTerms> minimum{}, maximum{};
   std::vector<std::uint16_t> codes;  // texels x columns, texel-major
+  bool decorrelated = false;         // format 1.11: the columns are rotated (channels 3)
+  std::array<float, 9 * kMaxModulationTerms> rotation{};  // per term, row-major 3 x 3, orthonormal
   bool empty() const { return terms == 0; }
   int columns() const { return terms * channels; }
 };
@@ -179,6 +185,7 @@ struct NbtfSizes {
   int decoderBytesPerValue = 4, latentBytesPerValue = 4;  // decoder: 1 = 8-bit weights (DEC8)
   bool idsZstd = false;
   int modulationTerms = 0, modulationChannels = 1, modulationBits = 0;
+  bool modulationDecorrelated = false;  // TXCR (format 1.11)
   std::uint64_t rawFloat32 = 0;
   std::uint64_t fileBytes = 0;  // 0 when not known (not written yet)
   int idWidth = 0;              // bytes per id; 0 in per-texel mode

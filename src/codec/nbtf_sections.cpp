@@ -15,7 +15,7 @@ namespace {
 
 constexpr std::uint32_t kInfo = tag("INFO"), kDirs = tag("DIRS"), kDirsZstd = tag("DIRZ"), kDecoder = tag("DECD"),
                         kDecoderHalf = tag("DECH"), kDecoderInt8 = tag("DEC8"), kLatentsHalf = tag("LATH"),
-                        kModulationRgb = tag("TXCH");
+                        kModulationRgb = tag("TXCH"), kModulationDecorrelated = tag("TXCR");
 
 // Stored enum codes: independent of the in-memory enums so those can change freely.
 std::uint8_t layoutCode(Layout l) {
@@ -178,10 +178,11 @@ void writeIdsZstd(const CompressedBtf& btf, ByteWriter& w) {
   w.raw(coded.data(), coded.size());
 }
 
-// u32 texels, u8 terms, u8 bits, u8 coding (0 raw, 1 zstd), u8 channels (TXCH: 3; TXSC:
-// reserved, 0), columns x (f32 min, f32 max), then the codes (byte planes of the column
-// planes). Per-channel coefficients get their own tag, so that a reader before 1.5
-// refuses them instead of misreading them.
+// u32 texels, u8 terms, u8 bits, u8 coding (0 raw, 1 zstd), u8 channels (TXCH, TXCR: 3; TXSC:
+// reserved, 0), columns x (f32 min, f32 max), TXCR only: terms x 9 f32 (each term's rotation,
+// row-major), then the codes (codedModulation: byte planes of the column planes; TXCR zstd-coded:
+// a frame per column). Per-channel and decorrelated coefficients get tags of their own, so
+// that a reader before 1.5 (1.11) refuses them instead of misreading them.
 void writeModulation(const CompressedBtf& btf, ByteWriter& w) {
   const TexelModulation& m = btf.modulation;
   const bool perChannel = m.channels != 1;
@@ -194,6 +195,8 @@ void writeModulation(const CompressedBtf& btf, ByteWriter& w) {
     w.f32(m.minimum[r]);
     w.f32(m.maximum[r]);
   }
+  if (m.decorrelated)
+    for (int i = 0; i < 9 * m.terms; ++i) w.f32(m.rotation[i]);
   auto coded = codedModulation(m, btf.storage.modulationZstd);
   w.raw(coded.data(), coded.size());
 }
@@ -438,7 +441,8 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
   std::uint32_t texels = r.u32();
   int terms = r.u8(), bits = r.u8(), coding = r.u8();
   int channels = 1;
-  if (s.tag == kModulationRgb) {
+  const bool decorrelated = s.tag == kModulationDecorrelated;
+  if (s.tag == kModulationRgb || decorrelated) {
     channels = r.u8();
     if (channels != 3) throw r.fail(std::to_string(channels) + " channels, expected 3");
   } else {
@@ -460,19 +464,36 @@ void parseModulation(const SectionRef& s, CompressedBtf& btf, const std::string&
     m.minimum[t] = r.f32();
     m.maximum[t] = r.f32();
   }
+  m.decorrelated = decorrelated;
+  if (decorrelated)
+    for (int i = 0; i < 9 * terms; ++i) m.rotation[i] = r.f32();
   const int width = modulationCodeBytes(bits);
   const std::size_t values = static_cast<std::size_t>(texels) * columns, expected = values * width;
-  const std::size_t rest = r.remaining();
-  const std::uint8_t* data = r.take(rest, "codes");
-  std::vector<std::uint8_t> planes;
-  if (coding == 1) {
-    planes = zstdDecompress(data, rest, expected, name, sectionLabel(s.tag));
+  std::vector<std::uint32_t> byTerm;
+  if (coding == 1 && decorrelated) {  // a frame per column, after their sizes
+    std::vector<std::uint32_t> sizes(columns);
+    for (auto& size : sizes) size = r.u32();
+    byTerm.reserve(values);
+    for (int q = 0; q < columns; ++q) {
+      const std::uint8_t* frame = r.take(sizes[q], "codes");
+      const auto column = fromBytePlanes(
+          zstdDecompress(frame, sizes[q], expected / columns, name, sectionLabel(s.tag)), texels, width);
+      byTerm.insert(byTerm.end(), column.begin(), column.end());
+    }
+    if (r.remaining()) throw r.fail(std::to_string(r.remaining()) + " bytes after the last column's codes");
   } else {
-    if (rest != expected)
-      throw r.fail("holds " + std::to_string(rest) + " bytes of codes, expected " + std::to_string(expected));
-    planes.assign(data, data + rest);
+    const std::size_t rest = r.remaining();
+    const std::uint8_t* data = r.take(rest, "codes");
+    std::vector<std::uint8_t> planes;
+    if (coding == 1) {
+      planes = zstdDecompress(data, rest, expected, name, sectionLabel(s.tag));
+    } else {
+      if (rest != expected)
+        throw r.fail("holds " + std::to_string(rest) + " bytes of codes, expected " + std::to_string(expected));
+      planes.assign(data, data + rest);
+    }
+    byTerm = fromBytePlanes(planes, values, width);
   }
-  const std::vector<std::uint32_t> byTerm = fromBytePlanes(planes, values, width);
   m.codes.resize(values);
   for (int q = 0; q < columns; ++q)
     for (std::size_t t = 0; t < texels; ++t) m.codes[t * columns + q] = static_cast<std::uint16_t>(byTerm[q * texels + t]);
@@ -656,7 +677,10 @@ bool halfLatents(const CompressedBtf& b) { return neural(b) && st(b).latentsHalf
 bool rawIds(const CompressedBtf& b) { return clustered(b) && !st(b).idsZstd; }
 bool zstdIds(const CompressedBtf& b) { return clustered(b) && st(b).idsZstd; }
 bool sharedModulation(const CompressedBtf& b) { return !b.modulation.empty() && b.modulation.channels == 1; }
-bool perChannelModulation(const CompressedBtf& b) { return !b.modulation.empty() && b.modulation.channels != 1; }
+bool perChannelModulation(const CompressedBtf& b) {
+  return !b.modulation.empty() && b.modulation.channels != 1 && !b.modulation.decorrelated;
+}
+bool decorrelatedModulation(const CompressedBtf& b) { return !b.modulation.empty() && b.modulation.decorrelated; }
 bool rawDirections(const CompressedBtf& b) { return !st(b).directionsZstd; }
 bool zstdDirections(const CompressedBtf& b) { return st(b).directionsZstd; }
 bool rawHoldout(const CompressedBtf& b) { return !b.holdoutImages.empty() && !st(b).metadataZstd; }
@@ -693,6 +717,8 @@ const std::vector<SectionKind> kSections = {
      parseModulation, modulationBytes},
     {kModulationRgb, "per-texel modulation, per channel", Part::Modulation, true, 5, nullptr, perChannelModulation,
      writeModulation, parseModulation, modulationBytes},
+    {kModulationDecorrelated, "per-texel modulation, decorrelated", Part::Modulation, true, 11, nullptr,
+     decorrelatedModulation, writeModulation, parseModulation, modulationBytes},
     {tag("HOLD"), "hold-out images", Part::Holdout, false, 0, nullptr, rawHoldout, writeHoldout, parseHoldout, nullptr},
     {tag("HOLZ"), "hold-out images, zstd-coded", Part::Holdout, false, 4, nullptr, zstdHoldout, writeHoldoutZstd,
      parseHoldoutZstd, nullptr},

@@ -58,6 +58,7 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.modulationTerms = btf.modulation.terms;
     s.modulationChannels = btf.modulation.channels;
     s.modulationBits = btf.modulation.bits;
+    s.modulationDecorrelated = btf.modulation.decorrelated;
     s.modulation = partBytes(format::Part::Modulation);
   }
   if (!btf.planes.empty()) {
@@ -165,7 +166,9 @@ std::string formatSizeTable(const NbtfSizes& s) {
     const int columns = s.modulationTerms * s.modulationChannels;
     std::snprintf(note, sizeof note, "%s texels x %d coefficient%s%s x %d-bit codes, %.2f bits per texel as stored",
                   withCommas(s.texels).c_str(), columns, columns > 1 ? "s" : "",
-                  s.modulationChannels > 1 ? " (per RGB channel)" : "", s.modulationBits,
+                  s.modulationDecorrelated ? " (per RGB channel, decorrelated)"
+                  : s.modulationChannels > 1 ? " (per RGB channel)" : "",
+                  s.modulationBits,
                   s.texels ? 8.0 * s.modulation / s.texels : 0.0);
     out += row("per-texel", s.modulation, note);
   }

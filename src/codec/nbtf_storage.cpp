@@ -52,8 +52,23 @@ std::vector<std::uint8_t> codedModulation(const TexelModulation& m, bool zstd) {
   std::vector<std::uint32_t> byTerm(m.codes.size());
   for (int r = 0; r < columns; ++r)
     for (std::size_t t = 0; t < texels; ++t) byTerm[r * texels + t] = m.codes[t * columns + r];
-  auto planes = toBytePlanes(byTerm, modulationCodeBytes(m.bits));
-  return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
+  const int width = modulationCodeBytes(m.bits);
+  if (!zstd || !m.decorrelated) {
+    auto planes = toBytePlanes(byTerm, width);
+    return zstd ? zstdCompress(planes.data(), planes.size()) : planes;
+  }
+  // Decorrelated columns differ in spread: a zstd frame each (its own entropy tables), after
+  // the frames' sizes (u32 each).
+  std::vector<std::uint8_t> out(4 * static_cast<std::size_t>(columns));
+  for (int r = 0; r < columns; ++r) {
+    const auto planes = toBytePlanes(std::vector<std::uint32_t>(byTerm.begin() + r * texels,
+                                                                byTerm.begin() + (r + 1) * texels),
+                                     width);
+    const auto frame = zstdCompress(planes.data(), planes.size());
+    for (int i = 0; i < 4; ++i) out[4 * r + i] = static_cast<std::uint8_t>(frame.size() >> (8 * i));
+    out.insert(out.end(), frame.begin(), frame.end());
+  }
+  return out;
 }
 
 // ---- 8-bit decoder weights (DEC8)

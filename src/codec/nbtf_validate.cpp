@@ -281,6 +281,22 @@ void CompressedBtf::validateNeural(const std::string& name) const {
                  (modulation.channels > 1 ? ", channel " + std::to_string(r % modulation.channels) : std::string()) +
                  " is invalid (" + std::to_string(lo) + " .. " + std::to_string(hi) + ")");
   }
+  if (modulation.decorrelated) {
+    if (modulation.channels != 3)
+      throw fail("decorrelated modulation codes need 3 channels, the file has " + std::to_string(modulation.channels));
+    // Orthonormal to float precision, so that decoding cannot scale a coefficient up.
+    for (int r = 0; r < modulation.terms; ++r) {
+      const float* q = &modulation.rotation[9 * static_cast<std::size_t>(r)];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          double dot = 0;
+          for (int c = 0; c < 3; ++c) dot += static_cast<double>(q[3 * c + i]) * q[3 * c + j];
+          if (!(std::fabs(dot - (i == j ? 1.0 : 0.0)) <= 1e-5))
+            throw fail("the modulation rotation of term " + std::to_string(r) + " is not orthonormal (axes " +
+                       std::to_string(i) + " and " + std::to_string(j) + ": dot product " + std::to_string(dot) + ")");
+        }
+    }
+  }
   const std::uint32_t maxCode = (1u << modulation.bits) - 1;
   for (std::size_t i = 0; i < modulation.codes.size(); ++i)
     if (modulation.codes[i] > maxCode)

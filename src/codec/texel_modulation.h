@@ -13,6 +13,7 @@
 // as `bits`-bit linear codes per term (TexelModulation in nbtf_file.h); decoding uses the
 // dequantized codes as they are.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -21,13 +22,30 @@
 
 namespace nbtf {
 
-// Quantizes coefficients (texels x columns, texel-major) to `bits`-bit linear codes over each
-// column's range: its 0.1% to 99.9% quantiles (min to max below 1000 texels; values outside
-// are clamped). Throws on non-finite input or out-of-range terms / bits / channels.
-TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits,
-                                          int channels = 1);
+// How quantizeTexelCoefficients codes the coefficients.
+enum class ModulationCodes {
+  // `bits`-bit linear codes over each column's range.
+  Linear,
+  // Channels 3 only (format 1.11): each term's colour factor in its principal axes over the
+  // texels (decorrelated columns), every column at the step that `bits`-bit linear codes give
+  // the term's channels on average. The error is about that of linear codes; the bytes fall
+  // with the channels' correlation. The stored code width is what the widest column needs.
+  Decorrelated,
+};
 
-// The dequantized coefficient of `code` in `column`: min + code / (2^bits - 1) x (max - min).
+// Quantizes coefficients (texels x columns, texel-major) to codes over each column's range:
+// its 0.1% to 99.9% quantiles (min to max below 1000 texels; values below are clamped, and
+// above too with linear codes). Throws on non-finite input or out-of-range terms / bits /
+// channels, and on decorrelated codes with one channel.
+TexelModulation quantizeTexelCoefficients(const std::vector<float>& coefficients, int terms, int bits,
+                                          int channels = 1, ModulationCodes codes = ModulationCodes::Linear);
+
+// The eigenvectors of a symmetric 3 x 3 matrix (row-major), as the columns of an orthonormal
+// matrix (row-major), ordered by decreasing eigenvalue, each with its largest entry positive.
+std::array<double, 9> principalAxes3(std::array<double, 9> symmetric);
+
+// The dequantized value of `code` in `column`: min + code / (2^bits - 1) x (max - min) (of the
+// rotated column where the codes are decorrelated).
 float dequantizeTexelCoefficient(const TexelModulation& modulation, int column, std::uint32_t code);
 
 // Per cluster and channel, Gram-Schmidt on the coefficient columns in term order (sums in
@@ -42,8 +60,8 @@ std::vector<float> orthonormalizeTexelCoefficients(std::vector<float> coefficien
 // what `info` and eval reports say about a file's modulation.
 std::string modulationDescription(const TexelModulation& modulation);
 
-// What decoding multiplies the terms by: the dequantized codes, texels x columns (empty
-// without modulation).
+// What decoding multiplies the terms by: the dequantized codes (rotated back where
+// decorrelated), texels x columns (empty without modulation).
 std::vector<float> dequantizeTexelCoefficients(const TexelModulation& modulation);
 
 }  // namespace nbtf

@@ -93,6 +93,7 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("modulation", "bits", modulation.bits, nullptr),
     NBTF_CONFIG_FIELD("modulation", "channels", modulation.channels, withModulation),
     NBTF_CONFIG_FIELD("modulation", "mean_weight", modulation.meanWeight, withModulation),
+    NBTF_CONFIG_FIELD("modulation", "codes", modulation.codes, withModulation),
     NBTF_CONFIG_FIELD("storage", "decoder", storage.decoder, nullptr),
     NBTF_CONFIG_FIELD("storage", "latents", storage.latents, nullptr),
     NBTF_CONFIG_FIELD("storage", "ids", storage.ids, nullptr),
@@ -229,6 +230,8 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (m.channels != 1 && m.channels != 3)
     bad(source, "modulation.channels", "must be 1 (one coefficient for RGB) or 3 (one per channel), got " +
                                            std::to_string(m.channels));
+  if (m.codes != "linear" && m.codes != "decorrelated")
+    bad(source, "modulation.codes", "must be \"linear\" or \"decorrelated\", got \"" + m.codes + "\"");
   if (!finite(m.meanWeight) || m.meanWeight < 0)
     bad(source, "modulation.mean_weight", "must be a number >= 0 (0 = plain least squares)");
   if (c.storage.decoder != "float32" && c.storage.decoder != "half" && c.storage.decoder != "int8")

@@ -77,6 +77,9 @@ struct ModulationConfig {
   // The refit after training also fits each texel's mean over the images, weighted as this many
   // images' squared errors (cluster/cluster_values.h, fitTexelCoefficients; 0 = least squares).
   double meanWeight = 1;
+  // "linear" (codes per column) | "decorrelated" (with channels 3 the colour factor in its
+  // principal axes, format 1.11, codec/texel_modulation.h; with one channel linear codes).
+  std::string codes = "decorrelated";
 };
 
 // How the decoding parts are stored in the .nbtf (the "storage" object of a config). Defaults:

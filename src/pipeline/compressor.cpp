@@ -199,7 +199,9 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
     std::vector<float> fitted =
         fitTexelCoefficients(stack, alpha, b.ids, clusters, trainImages, terms, mc.terms, progress, mc.meanWeight,
                              mc.channels);
-    b.modulation = quantizeTexelCoefficients(fitted, mc.terms, mc.bits, mc.channels);
+    b.modulation = quantizeTexelCoefficients(
+        fitted, mc.terms, mc.bits, mc.channels,
+        mc.codes == "decorrelated" && mc.channels == 3 ? ModulationCodes::Decorrelated : ModulationCodes::Linear);
   }
   if (b.storage.anyRounding() || modulated) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
@@ -610,9 +612,11 @@ std::string formatCompressSummary(const CompressStats& s) {
   if (s.rmseFloorModulated >= 0) {
     std::snprintf(line, sizeof line,
                   "  %-16s %.6f  (clusters x per-texel modulation, %s, %d term%s%s: the floor the terms were "
-                  "trained for; stored: %d-bit refit coefficients)\n",
+                  "trained for; stored: %d-bit%s refit coefficients)\n",
                   "modulated floor", s.rmseFloorModulated, s.modulationMode.c_str(), s.modulationTerms,
-                  s.modulationTerms > 1 ? "s" : "", s.modulationChannels > 1 ? " per channel" : "", s.modulationBits);
+                  s.modulationTerms > 1 ? "s" : "", s.modulationChannels > 1 ? " per channel" : "",
+                  s.sizes.modulationBits ? s.sizes.modulationBits : s.modulationBits,
+                  s.sizes.modulationDecorrelated ? " decorrelated" : "");
     out += line;
   }
   if (s.rmseTrain >= 0 && s.rmseFloor > 0) {
@@ -697,7 +701,9 @@ std::string compressStatsJson(const CompressStats& s) {
   j["modulation"] = {{"mode", s.modulationMode},
                      {"terms", s.modulationTerms},
                      {"channels", s.modulationChannels},
-                     {"bits", s.modulationBits}};
+                     {"bits", s.modulationBits},
+                     {"codes", s.sizes.modulationDecorrelated ? "decorrelated" : "linear"},
+                     {"stored_bits", s.sizes.modulationBits}};
   j["ratio"] = s.sizes.ratio;
   if (s.method == CodecMethod::Pca)
     j["bytes"] = {{"pca_mean", s.sizes.pcaMean},
