@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <utility>
 #include <unistd.h>
 #include <nlohmann/json.hpp>
@@ -140,6 +141,22 @@ double decodedFileRmse(const CompressedBtf& b, const BtfStack& stack) {
   return std::sqrt(sse / (3.0 * b.numTexels() * stack.numImages()));
 }
 
+// Two compressions of one stack whose options differ only in how the result is stored (what
+// `change` sets): the training is the same bit for bit, checked here.
+struct StoredTwice {
+  CompressedBtf first, second;
+  CompressStats firstStats, secondStats;
+};
+StoredTwice compressStoredTwice(const BtfStack& stack, CompressOptions o,
+                                const std::function<void(CompressOptions&)>& change) {
+  StoredTwice run;
+  run.first = compressStack(stack, o, run.firstStats);
+  change(o);
+  run.second = compressStack(stack, o, run.secondStats);
+  EXPECT_EQ(run.second.decoder.layers[0].weight, run.first.decoder.layers[0].weight);
+  return run;
+}
+
 // Cluster planes stored in 8 bits (format 1.10): the same training as with float32 planes, a
 // file whose reported RMSE is its own (measured through the codes) and close to the float one,
 // and a recorded recipe that says so.
@@ -149,13 +166,12 @@ TEST(Compressor, EightBitClusterPlanesAreMeasuredAsStored) {
   o.train.epochs = 300;
   o.train.model.clusterPlaneResolution = 4;
   o.train.model.clusterPlaneFeatures = 2;
-  CompressStats floatStats, eightStats;
-  const CompressedBtf floats = compressStack(m.stack, o, floatStats);
-  o.train.storage.clusterPlanes = "8bit";
-  const CompressedBtf eight = compressStack(m.stack, o, eightStats);
+  const StoredTwice run =
+      compressStoredTwice(m.stack, o, [](CompressOptions& c) { c.train.storage.clusterPlanes = "8bit"; });
+  const CompressedBtf &floats = run.first, &eight = run.second;
+  const CompressStats &floatStats = run.firstStats, &eightStats = run.secondStats;
   EXPECT_FALSE(floats.storage.clusterPlanes8Bit);
   ASSERT_TRUE(eight.storage.clusterPlanes8Bit);
-  EXPECT_EQ(eight.decoder.layers[0].weight, floats.decoder.layers[0].weight);  // the same training
   EXPECT_NE(eight.clusterPlanes.values, floats.clusterPlanes.values);
   EXPECT_EQ(serializeNbtf(floats)[10], 9);
   const std::vector<std::uint8_t> bytes = serializeNbtf(eight);
@@ -181,21 +197,18 @@ TEST(Compressor, DecorrelatedCodesAreMeasuredAsStored) {
   o.train.modulation = ModulationConfig{"svd", 1, 6};
   o.train.modulation.channels = 3;
   o.train.modulation.codes = "linear";
-  CompressStats linearStats, decorrelatedStats;
-  const CompressedBtf linear = compressStack(m.stack, o, linearStats);
-  o.train.modulation.codes = "decorrelated";
-  const CompressedBtf decorrelated = compressStack(m.stack, o, decorrelatedStats);
-  EXPECT_FALSE(linear.modulation.decorrelated);
-  ASSERT_TRUE(decorrelated.modulation.decorrelated);
-  EXPECT_EQ(decorrelated.decoder.layers[0].weight, linear.decoder.layers[0].weight);  // the same training
-  EXPECT_LT(serializeNbtf(linear)[10], 11);
-  const std::vector<std::uint8_t> bytes = serializeNbtf(decorrelated);
+  const StoredTwice run =
+      compressStoredTwice(m.stack, o, [](CompressOptions& c) { c.train.modulation.codes = "decorrelated"; });
+  EXPECT_FALSE(run.first.modulation.decorrelated);
+  ASSERT_TRUE(run.second.modulation.decorrelated);
+  EXPECT_LT(serializeNbtf(run.first)[10], 11);
+  const std::vector<std::uint8_t> bytes = serializeNbtf(run.second);
   EXPECT_EQ(bytes[10], 11);
   const CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
-  EXPECT_NEAR(decorrelatedStats.rmseTrain, decodedFileRmse(back, m.stack), 1e-5);
-  EXPECT_LT(decorrelatedStats.rmseTrain, 1.02 * linearStats.rmseTrain);
+  EXPECT_NEAR(run.secondStats.rmseTrain, decodedFileRmse(back, m.stack), 1e-5);
+  EXPECT_LT(run.secondStats.rmseTrain, 1.02 * run.firstStats.rmseTrain);  // linear first, decorrelated second
   EXPECT_EQ(nlohmann::json::parse(back.metadataJson)["config"]["modulation"]["codes"], "decorrelated");
-  EXPECT_EQ(nlohmann::json::parse(linear.metadataJson)["config"]["modulation"]["codes"], "linear");
+  EXPECT_EQ(nlohmann::json::parse(run.first.metadataJson)["config"]["modulation"]["codes"], "linear");
 }
 
 // Per-texel modulation with compact storage: the file decodes (through its own decoder, every

@@ -493,7 +493,8 @@ TEST(NbtfFile, CompactRoundTripIsBitExactAndVersion12) {
     EXPECT_EQ(back.modulation.minimum, b.modulation.minimum);
     EXPECT_EQ(back.modulation.rotation, b.modulation.rotation);
     EXPECT_EQ(dequantizeTexelCoefficients(back.modulation), dequantizeTexelCoefficients(b.modulation));
-    EXPECT_TRUE(contains(modulationDescription(back.modulation), "decorrelated")) << modulationDescription(back.modulation);
+    const std::string description = modulationDescription(back.modulation);
+    EXPECT_TRUE(contains(description, "decorrelated")) << description;
   }
   // Each compact part alone also round-trips, and raw modulation codes too.
   for (int part = 0; part < 4; ++part) {

@@ -206,7 +206,8 @@ TEST(TexelModulation, DecorrelatedCodesRotateBackWithinTheirStep) {
         bool within = true;
         for (int k = 0; k < 3; ++k) {
           double y = 0;
-          for (int c = 0; c < 3; ++c) y += m.rotation[9 * r + 3 * c + k] * a[static_cast<std::size_t>(t) * columns + 3 * r + c];
+          for (int c = 0; c < 3; ++c)
+            y += m.rotation[9 * r + 3 * c + k] * a[static_cast<std::size_t>(t) * columns + 3 * r + c];
           within = within && y >= m.minimum[3 * r + k] && y <= m.maximum[3 * r + k];
         }
         if (within) {
@@ -228,7 +229,8 @@ TEST(TexelModulation, DecorrelatedCodesRotateBackWithinTheirStep) {
   }
   EXPECT_THROW(quantizeTexelCoefficients({1.0f, 2.0f}, 1, 6, 1, ModulationCodes::Decorrelated), Error);
   // A constant term codes as 0 and decodes to its value (to float rounding through the rotation).
-  const TexelModulation c = quantizeTexelCoefficients({2.f, 1.f, 0.5f, 2.f, 1.f, 0.5f}, 1, 6, 3, ModulationCodes::Decorrelated);
+  const TexelModulation c =
+      quantizeTexelCoefficients({2.f, 1.f, 0.5f, 2.f, 1.f, 0.5f}, 1, 6, 3, ModulationCodes::Decorrelated);
   const std::vector<float> cb = dequantizeTexelCoefficients(c);
   for (std::size_t i = 0; i < cb.size(); ++i) EXPECT_NEAR(cb[i], (i % 3 == 0 ? 2.f : i % 3 == 1 ? 1.f : 0.5f), 1e-6);
 }
