@@ -206,7 +206,9 @@ TEST(Compressor, DecorrelatedCodesAreMeasuredAsStored) {
   EXPECT_EQ(bytes[10], 11);
   const CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
   EXPECT_NEAR(run.secondStats.rmseTrain, decodedFileRmse(back, m.stack), 1e-5);
-  EXPECT_LT(run.secondStats.rmseTrain, 1.02 * run.firstStats.rmseTrain);  // linear first, decorrelated second
+  // The decorrelated file's RMSE (a deterministic value of the same training, not a time) stays
+  // about the linear file's: first linear, second decorrelated.
+  EXPECT_LT(run.secondStats.rmseTrain, 1.02 * run.firstStats.rmseTrain);
   EXPECT_EQ(nlohmann::json::parse(back.metadataJson)["config"]["modulation"]["codes"], "decorrelated");
   EXPECT_EQ(nlohmann::json::parse(run.first.metadataJson)["config"]["modulation"]["codes"], "linear");
 }
