@@ -138,7 +138,8 @@ int main(int argc, char** argv) {
       // The decoder's training pass alone, at the configured step geometry.
       TrainConfig c = args.count("config") ? loadTrainConfig(args["config"].as<std::string>()) : TrainConfig{};
       int tiles = std::max(1, c.batchSize / c.imagesPerInput);
-      DecoderStepRate r = decoderStepRate(c.model, tiles, c.imagesPerInput, args["steps"].as<int>(), threads);
+      DecoderStepRate r = decoderStepRate(c.model, tiles, c.imagesPerInput, args["steps"].as<int>(), threads,
+                                          resolvedProducts(c) == "bf16");
       double flops = decoderShape(c.model).flopsPerSample() * 3;
       std::printf("decoder_only_samples_per_second %.0f\ndecoder_only_gflops %.2f\ndecoder_only_cpu_gflops_per_thread %.2f\n",
                   r.samplesPerSecond, r.samplesPerSecond * flops / 1e9,

@@ -275,9 +275,12 @@ class DistributedCli : public ::testing::Test {
     fs::create_directories(dir_);
     stack_ = testing::writeTestStack(path("stack"));
     // The test recipe: 16 encoder inputs x 64 images per step, split 8 + 8 over two ranks.
+    // Float products: with bfloat16 operands a last-bit difference (the ranks' gradients are
+    // summed in another order) now and then flips a weight's rounding, and the runs drift
+    // apart as two seeds do (measured: 0.8% of the RMSE here), hiding what this test checks.
     writeFileAtomic(path("quick.json"),
                     R"({"optimizer": {"name": "adam", "learning_rate": 0.003}, "training": {"batch_size": 1024,)"
-                    R"( "images_per_input": 64, "min_steps": 0, "max_steps": 0, "epochs": 60}})");
+                    R"( "images_per_input": 64, "min_steps": 0, "max_steps": 0, "epochs": 60, "products": "float"}})");
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }

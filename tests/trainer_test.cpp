@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "model/dense_kernels.h"
 #include "support/torch_reference.h"
 #include "model_test_material.h"
 #include "util/error.h"
@@ -109,6 +110,34 @@ TEST(Trainer, HandWrittenBackpropIsTheSameOnAnyThreadCount) {
   EXPECT_NE(decoderTrainStepResult(model, 12, 9, 300, 1), one);  // a different batch does differ
 }
 
+TEST(Trainer, Bf16ProductsStayCloseToAutograd) {
+  // The hidden layers' operands rounded to 8 significant bits, float sums: the gradients move
+  // by well under 1% of their largest magnitude (measured about 0.3%), and they do move.
+  ModelConfig model, wide;
+  wide.decoderWidth = 130;  // odd padded sums (131 inputs with the bias column), two panels
+  for (int threads : {1, 2}) {
+    const double err = decoderBackpropError(model, 6, 5, 211, threads, true);
+    EXPECT_LT(err, 1e-2) << threads << " threads";
+    EXPECT_GT(err, 1e-5) << "the products did not change: bf16 not applied";
+    EXPECT_LT(decoderBackpropError(wide, 7, 2, 301, threads, true), 1e-2) << threads << " threads";
+  }
+  ModelConfig small;
+  small.latentDim = 5, small.decoderWidth = 17, small.decoderLayers = 6;  // odd width, many layers
+  EXPECT_LT(decoderBackpropError(small, 5, 3, 2, 1, true), 1e-2);
+}
+
+TEST(Trainer, Bf16ProductsAreTheSameOnAnyThreadCountAndBuild) {
+  ModelConfig model;
+  const std::vector<float> one = decoderTrainStepResult(model, 11, 9, 300, 1, true);
+  EXPECT_EQ(decoderTrainStepResult(model, 11, 9, 300, 2, true), one);
+  EXPECT_NE(decoderTrainStepResult(model, 11, 9, 300, 1, false), one);
+  // The portable build (every CPU) gives the instruction's bits.
+  detail::setBf16ProductsPortable(true);
+  const std::vector<float> portable = decoderTrainStepResult(model, 11, 9, 300, 2, true);
+  detail::setBf16ProductsPortable(false);
+  EXPECT_EQ(portable, one);
+}
+
 TEST(Trainer, FusedConvPoolMatchesTorch) {
   EXPECT_EQ(convPoolReferenceError(1, 3, 3, 4, 30), 0.0);
   EXPECT_EQ(convPoolReferenceError(2, 2, 5, 3, 31), 0.0);    // a tail that pooling drops
@@ -192,6 +221,7 @@ TEST(Trainer, TorchBackendReachesTheFusedBackendsRmse) {
   for (bool clustered : {true, false}) {
     TrainConfig c = quickConfig();
     c.epochs = clustered ? 300 : 40;
+    c.products = "float";  // the backends compared, not the products
     TrainResult fused = trainModel(clustered ? m.clustered() : m.perTexel(), c);
     c.backend = "torch";
     TrainResult stock = trainModel(clustered ? m.clustered() : m.perTexel(), c);
@@ -203,6 +233,23 @@ TEST(Trainer, TorchBackendReachesTheFusedBackendsRmse) {
     // Deterministic too.
     EXPECT_EQ(trainModel(clustered ? m.clustered() : m.perTexel(), c).rmseTrain, stock.rmseTrain);
   }
+}
+
+// bfloat16 operands in the decoder's hidden layers (`"training": {"products": "bf16"}`) reach
+// the float products' RMSE within the same 3% as the torch backend, and are deterministic.
+TEST(Trainer, Bf16ProductsReachTheFloatRmse) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 300;
+  c.products = "float";
+  const TrainResult single = trainModel(m.clustered(), c);
+  c.products = "bf16";
+  const TrainResult bf16 = trainModel(m.clustered(), c);
+  EXPECT_EQ(bf16.steps, single.steps);
+  EXPECT_NE(bf16.rmseTrain, single.rmseTrain);
+  EXPECT_NEAR(bf16.rmseTrain, single.rmseTrain, 0.03 * single.rmseTrain) << "float " << single.rmseTrain;
+  EXPECT_LT(bf16.rmseTrain, 0.5 * testing::imageMeanRmse(m));
+  EXPECT_EQ(trainModel(m.clustered(), c).rmseTrain, bf16.rmseTrain);
 }
 
 TEST(Trainer, CudaDeviceIsAClearErrorWithoutCuda) {
@@ -691,6 +738,8 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
        "'storage.cluster_planes' must be \"auto\" (as the direction planes) or \"8bit\", got \"half\""},
       {R"({"modulation": {"mean_weight": -1}})", "'modulation.mean_weight' must be a number >= 0"},
       {R"({"modulation": {"channels": 2}})", "'modulation.channels' must be 1 (one coefficient for RGB) or 3"},
+      {R"({"training": {"products": "fp8"}})", "'training.products' must be \"float\", \"bf16\" or \"auto\", got \"fp8\""},
+      {R"({"training": {"products": "bf16", "backend": "torch"}})", "'training.products' \"bf16\" needs training.backend \"fused\""},
       {R"({"modulation": {"codes": "pca"}})", "'modulation.codes' must be \"linear\" or \"decorrelated\", got \"pca\""},
       {R"({"direction_planes": {"features": 9}})", "'direction_planes.features' must be in 0..8"},
       {R"({"cluster_planes": {"features": 9}})", "'cluster_planes.features' must be in 0..8"},

@@ -26,6 +26,8 @@ void appendOneColumn(int n, int D, const float* __restrict d, float* __restrict 
   }
 }
 
+int evenUp(int k) { return k + k % 2; }
+
 // Per tile of rows r0 .. r0 + n: the sum of its rows' gradients (tileGrad starts at tile
 // firstTile). One stream per loop, so it vectorizes.
 NBTF_SIMD_CLONES void sumTileGradients(int n, int W, int S, std::int64_t r0, int rowsPerTile, std::int64_t firstTile,
@@ -99,7 +101,20 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
                 hidden(0) + static_cast<std::size_t>(rs) * S);
     rs = re;
   }
-  for (int l = 1; l + 1 < L; ++l) productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
+  const bool bf16 = bf16_ && train;
+  if (bf16) {
+    k.rows.resize(static_cast<std::size_t>(kChunkRows) * S);
+    k.gradPairs.resize(static_cast<std::size_t>(kChunkRows + 1) * S);
+    k.hiddenPairs.resize(static_cast<std::size_t>(kChunkRows + 1) * S);
+  }
+  for (int l = 1; l + 1 < L; ++l) {
+    if (!bf16) {
+      productRelu(n, W + 1, hidden(l - 1), S, forward_[l].data(), S, hidden(l));
+      continue;
+    }
+    toBf16Rows(n, evenUp(W + 1), hidden(l - 1), S, k.rows.data(), S);
+    productBf16(Bf16Epilogue::Relu, n, evenUp(W + 1), k.rows.data(), S, forwardBf16_[l].data(), S, nullptr, hidden(l));
+  }
   float* o = train ? k.out.data() : outRows + r0 * O;
   rowDots(n, O, hidden(L - 2), S, forward_[L - 1].data(), o);
   if (!train) return;
@@ -128,8 +143,16 @@ void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int
   accumulateOuter(n, O, o, O, hidden(L - 2), S, dW + gradOffset_[L - 1]);
   productMasked(n, O, o, O, backward_[L - 1].data(), S, hidden(L - 2), g);
   for (int l = L - 2; l >= 1; --l) {
-    accumulateOuter(n, W, g, S, hidden(l - 1), S, dW + gradOffset_[l]);
-    productMasked(n, W, g, S, backward_[l].data(), S, hidden(l - 1), g2);
+    if (bf16) {
+      toBf16RowPairs(n, S, g, S, k.gradPairs.data());
+      toBf16RowPairs(n, S, hidden(l - 1), S, k.hiddenPairs.data());
+      accumulateOuterBf16(n, W, k.gradPairs.data(), S, k.hiddenPairs.data(), S, dW + gradOffset_[l]);
+      toBf16Rows(n, evenUp(W), g, S, k.rows.data(), S);
+      productBf16(Bf16Epilogue::Mask, n, evenUp(W), k.rows.data(), S, backwardBf16_[l].data(), S, hidden(l - 1), g2);
+    } else {
+      accumulateOuter(n, W, g, S, hidden(l - 1), S, dW + gradOffset_[l]);
+      productMasked(n, W, g, S, backward_[l].data(), S, hidden(l - 1), g2);
+    }
     std::swap(g, g2);
   }
   // Layer 0: per tile (sum of its rows) for the latent part, per row for the directions.
@@ -188,6 +211,14 @@ void DecoderBackprop::run(const torch::Tensor& z, const torch::Tensor& dirs, con
       for (int i = 0; i < out; ++i) f.data()[static_cast<std::size_t>(q) * S + i] = wl[static_cast<std::size_t>(i) * W + q];
     for (int i = 0; i < out; ++i) f.data()[static_cast<std::size_t>(W) * S + i] = bl[i];
     f.data()[static_cast<std::size_t>(W) * S + W] = 1.0f;  // the 1 column maps to itself
+    if (bf16_ && targets) {
+      forwardBf16_.resize(L);
+      backwardBf16_.resize(L);
+      forwardBf16_[l].assign(static_cast<std::size_t>(evenUp(W + 1)) * S, 0);
+      backwardBf16_[l].assign(static_cast<std::size_t>(evenUp(out)) * S, 0);
+      toBf16RowPairs(W + 1, S, f.data(), S, forwardBf16_[l].data());
+      toBf16RowPairs(out, S, b.data(), S, backwardBf16_[l].data());
+    }
   }
 
   const std::int64_t chunks = (rows + kChunkRows - 1) / kChunkRows;

@@ -40,6 +40,11 @@ class DecoderBackprop {
   void setTrailingInputGradient(int count) { trailingInputs_ = count; }
   const std::vector<float>& inputGradient() const { return inputGradient_; }
 
+  // From now on trainStep's hidden-layer products (forward, weight gradient and the gradient
+  // below, the bulk of its multiply-adds) take bfloat16 operands with float sums
+  // (dense_kernels.h, `"training": {"products": "bf16"}`). forward() stays in float.
+  void setBf16Products(bool on) { bf16_ = on; }
+
  private:
   // One thread's scratch: a chunk's activations and gradients (row stride stride_).
   struct Worker {
@@ -49,6 +54,7 @@ class DecoderBackprop {
     AlignedFloats inputs;          // chunk x (direction inputs + 1): layer 0's left-hand side
     AlignedFloats layer0;          // (direction inputs + 1) x stride: layer0_ with the current tile's row
     AlignedFloats inputGrad;       // chunk x padded trailing inputs
+    std::vector<Bf16> rows, gradPairs, hiddenPairs;  // bf16 operands (setBf16Products): chunk x stride
   };
   // One chunk's gradient sums. Threads take the next chunk as they free up (a thread slowed
   // by the host does not hold the other up), and the sums are added in chunk order.
@@ -83,6 +89,10 @@ class DecoderBackprop {
   torch::Tensor perTile_;          // [tiles, width]: W_z z + b
   torch::Tensor out_;              // [rows, outputs]
   int trailingInputs_ = 0;
+  bool bf16_ = false;
+  // With bf16_, for hidden layers 1 .. L - 2: forward_ and backward_ as bfloat16 row pairs
+  // (the sums' terms rounded up to an even count with a zero row).
+  std::vector<std::vector<Bf16>> forwardBf16_, backwardBf16_;
   std::vector<float> inputGradient_;  // rows x trailingInputs_
   AlignedFloats trailingWeights_;  // W x padded trailingInputs_: the last columns of layer 0's weights
   std::vector<torch::Tensor> weightGrad_, biasGrad_;

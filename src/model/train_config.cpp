@@ -87,6 +87,7 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("training", "progress", progress, never),
     // The backends' numerics differ in the last bits: recorded when not the default.
     NBTF_CONFIG_FIELD("training", "backend", backend, [](const TrainConfig& c) { return c.backend != "fused"; }),
+    NBTF_CONFIG_FIELD("training", "products", products, [](const TrainConfig& c) { return c.products != "auto"; }),
     NBTF_CONFIG_FIELD("training", "device", device, [](const TrainConfig& c) { return c.device != "cpu"; }),
     NBTF_CONFIG_FIELD("modulation", "mode", modulation.mode, nullptr),
     NBTF_CONFIG_FIELD("modulation", "terms", modulation.terms, nullptr),
@@ -191,6 +192,10 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
   if (c.backend != "fused" && c.backend != "torch")
     bad(source, "training.backend", "must be \"fused\" or \"torch\", got \"" + c.backend + "\"");
+  if (c.products != "float" && c.products != "bf16" && c.products != "auto")
+    bad(source, "training.products", "must be \"float\", \"bf16\" or \"auto\", got \"" + c.products + "\"");
+  if (c.products == "bf16" && c.backend != "fused")
+    bad(source, "training.products", "\"bf16\" needs training.backend \"fused\" (its kernels are the fused pass's)");
   if (c.device != "cpu" && c.device != "cuda")
     bad(source, "training.device", "must be \"cpu\" or \"cuda\", got \"" + c.device + "\"");
   if (c.device == "cuda" && c.backend != "torch")

@@ -376,6 +376,7 @@ void TrainingRun::buildModel() {
   planeInputs_ = set_.planeInputs();
   trailingInputs_ = planeInputs_ + clusterInputs_;
   backprop_->setTrailingInputGradient(trailingInputs_);
+  backprop_->setBf16Products(resolvedProducts(config_) == "bf16");
   flopsPerSample_ = decoderShape(config_.model).flopsPerSample();
 }
 
@@ -665,6 +666,7 @@ TrainResult TrainingRun::finish() {
   result.finalLoss = std::max(0.0, emaLoss_);
   result.encoderBlocks = encoder_->blocks;
   result.samplesPerSecond = result.trainSeconds > 0 ? samplesPerSecond(result.trainSeconds) : 0;
+  result.products = resolvedProducts(config_);
   if (worker()) {
     // Rank 0 exports, evaluates and writes; this rank's part is done.
     result.worker = true;
@@ -716,6 +718,11 @@ TrainResult TrainingRun::finish() {
 }
 
 }  // namespace
+
+std::string resolvedProducts(const TrainConfig& config) {
+  if (config.products != "auto") return config.products;
+  return config.backend == "fused" && detail::bf16ProductsNative() ? "bf16" : "float";
+}
 
 TrainResult trainModel(const TrainInputs& inputs, const TrainConfig& config) {
   detail::quietTorchLogging();

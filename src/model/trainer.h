@@ -164,6 +164,11 @@ struct TrainConfig {
   // and checked against torch in tests. "torch": stock libtorch modules, autograd and
   // torch::optim; the place to try a model change before writing its gradients by hand.
   std::string backend = "fused";
+  // "float" | "bf16" | "auto": the fused decoder pass's hidden-layer products in float, or
+  // with bfloat16 operands and float sums (model/dense_kernels.h): about twice the
+  // multiply-adds per cycle on CPUs with AVX-512 BF16, the same bits (slower) elsewhere.
+  // "auto" (the default): bf16 where the CPU has the instruction, else float.
+  std::string products = "auto";
   // "cpu" | "cuda". cuda needs the torch backend and a libtorch built with CUDA (Debian's is
   // CPU-only: a clear error there).
   std::string device = "cpu";
@@ -179,6 +184,10 @@ struct TrainConfig {
   double stopAtSeconds = 0;               // > 0: the same once the run's training clock (resumed runs included) reaches it
   std::function<void(const TrainStatus&)> monitor;  // called after every step (keep it cheap)
 };
+
+// training.products as this CPU runs it: "bf16" or "float" ("auto": bf16 where the CPU has
+// AVX-512 BF16 and the backend is the fused one).
+std::string resolvedProducts(const TrainConfig& config);
 
 // Loads a config file; unknown keys and wrong types are errors naming the file and key.
 // Keys that are absent keep the defaults above.
@@ -245,6 +254,7 @@ struct TrainResult {
   bool interrupted = false;             // stopped early (stopFlag / stopAtStep); rmse* are then -1
   double samplesPerSecond = 0;          // decoder samples (forward + backward) per second of the loop
   double decoderGflops = 0;             // samplesPerSecond x 3 x forward flops of the decoder
+  std::string products = "float";       // the products training ran with: "float" | "bf16" ("auto" resolved)
   double finalLoss = 0;                 // smoothed training loss at the end (MSE vs cluster means)
   int encoderBlocks = 0;                // conv blocks used for this N
   // Data-parallel runs: this rank is not rank 0 (it trained its shares; rank 0 exports and

@@ -783,6 +783,7 @@ CompressedBtf AdaptiveRun::finish() {
   stats_.steps = last_.steps;
   stats_.samplesPerSecond = last_.samplesPerSecond;
   stats_.decoderGflops = last_.decoderGflops;
+  stats_.products = last_.products;
   stats_.holdoutImages = static_cast<int>(b_.holdoutImages.size());
   stats_.rmseTrain = last_.rmseTrain;
   stats_.rmseHoldout = last_.rmseHoldout;

@@ -287,6 +287,8 @@ std::vector<std::pair<std::string, std::string>> distributedSettings(const BtfSt
   s.push_back({"source size (width x height, lights x views)",
                std::to_string(stack.width()) + "x" + std::to_string(stack.height()) + ", " +
                    std::to_string(stack.lights().size()) + "x" + std::to_string(stack.views().size())});
+  // "auto" resolves by CPU: every rank must run the same products.
+  s.push_back({"decoder products (training.products as this CPU runs it)", resolvedProducts(config)});
   const std::string fingerprint = sourceFingerprintJson(sourceFingerprint(stack));
   s.push_back({"source data (fingerprint of the images)", hex64(fnv1a(fingerprint.data(), fingerprint.size()))});
   // The recipe, key by key; threads may differ (the summed gradients do not depend on them).
@@ -427,6 +429,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
   stats.steps = train.steps;
   stats.samplesPerSecond = train.samplesPerSecond;
   stats.decoderGflops = train.decoderGflops;
+  stats.products = train.products;
   stats.worldSize = config.distributed.worldSize;
   stats.allReduceBytesPerStep = train.allReduceBytesPerStep;
   stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
@@ -655,8 +658,8 @@ std::string formatCompressSummary(const CompressStats& s) {
     out += formatMemoryLine(s);
     return out;
   }
-  std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s\n",
-                s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops);
+  std::snprintf(line, sizeof line, "training: %d epochs, %lld steps, %.3g decoder samples/s, %.3g GFLOP/s (%s products)\n",
+                s.epochs, static_cast<long long>(s.steps), s.samplesPerSecond, s.decoderGflops, s.products.c_str());
   out += line;
   if (s.worldSize > 1) {
     std::snprintf(line, sizeof line,
@@ -730,6 +733,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["steps"] = s.steps;
   j["samples_per_second"] = s.samplesPerSecond;
   j["decoder_gflops"] = s.decoderGflops;
+  j["products"] = s.products;
   j["pca_explained_variance_ratio"] = nullable(s.pcaExplainedVarianceRatio);
   j["interrupted"] = s.interrupted;
   j["memory_bytes"] = {{"peak_resident", s.peakMemory}, {"estimate", s.memoryEstimate}, {"limit", s.memoryLimit}};

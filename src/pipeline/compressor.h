@@ -104,6 +104,7 @@ struct CompressStats {
   int epochs = 0;
   std::int64_t steps = 0;
   double samplesPerSecond = 0, decoderGflops = 0;
+  std::string products = "float";  // the decoder pass's products (TrainResult::products)
   // Clustered: of the standardized log ABRDFs; PCA baseline: of the fitted linear ABRDFs / alpha.
   double pcaExplainedVarianceRatio = -1;  // -1 in per-texel mode
   bool interrupted = false;   // stopped by stopFlag: nothing written, checkpoint kept

@@ -50,7 +50,8 @@ DecoderBatch randomDecoderBatch(const ModelConfig& model, std::uint64_t seed, in
 
 }  // namespace
 
-double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads) {
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads,
+                            bool bf16Products) {
   if (threads > 0) torch::set_num_threads(threads);
   auto [decoder, z, dirs, targets] = randomDecoderBatch(model, seed, tiles, rowsPerTile);
 
@@ -69,6 +70,7 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
 
   // The hand-written pass.
   detail::DecoderBackprop backprop(decoder, model.latentDim);
+  backprop.setBf16Products(bf16Products);
   torch::Tensor dz;
   double manualLoss = backprop.trainStep(z, dirs, targets, rowsPerTile, dz);
   std::vector<torch::Tensor> got;
@@ -84,10 +86,11 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
 }
 
 std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
-                                          int threads) {
+                                          int threads, bool bf16Products) {
   torch::set_num_threads(threads);
   auto [decoder, z, dirs, targets] = randomDecoderBatch(model, seed, tiles, rowsPerTile);
   detail::DecoderBackprop backprop(decoder, model.latentDim);
+  backprop.setBf16Products(bf16Products);
   torch::Tensor dz;
   std::vector<float> result{static_cast<float>(backprop.trainStep(z, dirs, targets, rowsPerTile, dz))};
   std::vector<torch::Tensor> parts;
@@ -220,11 +223,13 @@ double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int 
   return err;
 }
 
-DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads) {
+DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads,
+                                bool bf16Products) {
   torch::set_num_threads(threads);
   torch::manual_seed(0);
   detail::Decoder decoder(model);
   detail::DecoderBackprop backprop(decoder, model.latentDim);
+  backprop.setBf16Products(bf16Products);
   const int rows = tiles * rowsPerTile;
   torch::Tensor z = torch::randn({tiles, model.latentDim}), y = torch::rand({rows, 3});
   // Direction inputs as training builds them (TrainingSet): the model's encoding of measured

@@ -21,13 +21,14 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
 // same random batch (tiles x rowsPerTile rows); returns the largest difference over all
 // parameter gradients and the latent gradient, relative to the largest gradient magnitude.
 // threads > 0 sets torch's thread count first (the pass splits its rows among threads).
+// bf16Products: the hand-written pass's hidden layers take bfloat16 operands (autograd stays float).
 double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
-                            int threads = 0);
+                            int threads = 0, bool bf16Products = false);
 
 // The hand-written decoder pass's loss, every parameter gradient and the latent gradient,
 // concatenated, for a random batch like decoderBackpropError's, on `threads` threads.
 std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
-                                          int threads);
+                                          int threads, bool bf16Products = false);
 
 // The encoder's fused conv + pool (conv_pool.h) against torch::nn::Conv1d(k3, s1, p1) then
 // MaxPool1d(3, stride 3), on small-integer inputs, weights and output gradients (so both
@@ -56,12 +57,14 @@ double batchNormReferenceError(std::uint64_t seed, int batch, int channels, int 
 double fusedAdamReferenceError(std::uint64_t seed, const std::vector<std::int64_t>& sizes, int steps, double lr);
 
 // The decoder's hand-written training pass alone (forward, loss, backward; no encoder, no
-// optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads.
+// optimizer) on random data: `steps` steps of tiles x rowsPerTile rows on `threads` threads,
+// its hidden-layer products in float or with bfloat16 operands (`"training": {"products"}`).
 struct DecoderStepRate {
   double samplesPerSecond = 0;  // wall clock
   double cpuSeconds = 0, wallSeconds = 0;
 };
-DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads);
+DecoderStepRate decoderStepRate(const ModelConfig& model, int tiles, int rowsPerTile, int steps, int threads,
+                                bool bf16Products);
 
 // libtorch's float32 matrix-multiply rate (n x n times n x n, `threads` threads), GFLOP/s,
 // the best of repeated runs taking at least minSeconds in all.
