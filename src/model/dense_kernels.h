@@ -50,7 +50,8 @@ void rowDots(int n, int m, const float* h, int cols, const float* w, float* out)
 // every product is taken in pairs of consecutive terms of the sum, as the AVX-512 BF16
 // instruction VDPBF16PS does: sum += a[2p + 1] b[2p + 1], then sum += a[2p] b[2p]. A product
 // of two bfloat16 values is exact in float, so each step rounds once whether or not it is
-// fused: the portable build gives the same bits as the instruction. Why: that instruction
+// fused: the portable build gives the same bits as the instruction (except for a sum below
+// 1.2e-38, which the instruction flushes to zero). Why: that instruction
 // does twice the multiply-adds of a float FMA per cycle, and the decoder's training pass is
 // its products. Sums still run in one fixed order, the same on every run.
 using Bf16 = std::uint16_t;

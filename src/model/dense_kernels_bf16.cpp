@@ -69,7 +69,7 @@ bool forcePortable = false;  // setBf16ProductsPortable
 // ---- Portable build: float steps in the instruction's order (odd term, then even term).
 NBTF_SIMD_CLONES void productPortable(Bf16Epilogue e, int n, int k, const Bf16* x, int ldx, const Bf16* b, int cols,
                                       const float* h, float* y) {
-  std::vector<float> acc(cols), odd(cols), even(cols);
+  std::vector<float> acc(cols);
   for (int r = 0; r < n; ++r) {
     std::fill(acc.begin(), acc.end(), 0.0f);
     const Bf16* xr = x + static_cast<std::size_t>(r) * ldx;
