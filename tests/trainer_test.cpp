@@ -112,18 +112,21 @@ TEST(Trainer, HandWrittenBackpropIsTheSameOnAnyThreadCount) {
 
 TEST(Trainer, Bf16ProductsStayCloseToAutograd) {
   // The hidden layers' operands rounded to 8 significant bits, float sums: the gradients move
-  // by well under 1% of their largest magnitude (measured about 0.3%), and they do move.
+  // by well under 0.5% of their largest magnitude (measured 0.04-0.13% over eight batches of
+  // each shape), and they do move.
   ModelConfig model, wide;
   wide.decoderWidth = 130;  // odd padded sums (131 inputs with the bias column), two panels
   for (int threads : {1, 2}) {
     const double err = decoderBackpropError(model, 6, 5, 211, threads, true);
-    EXPECT_LT(err, 1e-2) << threads << " threads";
+    EXPECT_LT(err, 5e-3) << threads << " threads";
     EXPECT_GT(err, 1e-5) << "the products did not change: bf16 not applied";
-    EXPECT_LT(decoderBackpropError(wide, 7, 2, 301, threads, true), 1e-2) << threads << " threads";
+    EXPECT_LT(decoderBackpropError(wide, 7, 2, 301, threads, true), 5e-3) << threads << " threads";
   }
+  // Odd width, many layers, and 6 rows: sums of few terms, whose roundings do not average out
+  // (measured 0.04-1.6% over eight batches).
   ModelConfig small;
-  small.latentDim = 5, small.decoderWidth = 17, small.decoderLayers = 6;  // odd width, many layers
-  EXPECT_LT(decoderBackpropError(small, 5, 3, 2, 1, true), 1e-2);
+  small.latentDim = 5, small.decoderWidth = 17, small.decoderLayers = 6;
+  EXPECT_LT(decoderBackpropError(small, 5, 3, 2, 1, true), 3e-2);
 }
 
 TEST(Trainer, Bf16ProductsAreTheSameOnAnyThreadCountAndBuild) {
