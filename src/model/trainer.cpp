@@ -510,9 +510,15 @@ void TrainingRun::sampleStep() {
     for (std::int64_t t = first; t < last; ++t) {
       const int* img = &plan_.images[(begin + t) * perTile];
       set_.targets(plan_.tileGroup[begin + t], img, perTile, y + t * perTile * outputs_);
-      for (int s = 0; s < perTile; ++s)
+      for (int s = 0; s < perTile; ++s) {
+        if (s + kPrefetchRows < perTile) {  // random images: request their rows early
+          const float* ahead = &allDirs[static_cast<std::size_t>(img[s + kPrefetchRows]) * dirWidth_];
+          __builtin_prefetch(ahead);
+          __builtin_prefetch(ahead + dirWidth_ - 1);
+        }
         std::memcpy(d + (t * perTile + s) * dirWidth_, &allDirs[static_cast<std::size_t>(img[s]) * dirWidth_],
                     dirWidth_ * sizeof(float));
+      }
       if (clusterInputs_ > 0)
         set_.writeClusterPlaneFeatures(
             clusterPlanes_.data_ptr<float>() + plan_.tileGroup[begin + t] * set_.clusterPlaneValues(), img, perTile,
