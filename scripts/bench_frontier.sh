@@ -61,14 +61,16 @@ mkdir -p "$out"
 bench_banner
 echo "== training budget $budget s per neural row; clusters $clusters; config $config; work folder $out"
 
-# The baseline: the default recipe with the direction planes off and linear codes (format 1.7's
-# default).
+# The baseline: the default recipe with the direction planes off, linear codes and the short
+# polish phase with fixed latents (format 1.7's default).
 baseline=$out/baseline.json
 python3 - "$root/configs/default.json" "$baseline" <<'PY'
 import json, sys
 cfg = json.load(open(sys.argv[1]))
 cfg["direction_planes"] = {"features": 0}
 cfg["optimizer"].pop("plane_learning_rate", None)
+cfg["optimizer"]["latent_learning_rate"] = 0
+cfg["training"]["polish_fraction"] = 0.1
 cfg["modulation"]["codes"] = "linear"
 json.dump(cfg, open(sys.argv[2], "w"), indent=2)
 PY

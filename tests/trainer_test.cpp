@@ -750,8 +750,7 @@ TEST(TrainConfig, ErrorsNameTheFileAndKey) {
       {R"({"direction_planes": {"features": 2, "resolution": 1}})", "'direction_planes.resolution' must be in 2..64"},
       {R"({"direction_planes": {"size": 2}})", "'direction_planes.size' unknown key"},
       {R"({"optimizer": {"latent_learning_rate": -1}})", "'optimizer.latent_learning_rate' must be >= 0"},
-      {R"({"optimizer": {"latent_learning_rate": 0.01}, "training": {"polish_fraction": 0}})",
-       "set training.polish_fraction > 0"},
+      {R"({"optimizer": {"name": "sgd", "latent_learning_rate": 0.01}})", "needs optimizer.name \"adam\""},
       {R"({"optimizer": {"plane_learning_rate": -0.5}})", "'optimizer.plane_learning_rate' must be >= 0"},
   };
   for (const auto& k : cases) {

@@ -65,8 +65,8 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("optimizer", "learning_rate", learningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate_scaling", learningRateScaling, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "momentum", momentum, nullptr),
-    NBTF_CONFIG_FIELD("optimizer", "latent_learning_rate", latentLearningRate,
-                      [](const TrainConfig& c) { return c.latentLearningRate > 0; }),
+    // Always recorded (0 since the default frees the latents): an absent key reads as the default.
+    NBTF_CONFIG_FIELD("optimizer", "latent_learning_rate", latentLearningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "plane_learning_rate", planeLearningRate, withPlanes),
     NBTF_CONFIG_FIELD("training", "batch_size", batchSize, nullptr),
     NBTF_CONFIG_FIELD("training", "images_per_input", imagesPerInput, nullptr),
@@ -183,10 +183,8 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
   if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
   if (!finite(c.latentLearningRate) || c.latentLearningRate < 0)
     bad(source, "optimizer.latent_learning_rate", "must be >= 0 (0: the latents stay the encoder's outputs)");
-  if (c.latentLearningRate > 0 && c.polishFraction == 0)
-    bad(source, "optimizer.latent_learning_rate", "frees the latents in the polish phase: set training.polish_fraction > 0");
-  if (c.latentLearningRate > 0 && c.optimizer != "adam")
-    bad(source, "optimizer.latent_learning_rate", "needs optimizer.name \"adam\"");
+  if (c.latentLearningRate > 0 && c.polishFraction > 0 && c.optimizer != "adam")
+    bad(source, "optimizer.latent_learning_rate", "needs optimizer.name \"adam\" (or 0: latents fixed in the polish phase)");
   if (!finite(c.planeLearningRate) || c.planeLearningRate < 0)
     bad(source, "optimizer.plane_learning_rate", "must be >= 0 (0: optimizer.learning_rate)");
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");

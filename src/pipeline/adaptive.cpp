@@ -458,6 +458,9 @@ AdaptiveRun::AdaptiveRun(const BtfStack& stack, const CompressOptions& o, const 
 // the stages end at growing fractions of it. The checkpoint carries the model between them.
 void AdaptiveRun::planSchedule() {
   config_ = o_.train;
+  // The polish phase freezes the encoder, whose latents every cluster edit needs: it lies in
+  // the last stage, at most half of it (the default's 0.5 becomes 0.2 with growth 0.6).
+  config_.polishFraction = std::min(config_.polishFraction, 0.5 * (1 - a_.growthFraction));
   config_.model.outputTerms = terms_;
   config_.progress = config_.progress && o_.progress;
   config_.stopFlag = o_.stopFlag;
