@@ -65,7 +65,7 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("optimizer", "learning_rate", learningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "learning_rate_scaling", learningRateScaling, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "momentum", momentum, nullptr),
-    // Always recorded (0 since the default frees the latents): an absent key reads as the default.
+    // Always recorded: an absent key reads as today's default (0.01), not as what ran.
     NBTF_CONFIG_FIELD("optimizer", "latent_learning_rate", latentLearningRate, nullptr),
     NBTF_CONFIG_FIELD("optimizer", "plane_learning_rate", planeLearningRate, withPlanes),
     NBTF_CONFIG_FIELD("training", "batch_size", batchSize, nullptr),

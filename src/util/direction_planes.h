@@ -79,8 +79,7 @@ struct PlaneTaps {
 PlaneTaps planeTaps(int resolution, const float* points);
 
 // sampleDirectionPlanes and scatterDirectionPlanesGradient from taps, the same arithmetic.
-// The scatter adds features [firstFeature, endFeature) of every plane only, so that threads
-// owning disjoint features can share one gradient and still add each value in row order.
+// The scatter adds features [firstFeature, endFeature) of every plane only.
 void sampleDirectionPlanes(const PlaneTaps& taps, int resolution, int features, const float* values, float* out);
 void scatterDirectionPlanesGradient(const PlaneTaps& taps, int resolution, int features, const float* dOut,
                                     float* gradient, int firstFeature, int endFeature);
