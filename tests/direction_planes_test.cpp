@@ -120,37 +120,6 @@ TEST(DirectionPlanes, TapsAndFeatureRangesGiveTheSameBits) {
   EXPECT_GT(moved, 3 * F * 4);
 }
 
-// Training's two threads own the grid columns of one parity each: the two parities'
-// scatters, each over all rows in order, give the whole scatter's bits, for even and odd R.
-TEST(DirectionPlanes, ColumnParitiesGiveTheSameBits) {
-  for (const int R : {6, 7}) {
-    const int F = 4, rows = 300;
-    std::mt19937 rng(13 + R);
-    std::uniform_real_distribution<float> u(-1.1f, 1.1f);
-    std::vector<float> points(6 * rows), dOut(3 * F * rows);
-    for (float& c : points) c = u(rng);
-    for (float& d : dOut) d = u(rng);
-    const std::size_t values = static_cast<std::size_t>(3) * R * R * F;
-    std::vector<float> whole(values, 0.5f), even = whole, odd = whole;
-    for (int r = 0; r < rows; ++r) {
-      scatterDirectionPlanesGradient(R, F, &points[6 * r], &dOut[3 * F * r], whole.data());
-      scatterDirectionPlanesGradientColumns(planeTaps(R, &points[6 * r]), R, F, &dOut[3 * F * r], even.data(), 0);
-      scatterDirectionPlanesGradientColumns(planeTaps(R, &points[6 * r]), R, F, &dOut[3 * F * r], odd.data(), 1);
-    }
-    int moved[2] = {0, 0};
-    for (std::size_t v = 0; v < values; ++v) {
-      const int parity = static_cast<int>(v / F % R) % 2;
-      const std::vector<float>& mine = parity == 0 ? even : odd;
-      const std::vector<float>& other = parity == 0 ? odd : even;
-      ASSERT_EQ(mine[v], whole[v]) << "R " << R << " value " << v;
-      ASSERT_EQ(other[v], 0.5f) << "R " << R << " value " << v << " written by the other parity";
-      moved[parity] += whole[v] != 0.5f;
-    }
-    EXPECT_GT(moved[0], 3 * F * 4) << "R " << R;
-    EXPECT_GT(moved[1], 3 * F * 4) << "R " << R;
-  }
-}
-
 // Cluster planes: row r's values are a DirectionPlanes block of their own, sampled and
 // differentiated by the same functions (the raw overloads the training and the decoder call).
 TEST(RowPlanes, EachRowIsADirectionPlanesBlock) {

@@ -401,7 +401,7 @@ TEST(Trainer, DirectionPlanesTrainAndAgreeWithAutograd) {
   }
 }
 
-// The direction planes' gradient is scattered by grid column parity on each thread
+// The direction planes' gradient is scattered by features on each thread
 // (TrainingSet::addPlaneGradient), every value's terms in row order: a run on two threads
 // learns the planes and the model of a run on one, bit for bit.
 TEST(Trainer, DirectionPlanesAreTheSameOnAnyThreadCount) {

@@ -219,24 +219,20 @@ void TrainingSet::addPlaneGradient(const int* images, const float* rowGradients,
                                    int stride) const {
   if (stride == 0) stride = planeInputs_;
   const std::size_t values = static_cast<std::size_t>(planeInputs_) * planeResolution_ * planeResolution_;
-  // One unit per column parity (equal work; scatterDirectionPlanesGradientColumns).
-  const int R = planeResolution_, F = planeFeatures_;
-  at::parallel_for(0, 2, 1, [&](std::int64_t firstParity, std::int64_t endParity) {
+  at::parallel_for(0, planeFeatures_, 1, [&](std::int64_t firstFeature, std::int64_t endFeature) {
     // A copy of its own, so that threads do not write to one another's cache lines.
     std::vector<float> own(gradient, gradient + values);
-    for (int parity = static_cast<int>(firstParity); parity < endParity; ++parity) {
-      for (std::int64_t r = 0; r < rows; ++r) {
-        if (r + kPrefetchRows < rows) {
-          const char* ahead = reinterpret_cast<const char*>(&planeTaps_[images[r + kPrefetchRows]]);
-          __builtin_prefetch(ahead);
-          __builtin_prefetch(ahead + sizeof(PlaneTaps) - 1);
-        }
-        scatterDirectionPlanesGradientColumns(planeTaps_[images[r]], R, F, rowGradients + r * stride, own.data(),
-                                              parity);
+    for (std::int64_t r = 0; r < rows; ++r) {
+      if (r + kPrefetchRows < rows) {
+        const char* ahead = reinterpret_cast<const char*>(&planeTaps_[images[r + kPrefetchRows]]);
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + sizeof(PlaneTaps) - 1);
       }
-      for (std::size_t cell = 0; cell < values / F; ++cell)  // [plane][y][x]: x = cell mod R
-        if (static_cast<int>(cell % R) % 2 == parity) std::copy_n(&own[cell * F], F, gradient + cell * F);
+      scatterDirectionPlanesGradient(planeTaps_[images[r]], planeResolution_, planeFeatures_, rowGradients + r * stride,
+                                     own.data(), static_cast<int>(firstFeature), static_cast<int>(endFeature));
     }
+    for (std::size_t v = 0; v < values; v += planeFeatures_)
+      std::copy(&own[v + firstFeature], &own[v + endFeature], gradient + v + firstFeature);
   });
 }
 

@@ -72,8 +72,8 @@ class TrainingSet {
   void setPlaneFeatures(const DirectionPlanes& planes);
   // Adds to `gradient` (laid out as the planes' values) their gradient from rows of
   // dLoss/d(plane features): row r (planeInputs() floats) belongs to image images[r].
-  // Rows are `stride` floats apart (planeInputs() when 0). Parallel over the grids' column
-  // parities, each value's terms added in row order: the same bits on any number of threads.
+  // Rows are `stride` floats apart (planeInputs() when 0). Parallel over features, each
+  // value's terms added in row order: the same bits on any number of threads.
   void addPlaneGradient(const int* images, const float* rowGradients, std::int64_t rows, float* gradient,
                         int stride = 0) const;
   // A hash of the per-texel coefficients (0 when there are none), for checkpoint fingerprints.

@@ -2,12 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 namespace nbtf {
 namespace {
-
-typedef float Float4 __attribute__((vector_size(16)));  // lane-wise the same arithmetic as scalar floats
 
 // Bilinear taps of point (x, y) on an R x R grid over [-1, 1]^2 (grid point i at
 // -1 + 2 i / (R - 1)): the cell's first corner and the weights along x and y.
@@ -59,7 +56,6 @@ PlaneTaps planeTaps(int R, const float* points) {
   for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
     const Taps t = tapsOf(R, points[2 * p], points[2 * p + 1]);
     taps.corner[p] = t.y0 * R + t.x0;
-    taps.column[p] = t.x0;
     float* w = taps.weight[p];
     w[0] = (1 - t.fx) * (1 - t.fy), w[1] = t.fx * (1 - t.fy), w[2] = (1 - t.fx) * t.fy, w[3] = t.fx * t.fy;
   }
@@ -93,33 +89,6 @@ void scatterDirectionPlanesGradient(const PlaneTaps& taps, int R, int F, const f
       g01[f] += w[1] * d[f];
       g10[f] += w[2] * d[f];
       g11[f] += w[3] * d[f];
-    }
-  }
-}
-
-void scatterDirectionPlanesGradientColumns(const PlaneTaps& taps, int R, int F, const float* dOut, float* gradient,
-                                           int parity) {
-  const std::size_t planeSize = static_cast<std::size_t>(R) * R * F;
-  for (int p = 0; p < DirectionPlanes::kPlanes; ++p) {
-    const int dx = (taps.column[p] & 1) == parity ? 0 : 1;  // which of the cell's columns x0, x0 + 1
-    float* top = gradient + p * planeSize + static_cast<std::size_t>(taps.corner[p] + dx) * F;
-    float* bottom = top + static_cast<std::size_t>(R) * F;
-    const float wTop = taps.weight[p][dx], wBottom = taps.weight[p][2 + dx];
-    const float* d = dOut + p * F;
-    int f = 0;
-    for (; f + 4 <= F; f += 4) {  // four features at a time (the compiler does not, for fear of aliasing)
-      Float4 vd, vt, vb;
-      std::memcpy(&vd, d + f, sizeof vd);
-      std::memcpy(&vt, top + f, sizeof vt);
-      std::memcpy(&vb, bottom + f, sizeof vb);
-      vt += wTop * vd;
-      vb += wBottom * vd;
-      std::memcpy(top + f, &vt, sizeof vt);
-      std::memcpy(bottom + f, &vb, sizeof vb);
-    }
-    for (; f < F; ++f) {
-      top[f] += wTop * d[f];
-      bottom[f] += wBottom * d[f];
     }
   }
 }

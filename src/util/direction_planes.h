@@ -73,22 +73,16 @@ void scatterDirectionPlanesGradient(int resolution, int features, const float* p
 // (x0 + 1, y0 + 1). Training samples the same pairs every step, so it computes these once.
 struct PlaneTaps {
   int corner[DirectionPlanes::kPlanes];
-  int column[DirectionPlanes::kPlanes];  // x0, the corner's column
   float weight[DirectionPlanes::kPlanes][4];
 };
 PlaneTaps planeTaps(int resolution, const float* points);
 
 // sampleDirectionPlanes and scatterDirectionPlanesGradient from taps, the same arithmetic.
-// The scatter adds features [firstFeature, endFeature) of every plane only.
+// The scatter adds features [firstFeature, endFeature) of every plane only, so that threads
+// owning disjoint features can share one gradient and still add each value in row order.
 void sampleDirectionPlanes(const PlaneTaps& taps, int resolution, int features, const float* values, float* out);
 void scatterDirectionPlanesGradient(const PlaneTaps& taps, int resolution, int features, const float* dOut,
                                     float* gradient, int firstFeature, int endFeature);
-// The same for the grid columns of one parity (x even: 0, odd: 1) only, all features. A pair's
-// cell has one column of each parity, so two threads that own one parity each do equal work,
-// each value is still added in row order (the same bits as the whole scatter), and a point's
-// features are contiguous (one vector operation per corner, not one per feature).
-void scatterDirectionPlanesGradientColumns(const PlaneTaps& taps, int resolution, int features, const float* dOut,
-                                           float* gradient, int parity);
 
 // The transpose of sampleDirectionPlanes: adds the gradient dOut (inputCount() floats) of
 // the sampled features at `points` to gradient (valueCount() floats, laid out as values).
