@@ -1,10 +1,11 @@
 // nbtf cluster <input> --clusters K -o DIR: the clustering stage alone (log + standardize,
-// PCA, k-means++, representatives), writing DIR/labels.png (the id list, a colour per
+// PCA, k-means++ in the --space chosen, representatives), writing DIR/labels.png (the id list, a colour per
 // cluster), DIR/texel_colour.png and DIR/cluster_colour.png (each texel's mean colour over all
 // images, and its cluster's: what the clustering keeps) and DIR/summary.json.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include "cli_common.h"
 #include "cluster/cluster_output.h"
@@ -42,6 +43,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   if (representative == "median") options.representative = Representative::Median;
   else if (representative == "mean") options.representative = Representative::Mean;
   else throw Error("--representative: expected median or mean, got '" + representative + "'");
+  const ClusteringSpace space = parseClusteringSpace(args["space"].as<std::string>(), "--space");
   // Options that can be judged before hours of loading are judged now.
   if (options.clusters < 1) throw Error("--clusters must be at least 1, got " + std::to_string(options.clusters));
   if (options.pca.components < 1)
@@ -105,7 +107,10 @@ int clusterStack(const cxxopts::ParseResult& args) {
   StackAbrdfSource source(stack, std::move(standardization), std::move(moments));
   info.standardizeSeconds = secondsSince(step);
 
-  ClusteringResult result = clusterAbrdfs(source, options);
+  std::unique_ptr<StackAbrdfSource> linear;  // PCA and k-means on linear / alpha
+  if (space == ClusteringSpace::Linear)
+    linear = std::make_unique<StackAbrdfSource>(StackAbrdfSource::linear(stack, info.alpha));
+  ClusteringResult result = clusterAbrdfs(source, options, linear.get());
   info.totalSeconds = secondsSince(start);
   const std::size_t peak = peakResidentBytes();
   info.peakMemoryBytes = peak;
@@ -120,6 +125,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   writeImage8(clusterColourPath, ImageFormat::Png,
               colourImage(clusterMeanColour(texelColour, result.ids, options.clusters), width, height, brightest));
   nlohmann::json summary = clusteringSummary(result, options, info);
+  summary["space"] = clusteringSpaceName(space);
   summary["appearance_images"] = {
       {"texel_colour", "texel_colour.png"},
       {"cluster_colour", "cluster_colour.png"},
@@ -163,6 +169,10 @@ int clusterMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
         "representative", "Cluster representative: median or mean",
         cxxopts::value<std::string>()->default_value("median"))(
+        "space",
+        "Values PCA and k-means work on: log (standardized log ABRDFs) or linear (linear / alpha); the "
+        "representatives are medians of the standardized log ABRDFs either way",
+        cxxopts::value<std::string>()->default_value(clusteringSpaceName(kDefaultClusteringSpace)))(
         "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
     addMemoryOptions(options);

@@ -190,6 +190,71 @@ TEST_F(AbrdfSourceTest, StreamingClusteringGivesTheSameLabelsAndMedians) {
   }
 }
 
+// The linear source holds the stack's linear values / alpha, the encoder's targets' space, in
+// every block (8-bit: from one table; half: computed), and never offers coded images (their
+// tables are per column, the standardized source's layout).
+TEST_F(AbrdfSourceTest, LinearSourceHoldsTheLinearValuesOverAlpha) {
+  test::TempDir scratch;
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half})
+    for (const std::string& dir : {std::string(), scratch.path()}) {
+      const std::string where = std::string(sampleTypeName(type)) + (dir.empty() ? " in memory" : " in a scratch file");
+      BtfStack stack = structuredStack(41, 27, 5, 4, type, 2, dir);  // 1107 texels: two row slices
+      const MatrixXfCol linear = abrdfMatrix(stack, false);        // linear values, before the log
+      const float alpha = targetAlpha(stack);
+      ASSERT_GT(alpha, 0.0f);
+      const StackAbrdfSource source = StackAbrdfSource::linear(stack, alpha);
+      EXPECT_TRUE(source.isLinear());
+      EXPECT_EQ(source.knownMoments(), nullptr);
+      ASSERT_EQ(source.rows(), linear.rows());
+      ASSERT_EQ(source.cols(), linear.cols());
+      std::int64_t mismatches = 0, nonZero = 0;
+      source.forEachColumnSlice([&](Eigen::Index c0, Eigen::Index c1, const float* data) {
+        for (Eigen::Index d = c0; d < c1; ++d)
+          for (Eigen::Index t = 0; t < linear.rows(); ++t) {
+            const float v = data[(d - c0) * linear.rows() + t];
+            mismatches += v != linear(t, d) / alpha;
+            nonZero += v != 0;
+          }
+      });
+      source.forEachRowSlice([&](Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld) {
+        for (Eigen::Index d = 0; d < linear.cols(); ++d)
+          for (Eigen::Index t = r0; t < r1; ++t) mismatches += data[d * ld + t - r0] != linear(t, d) / alpha;
+      });
+      EXPECT_EQ(mismatches, 0) << where;
+      EXPECT_GT(nonZero, linear.size() / 2) << where;
+      EXPECT_FALSE(source.forEachCodedImage([](Eigen::Index, const std::uint8_t*, const float*, int) {})) << where;
+    }
+  BtfStack stack = structuredStack(5, 4, 2, 2, SampleType::Srgb8, 1);
+  EXPECT_THROW(StackAbrdfSource::linear(stack, 0.0f), Error);
+}
+
+// Clusters found in another space: PCA and k-means see the space's values, the medians are
+// x's. The same as clustering the space itself, with x's medians of the resulting labels.
+TEST_F(AbrdfSourceTest, ClusteringInTheLinearSpaceTakesTheMediansFromX) {
+  BtfStack stack = structuredStack(33, 35, 6, 5, SampleType::Srgb8, 4);  // 1,155 texels
+  Standardization s;
+  const MatrixXfCol x = standardizedMatrix(stack, s);
+  const float alpha = targetAlpha(stack);
+  const MatrixXfCol linear = abrdfMatrix(stack, false) / alpha;
+  StackAbrdfSource source(stack, s);
+  const StackAbrdfSource linearSource = StackAbrdfSource::linear(stack, alpha);
+  ClusteringOptions o;
+  o.clusters = 12;
+  o.pca.components = 6;
+  o.seed = 7;
+  o.progress = false;
+  const ClusteringResult inLinear = clusterAbrdfs(source, o, &linearSource);
+  const ClusteringResult ofLinear = clusterAbrdfs(linear, o);  // the linear matrix clustered on its own
+  EXPECT_EQ(inLinear.ids, ofLinear.ids);
+  EXPECT_EQ(inLinear.inertia, ofLinear.inertia);
+  EXPECT_TRUE(inLinear.representatives == clusterRepresentatives(x, inLinear.ids, o.clusters, Representative::Median));
+  EXPECT_FALSE(inLinear.representatives == ofLinear.representatives);  // those are linear values
+  // A space of another shape is refused.
+  BtfStack other = structuredStack(33, 34, 6, 5, SampleType::Srgb8, 4);
+  const StackAbrdfSource otherSource = StackAbrdfSource::linear(other, alpha);
+  test::expectErrorContaining([&] { clusterAbrdfs(source, o, &otherSource); }, {"clustering space is 1122 x 90"});
+}
+
 // An 8-bit stack's medians come from counts of its codes, in memory or from a scratch file:
 // the selection's values bit for bit, for clusters of one texel, of even and odd sizes, an
 // empty one, and a constant column (image 1 is black).

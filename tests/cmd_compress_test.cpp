@@ -155,6 +155,9 @@ TEST_F(CmdCompress, BadOptionsAreRejected) {
   r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --holdout 1.5");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--holdout must be a fraction in [0, 1), got 1.5")) << r.output;
+  r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --cluster-space srgb");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_TRUE(contains(r.output, "--cluster-space: expected log or linear, got 'srgb'")) << r.output;
   writeFileAtomic(path("typo.json"), R"({"training": {"epochz": 3}})");
   r = run("compress " + path("x") + " -o " + path("o.nbtf") + " --config " + path("typo.json"));
   EXPECT_EQ(r.exitCode, 1);

@@ -136,17 +136,46 @@ TEST(CompressConfig, BadAdaptiveValuesNameTheFileAndTheKey) {
       {R"({"adaptive": {"growth_fraction": 1}})", "'adaptive.growth_fraction' must be in (0, 1)"},
       {R"({"adaptive": {"merge_tolerance": -1}})", "'adaptive.merge_tolerance' must be a number >= 0"},
       {R"({"adaptive": 5})", "'adaptive' must be an object"},
-      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, direction_planes, cluster_planes, optimizer, training, modulation, storage, adaptive)"},
+      {R"({"adaptiv": {}})", "'adaptiv' unknown key (expected model, direction_planes, cluster_planes, optimizer, training, modulation, storage, clustering, adaptive)"},
       {R"({"model": {"latent_dim": 0}, "adaptive": {}})", "'model.latent_dim' must be in 1..4096"},
   };
   for (const auto& [text, message] : cases) {
     const std::string path = writeConfig(dir, text);
     test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
   }
-  // The training recipe's own loader knows no "adaptive" object: it says which objects it reads.
-  const std::string path = writeConfig(dir, R"({"adaptive": {"enabled": true}})");
-  test::expectErrorContaining([&] { loadTrainConfig(path); },
-                              {path, "'adaptive' unknown key (expected model, direction_planes, cluster_planes, optimizer, training, modulation, storage)"});
+  // The training recipe's own loader skips the objects only compress reads, so that one file
+  // serves both, and still names a key no loader reads.
+  const std::string path = writeConfig(dir, R"({"adaptive": {"enabled": true}, "clustering": {"space": "linear"},
+                                              "training": {"epochs": 5}})");
+  EXPECT_EQ(loadTrainConfig(path).epochs, 5);
+  const std::string typo = writeConfig(dir, R"({"adaptiv": {"enabled": true}})");
+  test::expectErrorContaining([&] { loadTrainConfig(typo); },
+                              {typo, "'adaptiv' unknown key (expected model, direction_planes, cluster_planes, optimizer, "
+                                     "training, modulation, storage, clustering, adaptive)"});
+}
+
+TEST(CompressConfig, ReadsTheClusteringSpace) {
+  test::TempDir dir;
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"clustering": {"space": "linear"}})")).clusteringSpace,
+            ClusteringSpace::Linear);
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"clustering": {"space": "log"}})")).clusteringSpace,
+            ClusteringSpace::Log);
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"training": {"epochs": 3}})")).clusteringSpace,
+            kDefaultClusteringSpace);
+  EXPECT_EQ(CompressOptions{}.clusteringSpace, kDefaultClusteringSpace);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"clustering": {"space": "srgb"}})", "'clustering.space': expected log or linear, got 'srgb'"},
+      {R"({"clustering": {"space": 1}})", "'clustering.space' must be a string"},
+      {R"({"clustering": {"spaces": "log"}})", "'clustering.spaces' unknown key"},
+  };
+  for (const auto& [text, message] : cases) {
+    const std::string path = writeConfig(dir, text);
+    test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
+  }
+  EXPECT_STREQ(clusteringSpaceName(ClusteringSpace::Linear), "linear");
+  EXPECT_EQ(parseClusteringSpace("log", "--cluster-space"), ClusteringSpace::Log);
+  test::expectErrorContaining([] { parseClusteringSpace("Linear", "--cluster-space"); },
+                              {"--cluster-space: expected log or linear, got 'Linear'"});
 }
 
 TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {

@@ -5,11 +5,13 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <tuple>
 #include <utility>
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include "codec/decoder.h"
+#include "codec/nbtf_describe.h"
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
 #include "io/btf_loader.h"
@@ -378,6 +380,59 @@ TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
   std::string summary = formatCompressSummary(stats);
   EXPECT_TRUE(contains(summary, "on linear RGB / alpha")) << summary;
   EXPECT_TRUE(contains(summary, "ratio")) << summary;
+}
+
+// 8 x 8 texels that differ in two ways: the left half is twice as bright as the right in
+// every image, but dark (0.02 against 0.04); the top half has a highlight of 0.5 in four of
+// the 36 images where the bottom half has 1.0.
+BtfStack darkDetailOrHighlightStack() {
+  std::vector<Direction> lights, views;
+  for (int i = 0; i < 6; ++i) lights.push_back({12.0 * i, 50.0 * i});
+  for (int i = 0; i < 6; ++i) views.push_back({10.0 * i, 70.0 * i});
+  BtfStack stack(lights, views, 8, 8, SampleType::Srgb8);
+  std::vector<float> rgb(8 * 8 * 3);
+  for (int image = 0; image < stack.numImages(); ++image) {
+    for (int t = 0; t < 64; ++t) {
+      const int x = t % 8, y = t / 8;
+      const float value = image < 4 ? (y < 4 ? 0.5f : 1.0f) : (x < 4 ? 0.04f : 0.02f);
+      for (int c = 0; c < 3; ++c) rgb[3 * t + c] = value;
+    }
+    stack.setImageLinear(image, rgb.data());
+  }
+  return stack;
+}
+
+// Clusters found in the linear space follow the linear values' largest differences (the
+// highlight, which dominates the error eq. 10 measures); the standardized log space's follow
+// the most dimensions (the dark detail). The space is recorded in the stats, the file and `info`.
+TEST(Compressor, LinearClusteringSpaceIsUsedAndRecorded) {
+  const BtfStack stack = darkDetailOrHighlightStack();
+  CompressOptions o = quickOptions(2);
+  o.train.epochs = 5;
+  CompressStats logStats, linearStats;
+  const CompressedBtf logFile = compressStack(stack, o, logStats);
+  o.clusteringSpace = ClusteringSpace::Linear;
+  const CompressedBtf linearFile = compressStack(stack, o, linearStats);
+  EXPECT_EQ(logStats.clusteringSpace, "log");
+  EXPECT_EQ(linearStats.clusteringSpace, "linear");
+  EXPECT_EQ(nlohmann::json::parse(compressStatsJson(linearStats))["clustering_space"], "linear");
+  int splitByColumn = 0, splitByRow = 0;  // texel pairs that agree with the split
+  for (int t = 0; t < 64; ++t) {
+    splitByColumn += (logFile.ids[t] == logFile.ids[0]) == (t % 8 < 4);
+    splitByRow += (linearFile.ids[t] == linearFile.ids[0]) == (t / 8 < 4);
+  }
+  EXPECT_EQ(splitByColumn, 64);
+  EXPECT_EQ(splitByRow, 64);
+  EXPECT_LT(clusterMeanRmse(stack, linearStats.alpha, linearFile.ids, 2),
+            0.5 * clusterMeanRmse(stack, logStats.alpha, logFile.ids, 2));
+  for (const auto& [file, space, described] :
+       {std::make_tuple(&logFile, "log", "standardized log ABRDFs"),
+        std::make_tuple(&linearFile, "linear", "linear ABRDFs / alpha")}) {
+    const std::vector<std::uint8_t> bytes = serializeNbtf(*file);
+    const CompressedBtf back = parseNbtf(bytes.data(), bytes.size(), "mem");
+    EXPECT_EQ(nlohmann::json::parse(back.metadataJson)["clustering"]["space"], space);
+    EXPECT_TRUE(contains(describeNbtf(back, "mem", bytes.size()), described)) << space;
+  }
 }
 
 TEST(Compressor, PcaBaselineFillsTheSameStatsAndJson) {

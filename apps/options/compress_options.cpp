@@ -149,6 +149,10 @@ void addCompressOptions(cxxopts::Options& options) {
       "components",
       "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
       cxxopts::value<int>()->default_value("0"))(
+      "cluster-space",
+      "Values the clusters are found in: log (standardized log ABRDFs, the paper's) or linear (linear / alpha, where "
+      "the error is measured) (overrides the config's clustering.space)",
+      cxxopts::value<std::string>())(
       "world-size", "Data-parallel training over this many processes (docs/model.md; same command on every rank)",
       cxxopts::value<int>()->default_value("1"))(
       "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
@@ -192,6 +196,9 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   o.clusters = args["clusters"].as<int>();
   if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
   o.pcaComponents = args["components"].as<int>();
+  o.clusteringSpace = args.count("cluster-space")
+                          ? parseClusteringSpace(args["cluster-space"].as<std::string>(), "--cluster-space")
+                          : config.clusteringSpace;
   if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
   applyMethod(args, o);
   DistributedConfig& dist = o.train.distributed;

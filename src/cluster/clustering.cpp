@@ -173,12 +173,26 @@ MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::
 
 // ---- The stage
 
+const char* clusteringSpaceName(ClusteringSpace space) { return space == ClusteringSpace::Linear ? "linear" : "log"; }
+
+ClusteringSpace parseClusteringSpace(const std::string& text, const std::string& where) {
+  if (text == "log") return ClusteringSpace::Log;
+  if (text == "linear") return ClusteringSpace::Linear;
+  throw Error(where + ": expected log or linear, got '" + text + "'");
+}
+
 ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options) {
   return clusterAbrdfs(DenseAbrdfSource(x), options);
 }
 
-ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options) {
+ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options, const AbrdfSource* space) {
   const Eigen::Index m = x.rows(), dims = x.cols();
+  if (space && (space->rows() != m || space->cols() != dims)) {
+    std::ostringstream s;
+    s << "clustering: the clustering space is " << space->rows() << " x " << space->cols() << ", the ABRDFs " << m
+      << " x " << dims;
+    throw Error(s.str());
+  }
   if (m == 0 || dims == 0) throw Error("clustering: empty ABRDF matrix");
   if (options.clusters < 1)
     throw Error("clustering: the number of clusters must be at least 1, got " + std::to_string(options.clusters));
@@ -193,7 +207,7 @@ ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& op
   PcaOptions pcaOptions = options.pca;
   pcaOptions.seed = options.seed;
   pcaOptions.progress = options.progress;
-  PcaResult pca = randomizedPca(x, pcaOptions);
+  PcaResult pca = randomizedPca(space ? *space : x, pcaOptions);
   result.pcaSeconds = secondsSince(start);
   result.explainedVariance = pca.explainedVariance;
   result.explainedVarianceRatio = pca.explainedRatio();

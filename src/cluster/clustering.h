@@ -11,6 +11,15 @@ namespace nbtf {
 
 enum class Representative { Median, Mean };
 
+// The values PCA and k-means find the clusters in (docs/model.md, *Clustering space*): the
+// standardized log ABRDFs (the paper's), or the linear ABRDFs / alpha, the space the error is
+// measured in.
+enum class ClusteringSpace { Log, Linear };
+constexpr ClusteringSpace kDefaultClusteringSpace = ClusteringSpace::Linear;
+const char* clusteringSpaceName(ClusteringSpace space);  // "log", "linear"
+// "log" or "linear"; anything else throws nbtf::Error naming `where` (an option or a key).
+ClusteringSpace parseClusteringSpace(const std::string& text, const std::string& where);
+
 struct ClusteringOptions {
   int clusters = 500;
   PcaOptions pca;        // seed and progress are taken from here
@@ -30,7 +39,7 @@ struct ClusteringResult {
   bool converged = false;          // k-means stopped because no texel changed cluster
   int reseeded = 0, emptyClusters = 0;
   double explainedVarianceRatio = 0;
-  Eigen::VectorXf explainedVariance;  // C: variance of the standardized ABRDFs along each component
+  Eigen::VectorXf explainedVariance;  // C: variance of the clustered ABRDFs (x, or space) along each component
   MatrixXfCol scores;                 // M x C PCA scores when options.keepScores, else empty
   double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
 };
@@ -46,8 +55,12 @@ MatrixXfCol clusterRepresentatives(const MatrixXfCol& x, const std::vector<std::
 
 // x: M x D standardized ABRDFs, in memory or streamed from the stack (StackAbrdfSource: the
 // same bits; memory: the source's slices, the PCA's (M + D) x (C + p) floats, k-means' M x C
-// scores). Reads X 2 * powerIterations + 4 times. Throws nbtf::Error on bad k or components.
-ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options);
+// scores). Reads X 2 * powerIterations + 4 times. `space`: where PCA and k-means look for the
+// clusters when not x itself (the same M x D texels in other values, e.g. the linear ABRDFs,
+// StackAbrdfSource::linear); the representatives are always x's. Throws nbtf::Error on bad k
+// or components, or a space of another shape.
+ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& options,
+                               const AbrdfSource* space = nullptr);
 ClusteringResult clusterAbrdfs(const MatrixXfCol& x, const ClusteringOptions& options);
 
 }  // namespace nbtf

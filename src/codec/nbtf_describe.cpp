@@ -151,8 +151,12 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     // throws), and the metadata is the file's, so untrusted.
     std::snprintf(line, sizeof line, "%.1f%%",
                   100 * meta["clustering"]["pca_explained_variance_ratio"].get<double>());
+    // Files written before the space was an option clustered the standardized log ABRDFs.
+    const auto& c = meta["clustering"];
+    const bool linear = c.contains("space") && c["space"] == "linear";
     field("clustering", "PCA with " + jsonNumber(meta, "clustering", "pca_components") + " components explains " +
-                            line + " of the variance (standardized log ABRDFs); k-means " +
+                            line + " of the variance (" +
+                            (linear ? "linear ABRDFs / alpha" : "standardized log ABRDFs") + "); k-means " +
                             jsonNumber(meta, "clustering", "kmeans_iterations") + " iterations");
   }
   o << "\n" << formatSizeTable(computeSizes(btf, fileBytes));

@@ -13,6 +13,7 @@ using json = nlohmann::json;
 
 const std::vector<std::string> kTrainConfigSections = {"model",    "direction_planes", "cluster_planes", "optimizer",
                                                        "training", "modulation",       "storage"};
+const std::vector<std::string> kCompressOnlyConfigSections = {"clustering", "adaptive"};
 
 namespace {
 

@@ -15,6 +15,9 @@ struct TrainConfig;
 
 // The components loadTrainConfig reads.
 extern const std::vector<std::string> kTrainConfigSections;
+// The components only `nbtf compress` reads (pipeline/compress_config.h): loadTrainConfig
+// accepts and skips them, so that one config file serves both.
+extern const std::vector<std::string> kCompressOnlyConfigSections;
 
 // The configs shipped in configs/, compiled in: "compact" -> the text of configs/compact.json
 // (nullptr: no such built-in config), and their names, sorted.

@@ -22,7 +22,9 @@ namespace {
 }  // namespace
 
 TrainConfig loadTrainConfig(const std::string& path) {
-  return trainConfigFromJson(readConfigFile(path, kTrainConfigSections), path);
+  std::vector<std::string> sections = kTrainConfigSections;
+  sections.insert(sections.end(), kCompressOnlyConfigSections.begin(), kCompressOnlyConfigSections.end());
+  return trainConfigFromJson(readConfigFile(path, sections), path);
 }
 
 namespace {

@@ -21,10 +21,21 @@ constexpr int kMaxAdaptiveStages = 20;
 
 CompressConfig loadCompressConfig(const std::string& path) {
   std::vector<std::string> sections = kTrainConfigSections;
-  sections.push_back("adaptive");
+  sections.insert(sections.end(), kCompressOnlyConfigSections.begin(), kCompressOnlyConfigSections.end());
   const nlohmann::json root = readConfigFile(path, sections);
   CompressConfig c;
   c.train = trainConfigFromJson(root, path);
+  {
+    ConfigSection clustering(root, "clustering", path);
+    std::string space = clusteringSpaceName(c.clusteringSpace);
+    clustering.read("space", space);
+    clustering.rejectUnknown();
+    try {
+      c.clusteringSpace = parseClusteringSpace(space, "'clustering.space'");
+    } catch (const Error& e) {
+      throw fileError(path, e.what());
+    }
+  }
   AdaptiveOptions& a = c.adaptive;
   ConfigSection s(root, "adaptive", path);
   s.read("enabled", a.enabled);

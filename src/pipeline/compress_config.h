@@ -1,7 +1,8 @@
 // The config file of `nbtf compress`: the training recipe (model, optimizer, training,
-// modulation, storage: loadTrainConfig's objects) and the "adaptive" object, which turns on
-// adaptive clusters and sets their targets (pipeline/adaptive.h). The command line's
-// --adaptive, --target-rmse, ... override the file's values.
+// modulation, storage: loadTrainConfig's objects), the "clustering" object (the space the
+// clusters are found in) and the "adaptive" object, which turns on adaptive clusters and sets
+// their targets (pipeline/adaptive.h). The command line's --cluster-space, --adaptive,
+// --target-rmse, ... override the file's values.
 #pragma once
 #include <string>
 
@@ -12,6 +13,7 @@ namespace nbtf {
 struct CompressConfig {
   TrainConfig train;
   AdaptiveOptions adaptive;  // the "adaptive" object ("enabled": false when absent)
+  ClusteringSpace clusteringSpace = kDefaultClusteringSpace;  // the "clustering" object's "space"
 };
 
 // Loads a compress config; unknown keys, wrong types and out-of-range values are errors that

@@ -103,6 +103,7 @@ std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
   if (clustering) {
     json c;
     c["k"] = stats.clusters;
+    c["space"] = stats.clusteringSpace;  // absent in files before it was an option: "log"
     c["pca_components"] = pcaComponents;
     c["pca_explained_variance_ratio"] = clustering->explainedVarianceRatio;
     c["kmeans_iterations"] = clustering->iterations;
@@ -364,7 +365,12 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
       co.clusters = detail::initialAdaptiveClusters(o, texels);
       co.keepScores = true;  // splits are 2-means in the same PCA space
     }
-    clustering = clusterAbrdfs(*source, co);
+    // The linear space: the same texels as linear values / alpha, for PCA and k-means only.
+    std::unique_ptr<StackAbrdfSource> linear;
+    if (o.clusteringSpace == ClusteringSpace::Linear)
+      linear = std::make_unique<StackAbrdfSource>(StackAbrdfSource::linear(stack, alpha));
+    stats.clusteringSpace = clusteringSpaceName(o.clusteringSpace);
+    clustering = clusterAbrdfs(*source, co, linear.get());
     if (adaptive) {
       stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
       stats.pcaComponents = pcaComponents;
@@ -692,6 +698,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["clusters"] = s.clusters;
   j["pca_components"] = s.pcaComponents;
   j["kmeans_iterations"] = s.kmeansIterations;
+  j["clustering_space"] = s.clusteringSpace.empty() ? json(nullptr) : json(s.clusteringSpace);
   j["texels"] = s.texels;
   j["images"] = s.images;
   j["holdout_images"] = s.holdoutImages;

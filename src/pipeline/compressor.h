@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "cluster/clustering.h"
 #include "codec/nbtf_file.h"
 #include "io/btf_loader.h"
 #include "pipeline/memory_estimate.h"
@@ -52,6 +53,9 @@ struct CompressOptions {
   bool pcaBaseline = false;
   int pcaComponents = 0;        // PCA components (before k-means, or of the baseline); 0 = default (32, capped by the data)
   int kmeansIterations = 0;     // Lloyd rounds at most; 0 = the clustering library's default
+  // The values PCA and k-means find the clusters in (the representatives are always medians of
+  // the standardized log ABRDFs, the encoder's input).
+  ClusteringSpace clusteringSpace = kDefaultClusteringSpace;
   std::string saveEncoderPath;  // also write this .nbtf with the encoder inside ("" = no)
   // Where training checkpoints go; "" = the config's training.checkpoint_path, else
   // defaultCheckpointPath(output), which is removed once the output is written.
@@ -88,6 +92,7 @@ struct CompressStats {
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
   int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
   int kmeansIterations = 0;   // Lloyd rounds of the initial clustering (clustered only)
+  std::string clusteringSpace;  // "log" or "linear" (clustered only; else empty)
   int texels = 0, images = 0, holdoutImages = 0;
   float alpha = 1;
   // RMSE of eq. (10) over texels x images x channels, on linear RGB divided by alpha.
@@ -105,7 +110,7 @@ struct CompressStats {
   std::int64_t steps = 0;
   double samplesPerSecond = 0, decoderGflops = 0;
   std::string products = "float";  // the decoder pass's products (TrainResult::products)
-  // Clustered: of the standardized log ABRDFs; PCA baseline: of the fitted linear ABRDFs / alpha.
+  // Clustered: of the ABRDFs in the clustering space; PCA baseline: of the fitted linear ABRDFs / alpha.
   double pcaExplainedVarianceRatio = -1;  // -1 in per-texel mode
   bool interrupted = false;   // stopped by stopFlag: nothing written, checkpoint kept
   // Data-parallel training (train.distributed): processes, whether this one is a worker

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <numeric>
 
+#include "io/color.h"
 #include "util/error.h"
 #include "util/page_buffer.h"
 #include "util/parallel.h"
@@ -115,8 +116,20 @@ StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standa
   });
 }
 
+StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, float alpha) : stack_(stack), alpha_(alpha) {
+  if (!(alpha > 0)) throw Error("ABRDF source: alpha must be > 0, got " + std::to_string(alpha));
+  tableStride_ = 0;
+  if (stack_.sampleType() != SampleType::Srgb8) return;
+  const float* linear = srgb8ToLinearTable();
+  table_.resize(256);
+  for (int b = 0; b < 256; ++b) table_[b] = linear[b] / alpha;
+}
+
+StackAbrdfSource StackAbrdfSource::linear(const BtfStack& stack, float alpha) { return StackAbrdfSource(stack, alpha); }
+
 bool StackAbrdfSource::forEachCodedImage(const CodedImageVisit& visit, const std::string& label) const {
-  if (table_.empty()) return false;
+  // The coded images carry one table per column: the standardized log source's layout.
+  if (table_.empty() || isLinear()) return false;
   std::vector<std::vector<std::uint8_t>> copies(threadCount());  // images read out of a scratch file
   Progress bar(label, static_cast<std::size_t>(cols()), !label.empty());
   parallelForDynamic(static_cast<std::size_t>(stack_.numImages()), [&](std::size_t image, int worker) {
@@ -141,20 +154,19 @@ std::size_t StackAbrdfSource::sliceBytes(int workers) const {
   return workingBytes(stack_.numTexels(), stack_.numImages(), stack_.sampleType(), workers);
 }
 
-namespace {
-
-// A half stack: linear values -> log(x + 1) -> standardized, as Standardization::apply does.
-void standardizeRun(float* values, Eigen::Index n, float mean, float stddev) {
+// A half stack: linear values -> log(x + 1) -> standardized, as Standardization::apply does;
+// or, for the linear source, divided by alpha.
+void StackAbrdfSource::transformRun(float* values, Eigen::Index n, Eigen::Index d) const {
   auto v = Eigen::Map<Eigen::ArrayXf>(values, n);
-  if (stddev > 0) {
+  if (isLinear()) {
+    v /= alpha_;
+  } else if (s_.stddev[d] > 0) {
     log1pRun(values, n);
-    v = (v - mean) * (1.0f / stddev);
+    v = (v - s_.mean[d]) * (1.0f / s_.stddev[d]);
   } else {
     v = 0.0f;
   }
 }
-
-}  // namespace
 
 void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const {
   const Eigen::Index m = rows();
@@ -170,11 +182,11 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
       if (d < c0 || d >= c1) continue;
       float* column = out + (d - c0) * m;
       if (srgb) {
-        const float* t = &table_[static_cast<std::size_t>(d) * 256];
+        const float* t = table(d);
         for (Eigen::Index i = 0; i < m; ++i) column[i] = t[bytes[3 * i + c]];
       } else {
         for (Eigen::Index i = 0; i < m; ++i) column[i] = rgb[3 * i + c];
-        standardizeRun(column, m, s_.mean[d], s_.stddev[d]);
+        transformRun(column, m, d);
       }
     }
   }
@@ -183,11 +195,11 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
 void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
   const Eigen::Index n = r1 - r0;
   if (stack_.sampleType() != SampleType::Srgb8) {
-    // Half or computed: the linear values of the slice, then log and standardize per dimension.
+    // Half or computed: the linear values of the slice, then this source's values per dimension.
     std::vector<int> texels(static_cast<std::size_t>(n));
     std::iota(texels.begin(), texels.end(), static_cast<int>(r0));
     stack_.gatherLinear(nullptr, 0, texels.data(), static_cast<int>(n), out);
-    for (Eigen::Index d = 0; d < cols(); ++d) standardizeRun(out + d * n, n, s_.mean[d], s_.stddev[d]);
+    for (Eigen::Index d = 0; d < cols(); ++d) transformRun(out + d * n, n, d);
     return;
   }
   std::vector<std::uint8_t> copy;  // the slice of an image read out of a scratch file
@@ -196,7 +208,7 @@ void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) co
         stack_.readImageBytes(image, 3 * static_cast<std::size_t>(r0), 3 * static_cast<std::size_t>(n), copy);
     for (int c = 0; c < 3; ++c) {
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
-      const float* t = &table_[static_cast<std::size_t>(d) * 256];
+      const float* t = table(d);
       float* column = out + d * n;
       for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
     }

@@ -91,11 +91,18 @@ class DenseAbrdfSource : public AbrdfSource {
   const MatrixXfCol& x_;
 };
 
-// The standardized log ABRDFs of a stack, made on demand. Keeps a reference to the stack.
+// The standardized log ABRDFs of a stack, made on demand, or (StackAbrdfSource::linear) its
+// linear ABRDFs divided by alpha: the space the error is measured in, where clusters follow the
+// highlights rather than the diffuse colour (docs/model.md, *Clustering space*). Keeps a
+// reference to the stack.
 class StackAbrdfSource : public AbrdfSource {
  public:
   // `moments`: those of the standardized columns (fitStandardization), or empty.
   StackAbrdfSource(const BtfStack& stack, Standardization standardization, ColumnMoments moments = {});
+  // Linear values / alpha (alpha > 0, eq. 5): one 256-entry table for every dimension of an
+  // 8-bit stack; standardization() is empty and no moments are known.
+  static StackAbrdfSource linear(const BtfStack& stack, float alpha);
+  bool isLinear() const { return alpha_ > 0; }
   Eigen::Index rows() const override { return stack_.numTexels(); }
   Eigen::Index cols() const override { return 3 * static_cast<Eigen::Index>(stack_.numImages()); }
   const Standardization& standardization() const { return s_; }
@@ -110,10 +117,18 @@ class StackAbrdfSource : public AbrdfSource {
   void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const override;
 
  private:
+  StackAbrdfSource(const BtfStack& stack, float alpha);
+  const float* table(Eigen::Index d) const { return &table_[static_cast<std::size_t>(d) * tableStride_]; }
+  void transformRun(float* values, Eigen::Index n, Eigen::Index d) const;  // linear -> this source's values
+
   const BtfStack& stack_;
   Standardization s_;
   ColumnMoments moments_;
-  std::vector<float> table_;  // 8-bit stacks: D x 256 standardized values (dimension-major)
+  float alpha_ = 0;  // > 0: the linear source
+  // 8-bit stacks: the value of each byte, D x 256 (dimension-major; the standardized log
+  // source) or one 256-entry table shared by every dimension (the linear source: stride 0).
+  std::vector<float> table_;
+  std::size_t tableStride_ = 256;
 };
 
 }  // namespace nbtf
