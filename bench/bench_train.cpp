@@ -14,7 +14,9 @@
 #include "io/btf_loader.h"
 #include "support/torch_reference.h"
 #include "model/trainer.h"
+#include "pipeline/compress_config.h"
 #include "preprocess/abrdf_matrix.h"
+#include "preprocess/abrdf_source.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/timer.h"
@@ -116,6 +118,8 @@ int main(int argc, char** argv) {
       "decoder-only", "Measure the decoder's training pass alone")(
       "steps", "Steps for --decoder-only", cxxopts::value<int>()->default_value("40"))(
       "crop", "--converge: crop X,Y,W,H", cxxopts::value<std::string>())(
+      "cluster-space", "--converge: log or linear (default: the config's clustering.space, else nbtf compress's)",
+      cxxopts::value<std::string>())(
       "trace", "Print the training's course every this many seconds (0 = off)",
       cxxopts::value<double>()->default_value("0"))(
       "progress", "Show progress bars")("h,help", "Help");
@@ -198,19 +202,27 @@ int main(int argc, char** argv) {
       std::printf("converge_texels %d\nconverge_images %d\n", stack.numTexels(), stack.numImages());
       std::printf("converge_load_seconds %.2f\n", secondsSince(t0));
       t0 = Clock::now();
+      // The clusters are found where `nbtf compress` finds them (docs/clustering.md, *Clustering space*).
+      const ClusteringSpace space =
+          args.count("cluster-space")
+              ? parseClusteringSpace(args["cluster-space"].as<std::string>(), "--cluster-space")
+              : (args.count("config") ? loadCompressConfig(args["config"].as<std::string>()).clusteringSpace
+                                      : kDefaultClusteringSpace);
+      std::printf("converge_cluster_space %s\n", clusteringSpaceName(space));
       MatrixXfCol x = abrdfMatrix(stack, progress);
-      standardizeInPlace(x);
-      std::printf("converge_preprocess_seconds %.2f\n", secondsSince(t0));
       TrainInputs in;
       in.stack = &stack;
       in.alpha = targetAlpha(stack);
+      standardizeInPlace(x);
+      std::printf("converge_preprocess_seconds %.2f\n", secondsSince(t0));
       ClusteringResult clusters;
       if (k > 0) {
         t0 = Clock::now();
         ClusteringOptions co;
         co.clusters = k;
         co.progress = progress;
-        clusters = clusterAbrdfs(x, co);
+        const StackAbrdfSource linear = StackAbrdfSource::linear(stack, in.alpha);  // streamed: no copy of X
+        clusters = clusterAbrdfs(DenseAbrdfSource(x), co, space == ClusteringSpace::Linear ? &linear : nullptr);
         std::printf("converge_cluster_seconds %.2f\n", secondsSince(t0));
         in.ids = clusters.ids;
         in.encoderInputs = &clusters.representatives;

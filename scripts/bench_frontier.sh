@@ -61,8 +61,8 @@ mkdir -p "$out"
 bench_banner
 echo "== training budget $budget s per neural row; clusters $clusters; config $config; work folder $out"
 
-# The baseline: the default recipe with the direction planes off, linear codes and the short
-# polish phase with fixed latents (format 1.7's default).
+# The baseline: the default recipe with the direction planes off, linear codes, the short
+# polish phase with fixed latents and clusters found in the log space (format 1.7's default).
 baseline=$out/baseline.json
 python3 - "$root/configs/default.json" "$baseline" <<'PY'
 import json, sys
@@ -72,6 +72,7 @@ cfg["optimizer"].pop("plane_learning_rate", None)
 cfg["optimizer"]["latent_learning_rate"] = 0
 cfg["training"]["polish_fraction"] = 0.1
 cfg["modulation"]["codes"] = "linear"
+cfg["clustering"] = {"space": "log"}
 json.dump(cfg, open(sys.argv[2], "w"), indent=2)
 PY
 

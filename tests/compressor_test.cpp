@@ -16,6 +16,8 @@
 #include "codec_fixtures.h"
 #include "io/btf_loader.h"
 #include "io/ubo2014_btf.h"
+#include "model/config_section.h"
+#include "pipeline/compress_config.h"
 #include "preprocess/ubo2014_factorize.h"
 #include "support/mlp_reference.h"
 #include "test_util.h"
@@ -410,6 +412,7 @@ TEST(Compressor, LinearClusteringSpaceIsUsedAndRecorded) {
   CompressOptions o = quickOptions(2);
   o.train.epochs = 5;
   CompressStats logStats, linearStats;
+  o.clusteringSpace = ClusteringSpace::Log;
   const CompressedBtf logFile = compressStack(stack, o, logStats);
   o.clusteringSpace = ClusteringSpace::Linear;
   const CompressedBtf linearFile = compressStack(stack, o, linearStats);
@@ -532,6 +535,14 @@ TEST(Compressor, BuiltInDefaultsEqualConfigsDefaultJson) {
   TrainConfig builtIn;
   EXPECT_EQ(trainConfigJson(file), trainConfigJson(builtIn));
   EXPECT_EQ(file.checkpointSeconds, builtIn.checkpointSeconds);
+  // And the compress-only objects: the clustering space.
+  EXPECT_EQ(loadCompressConfig(std::string(NBTF_SOURCE_DIR) + "/configs/default.json").clusteringSpace,
+            CompressOptions{}.clusteringSpace);
+  // Every shipped config says its space: the paper's the paper's, the others the default.
+  for (const std::string& name : builtInConfigNames())
+    EXPECT_EQ(loadCompressConfig(name).clusteringSpace,
+              name.rfind("paper", 0) == 0 ? ClusteringSpace::Log : ClusteringSpace::Linear)
+        << name;
 }
 
 }  // namespace

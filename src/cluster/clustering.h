@@ -1,5 +1,6 @@
-// The clustering stage as a whole: PCA of the standardized ABRDFs, k-means++ over texels,
-// and one representative ABRDF per cluster (per-dimension median, the paper's choice).
+// The clustering stage as a whole: PCA of the ABRDFs (standardized log, or linear: the
+// clustering space), k-means++ over texels, and one representative standardized ABRDF per
+// cluster (per-dimension median, the paper's choice).
 #pragma once
 #include <string>
 #include <vector>
@@ -11,11 +12,11 @@ namespace nbtf {
 
 enum class Representative { Median, Mean };
 
-// The values PCA and k-means find the clusters in (docs/model.md, *Clustering space*): the
+// The values PCA and k-means find the clusters in (docs/clustering.md, *Clustering space*): the
 // standardized log ABRDFs (the paper's), or the linear ABRDFs / alpha, the space the error is
 // measured in.
 enum class ClusteringSpace { Log, Linear };
-constexpr ClusteringSpace kDefaultClusteringSpace = ClusteringSpace::Linear;
+constexpr ClusteringSpace kDefaultClusteringSpace = ClusteringSpace::Linear;  // configs/default.json's
 const char* clusteringSpaceName(ClusteringSpace space);  // "log", "linear"
 // "log" or "linear"; anything else throws nbtf::Error naming `where` (an option or a key).
 ClusteringSpace parseClusteringSpace(const std::string& text, const std::string& where);

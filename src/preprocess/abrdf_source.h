@@ -93,7 +93,7 @@ class DenseAbrdfSource : public AbrdfSource {
 
 // The standardized log ABRDFs of a stack, made on demand, or (StackAbrdfSource::linear) its
 // linear ABRDFs divided by alpha: the space the error is measured in, where clusters follow the
-// highlights rather than the diffuse colour (docs/model.md, *Clustering space*). Keeps a
+// highlights rather than the diffuse colour (docs/clustering.md, *Clustering space*). Keeps a
 // reference to the stack.
 class StackAbrdfSource : public AbrdfSource {
  public:
