@@ -14,7 +14,8 @@ cmake -S "$src/examples/decode_texel" -B "$work/example" -DCMAKE_PREFIX_PATH="$w
   -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$work/example" -- --no-print-directory >/dev/null
 example=$work/example/decode_texel
-if ldd "$example" | grep -Ei 'torch|opencv|openexr|imath|c10'; then
+# Names and paths only: ldd's load addresses are hex, and one holding "c10" is not libc10.
+if ldd "$example" | awk '{print $1, $3}' | grep -Ei 'torch|opencv|openexr|imath|c10'; then
   echo "FAIL: the decode example links a training or image library (above)" >&2
   exit 1
 fi
