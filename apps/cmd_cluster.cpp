@@ -107,10 +107,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   StackAbrdfSource source(stack, std::move(standardization), std::move(moments));
   info.standardizeSeconds = secondsSince(step);
 
-  std::unique_ptr<StackAbrdfSource> linear;  // PCA and k-means on linear / alpha
-  if (space == ClusteringSpace::Linear)
-    linear = std::make_unique<StackAbrdfSource>(StackAbrdfSource::linear(stack, info.alpha));
-  ClusteringResult result = clusterAbrdfs(source, options, linear.get());
+  ClusteringResult result = clusterAbrdfs(source, options, clusteringSpaceSource(stack, space, info.alpha).get());
   info.totalSeconds = secondsSince(start);
   const std::size_t peak = peakResidentBytes();
   info.peakMemoryBytes = peak;

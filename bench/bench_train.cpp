@@ -221,8 +221,8 @@ int main(int argc, char** argv) {
         ClusteringOptions co;
         co.clusters = k;
         co.progress = progress;
-        const StackAbrdfSource linear = StackAbrdfSource::linear(stack, in.alpha);  // streamed: no copy of X
-        clusters = clusterAbrdfs(DenseAbrdfSource(x), co, space == ClusteringSpace::Linear ? &linear : nullptr);
+        // The linear space streamed from the stack: no second copy of X.
+        clusters = clusterAbrdfs(DenseAbrdfSource(x), co, clusteringSpaceSource(stack, space, in.alpha).get());
         std::printf("converge_cluster_seconds %.2f\n", secondsSince(t0));
         in.ids = clusters.ids;
         in.encoderInputs = &clusters.representatives;

@@ -175,6 +175,11 @@ MatrixXfCol clusterRepresentatives(const AbrdfSource& x, const std::vector<std::
 
 const char* clusteringSpaceName(ClusteringSpace space) { return space == ClusteringSpace::Linear ? "linear" : "log"; }
 
+std::unique_ptr<StackAbrdfSource> clusteringSpaceSource(const BtfStack& stack, ClusteringSpace space, float alpha) {
+  if (space == ClusteringSpace::Log) return nullptr;
+  return std::make_unique<StackAbrdfSource>(StackAbrdfSource::linear(stack, alpha));
+}
+
 ClusteringSpace parseClusteringSpace(const std::string& text, const std::string& where) {
   if (text == "log") return ClusteringSpace::Log;
   if (text == "linear") return ClusteringSpace::Linear;

@@ -2,6 +2,7 @@
 // clustering space), k-means++ over texels, and one representative standardized ABRDF per
 // cluster (per-dimension median, the paper's choice).
 #pragma once
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,9 @@ constexpr ClusteringSpace kDefaultClusteringSpace = ClusteringSpace::Linear;  //
 const char* clusteringSpaceName(ClusteringSpace space);  // "log", "linear"
 // "log" or "linear"; anything else throws nbtf::Error naming `where` (an option or a key).
 ClusteringSpace parseClusteringSpace(const std::string& text, const std::string& where);
+// The `space` argument of clusterAbrdfs for a stack: the linear source (alpha: eq. 5), or
+// nullptr for the log space (the standardized source itself).
+std::unique_ptr<StackAbrdfSource> clusteringSpaceSource(const BtfStack& stack, ClusteringSpace space, float alpha);
 
 struct ClusteringOptions {
   int clusters = 500;

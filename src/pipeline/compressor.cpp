@@ -366,11 +366,9 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, Com
       co.keepScores = true;  // splits are 2-means in the same PCA space
     }
     // The linear space: the same texels as linear values / alpha, for PCA and k-means only.
-    std::unique_ptr<StackAbrdfSource> linear;
-    if (o.clusteringSpace == ClusteringSpace::Linear)
-      linear = std::make_unique<StackAbrdfSource>(StackAbrdfSource::linear(stack, alpha));
+    const auto space = clusteringSpaceSource(stack, o.clusteringSpace, alpha);
     stats.clusteringSpace = clusteringSpaceName(o.clusteringSpace);
-    clustering = clusterAbrdfs(*source, co, linear.get());
+    clustering = clusterAbrdfs(*source, co, space.get());
     if (adaptive) {
       stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
       stats.pcaComponents = pcaComponents;

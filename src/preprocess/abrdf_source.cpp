@@ -118,7 +118,6 @@ StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, Standardization standa
 
 StackAbrdfSource::StackAbrdfSource(const BtfStack& stack, float alpha) : stack_(stack), alpha_(alpha) {
   if (!(alpha > 0)) throw Error("ABRDF source: alpha must be > 0, got " + std::to_string(alpha));
-  tableStride_ = 0;
   if (stack_.sampleType() != SampleType::Srgb8) return;
   const float* linear = srgb8ToLinearTable();
   table_.resize(256);

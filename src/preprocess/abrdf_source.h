@@ -118,7 +118,9 @@ class StackAbrdfSource : public AbrdfSource {
 
  private:
   StackAbrdfSource(const BtfStack& stack, float alpha);
-  const float* table(Eigen::Index d) const { return &table_[static_cast<std::size_t>(d) * tableStride_]; }
+  const float* table(Eigen::Index d) const {
+    return isLinear() ? table_.data() : &table_[static_cast<std::size_t>(d) * 256];
+  }
   void transformRun(float* values, Eigen::Index n, Eigen::Index d) const;  // linear -> this source's values
 
   const BtfStack& stack_;
@@ -126,9 +128,8 @@ class StackAbrdfSource : public AbrdfSource {
   ColumnMoments moments_;
   float alpha_ = 0;  // > 0: the linear source
   // 8-bit stacks: the value of each byte, D x 256 (dimension-major; the standardized log
-  // source) or one 256-entry table shared by every dimension (the linear source: stride 0).
+  // source) or one 256-entry table shared by every dimension (the linear source).
   std::vector<float> table_;
-  std::size_t tableStride_ = 256;
 };
 
 }  // namespace nbtf
