@@ -2,7 +2,7 @@
 # bench_defaults: is the default amount of training enough on any material (issue 15)?
 # For each grid point (direction subset, texel count, k) it compresses with the default
 # options and with configs/converged.json (the same recipe, 4x the steps: 80 epochs,
-# 8000..96000 steps, 96 steps per encoder input), and compares the training RMSE (eq. 10,
+# 8000..48000 steps, 96 steps per encoder input), and compares the training RMSE (eq. 10,
 # linear RGB / alpha). Target: default RMSE within 10% of the 4x run at every point.
 # The table also gives the cluster-mean floor (with the per-texel modulation), a lower bound
 # for any run: the training MSE is the floor's plus the network's, so a default within 10% of
@@ -13,8 +13,8 @@
 # (0/0) x 81 lights, "views3" = 3 views (every 27th) x 81 lights (243 images: the learning-rate
 # rule's middle, x 1.45), "sub9x9" = 9 views x 9 lights (every 9th of each), "full" = all 6561
 # images. Texel counts come from --crop (the top-left S x S texels). On these stacks the
-# default trains max(2000, 24 k) steps, at most 24000, and the 4x run 4x that: from 10,000
-# steps a point (k <= 83) to 120,000 (k >= 1000), about 5 to 60 minutes a point on 2 idle
+# default trains max(2000, 24 k) steps, at most 12000, and the 4x run 4x that: from 10,000
+# steps a point (k <= 83) to 48,000 (k >= 500), about 5 to 25 minutes a point on 2 idle
 # cores with --threads 2.
 #
 # Usage: scripts/bench_defaults.sh [WORK_DIR]   (default build/bench_defaults)

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # The main job on the built-in default material: set up, build, generate the material
 # (synthetic fabric, 100 x 100 texels, all 81 x 81 light/view images, UBO2003 layout),
-# compress it with k = 500 clusters, and evaluate the result against the stack.
+# compress it with the default recipe (k = 1000 clusters), and evaluate the result against the stack.
 # Output goes to demo_out/ (or $1). NBTF_DEMO_BUDGET=SECONDS trains for a time budget instead
-# of the default recipe (deterministic: 12000 steps at k = 500, about 5-8 minutes
+# of the default recipe (deterministic: 12000 steps at k = 1000, about 5-8 minutes
 # on 2 cores).
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
@@ -22,8 +22,8 @@ echo "== 2/5 loading it"
 
 training=(); what="configs/default.json"
 if [[ -n $budget ]]; then training=(--time-budget "$budget"); what="${budget} s training budget"; fi
-echo "== 3/5 compressing it (k = 500, 10% of the images held out, $what)"
-"$bin/nbtf" compress "$out/fabric" -o "$out/fabric.nbtf" --clusters 500 --holdout 0.1 \
+echo "== 3/5 compressing it (the default k = 1000, 10% of the images held out, $what)"
+"$bin/nbtf" compress "$out/fabric" -o "$out/fabric.nbtf" --holdout 0.1 \
   "${training[@]}" --seed 1 --stats-json "$out/fabric_stats.json"
 
 echo "== 4/5 the compressed file"

@@ -200,6 +200,39 @@ TEST_F(CmdCompress, CompressThenInfoEndToEnd) {
   EXPECT_EQ(readFileBytes(again), readFileBytes(out));
 }
 
+// Without --clusters, k is the config's clustering.clusters (1000 by default), capped on a small
+// input to one cluster per 10 texels; an asked-for k above the texel count stays an error.
+TEST_F(CmdCompress, DefaultClusterCountAdaptsToASmallInput) {
+  std::string stack = writeStack();  // 8 x 8 texels
+  std::string out = path("d.nbtf"), stats = path("d.json");
+  RunResult r = run("compress " + stack + " -o " + out + " --seed 1 --threads 1 --config " + writeQuickConfig(3) +
+                    " --stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "(clustered-neural, k = 6: the config's 1000 capped to one cluster per 10 of the 64 texels)"))
+      << r.output;
+  EXPECT_EQ(readNbtf(out).numClusters(), 6);
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  EXPECT_EQ(j["clusters"].get<int>(), 6);
+  EXPECT_EQ(j["clusters_configured"].get<int>(), 1000);
+
+  // A config's own k below the cap is used as it is, and the stats say nothing was capped.
+  writeFileAtomic(path("k3.json"), R"({"clustering": {"clusters": 3}, "training": {"batch_size": 1024, )"
+                                   R"("images_per_input": 64, "min_steps": 0, "min_steps_per_input": 0, "epochs": 2}})");
+  r = run("compress " + stack + " -o " + out + " --seed 1 --threads 1 --config " + path("k3.json") +
+          " --stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "(clustered-neural, k = 3)\n")) << r.output;
+  EXPECT_EQ(readNbtf(out).numClusters(), 3);
+  EXPECT_TRUE(nlohmann::json::parse(std::ifstream(stats))["clusters_configured"].is_null());
+
+  // --clusters is a request: above the texel count it is refused, not capped.
+  fs::remove(out);
+  r = run("compress " + stack + " -o " + out + " --clusters 100 --threads 1 --config " + path("quick.json") + " -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "--clusters 100 is larger than the 64 texels")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // --stack-storage file keeps the samples in an unnamed scratch file (under --scratch-dir): the
 // same file as with the stack in memory, nothing left in the folder, the folder in the stats.
 TEST_F(CmdCompress, StackInAScratchFileGivesTheSameFile) {

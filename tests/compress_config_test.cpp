@@ -58,6 +58,7 @@ TEST(CompressConfig, ShippedAdaptiveConfigIsTheDefaultRecipePlusAdaptive) {
   expected.enabled = true;
   EXPECT_EQ(adaptiveConfigJson(c.adaptive), adaptiveConfigJson(expected));
   EXPECT_EQ(trainConfigJson(c.train), trainConfigJson(loadTrainConfig(dir + "default.json")));
+  EXPECT_EQ(c.clusters, loadCompressConfig(dir + "default.json").clusters);
   EXPECT_FALSE(loadCompressConfig(dir + "default.json").adaptive.enabled);
 }
 
@@ -176,6 +177,36 @@ TEST(CompressConfig, ReadsTheClusteringSpace) {
   EXPECT_EQ(parseClusteringSpace("log", "--cluster-space"), ClusteringSpace::Log);
   test::expectErrorContaining([] { parseClusteringSpace("Linear", "--cluster-space"); },
                               {"--cluster-space: expected log or linear, got 'Linear'"});
+}
+
+TEST(CompressConfig, ReadsTheDefaultClusterCount) {
+  test::TempDir dir;
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"clustering": {"clusters": 250}})")).clusters, 250);
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"clustering": {"clusters": 0}})")).clusters, 0);
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"training": {"epochs": 3}})")).clusters, kDefaultClusters);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"clustering": {"clusters": -1}})", "'clustering.clusters' must be >= 0 (the default k; 0 = per-texel), got -1"},
+      {R"({"clustering": {"clusters": "many"}})", "'clustering.clusters'"},
+  };
+  for (const auto& [text, message] : cases) {
+    const std::string path = writeConfig(dir, text);
+    test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
+  }
+  // The named points of the curve each carry their k.
+  EXPECT_EQ(loadCompressConfig("compact").clusters, 250);
+  EXPECT_EQ(loadCompressConfig("high_fidelity").clusters, 500);
+  EXPECT_EQ(loadCompressConfig("default").clusters, 1000);
+}
+
+TEST(CompressConfig, DefaultClusterCountIsCappedToTheInput) {
+  EXPECT_EQ(defaultClusterCount(1000, 100 * 100), 1000);
+  EXPECT_EQ(defaultClusterCount(1000, 256 * 256), 1000);
+  EXPECT_EQ(defaultClusterCount(1000, 48 * 48), 230);  // 2304 texels / 10
+  EXPECT_EQ(defaultClusterCount(1000, 9999), 999);
+  EXPECT_EQ(defaultClusterCount(250, 48 * 48), 230);
+  EXPECT_EQ(defaultClusterCount(100, 48 * 48), 100);
+  EXPECT_EQ(defaultClusterCount(1000, 7), 1);  // fewer texels than kTexelsPerDefaultCluster: one cluster
+  EXPECT_EQ(defaultClusterCount(0, 48 * 48), 0);  // per-texel stays per-texel
 }
 
 TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {

@@ -535,9 +535,15 @@ TEST(Compressor, BuiltInDefaultsEqualConfigsDefaultJson) {
   TrainConfig builtIn;
   EXPECT_EQ(trainConfigJson(file), trainConfigJson(builtIn));
   EXPECT_EQ(file.checkpointSeconds, builtIn.checkpointSeconds);
-  // And the compress-only objects: the clustering space.
-  EXPECT_EQ(loadCompressConfig(std::string(NBTF_SOURCE_DIR) + "/configs/default.json").clusteringSpace,
-            CompressOptions{}.clusteringSpace);
+  // And the compress-only objects: the clustering space and the default k.
+  const CompressConfig defaultJson = loadCompressConfig(std::string(NBTF_SOURCE_DIR) + "/configs/default.json");
+  EXPECT_EQ(defaultJson.clusteringSpace, CompressOptions{}.clusteringSpace);
+  EXPECT_EQ(defaultJson.clusters, CompressOptions{}.clusters);
+  EXPECT_EQ(defaultJson.clusters, CompressConfig{}.clusters);
+  // The default's k trains no more steps than k = 500 did (12,000 on a full 100 x 100 stack).
+  EXPECT_EQ(planTraining(builtIn, defaultJson.clusters, 5905).totalSteps, 12000);
+  EXPECT_EQ(planTraining(builtIn, 500, 5905).totalSteps, 12000);
+  EXPECT_EQ(planTraining(builtIn, 250, 5905).totalSteps, 6000);
   // Every shipped config says its space: the paper's the paper's, the others the default.
   for (const std::string& name : builtInConfigNames())
     EXPECT_EQ(loadCompressConfig(name).clusteringSpace,

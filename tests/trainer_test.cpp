@@ -526,30 +526,33 @@ TEST(TrainPlan, LearningRateGrowsWithTheInputsAStepHolds) {
 }
 
 TEST(TrainPlan, DefaultStepsAreBoundedWhateverKAndImages) {
-  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 24000 steps, 24 steps per input, 16384 samples per step
+  TrainConfig c;  // the defaults: 20 epochs, 2000 .. 12000 steps, 24 steps per input, 16384 samples per step
   EXPECT_EQ(c.minSteps, 2000);
   EXPECT_EQ(c.minStepsPerInput, 24);
-  EXPECT_EQ(c.maxSteps, 24000);
+  EXPECT_EQ(c.maxSteps, 12000);
   TrainPlan small = planTraining(c, 16, 81);  // k = 16, one view: an epoch is one step
   EXPECT_EQ(small.stepsPerEpoch, 1);
   EXPECT_EQ(small.totalSteps, 2000);                         // min_steps decides up to k = 83
   EXPECT_EQ(planTraining(c, 83, 81).totalSteps, 2000);
   EXPECT_EQ(planTraining(c, 84, 81).totalSteps, 24 * 84);    // then 24 steps per encoder input
+  EXPECT_EQ(planTraining(c, 250, 81).totalSteps, 6000);
   TrainPlan sub = planTraining(c, 500, 81);                  // k = 500, 9 x 9 subset
   EXPECT_EQ(sub.stepsPerEpoch, 3);
-  EXPECT_EQ(sub.totalSteps, 12000);
-  EXPECT_EQ(planTraining(c, 1000, 81).totalSteps, 24000);    // max_steps from k = 1000 up
-  EXPECT_EQ(planTraining(c, 2000, 81).totalSteps, 24000);    // k = 2000, one view: max_steps
+  EXPECT_EQ(sub.totalSteps, 12000);                          // max_steps from k = 500 up
+  EXPECT_EQ(planTraining(c, 1000, 81).totalSteps, 12000);    // the default k: no more than k = 500
+  EXPECT_EQ(planTraining(c, 2000, 81).totalSteps, 12000);
   // k = 500 on a full stack: 20 epochs are 4,020 steps, the minimum per input 12,000.
   TrainPlan full = planTraining(c, 500, 6561);
   EXPECT_EQ(full.stepsPerEpoch, 201);
   EXPECT_EQ(full.totalSteps, 12000);
-  EXPECT_EQ(planTraining(c, 2000, 6561).totalSteps, 24000);  // 24 per input = 48,000 steps, capped
+  EXPECT_EQ(planTraining(c, 1000, 6561).totalSteps, 12000);  // 24 per input = 24,000 steps, capped
   EXPECT_EQ(planTraining(c, 65536, 6561).totalSteps, c.maxSteps);  // per-texel 256 x 256
-  // Epochs decide where they are more than the minimum: k = 500 on 151 x 151 = 22,801 images.
-  TrainPlan dense = planTraining(c, 500, 22801);
-  EXPECT_EQ(dense.stepsPerEpoch, 696);
-  EXPECT_EQ(dense.totalSteps, 20 * 696);
+  // Epochs decide where they are more than the minimum, up to max_steps: k = 125 on 151 x 151
+  // = 22,801 images (20 epochs: 3,480 steps against 24 x 125 = 3,000), k = 500 capped.
+  TrainPlan dense = planTraining(c, 125, 22801);
+  EXPECT_EQ(dense.stepsPerEpoch, 174);
+  EXPECT_EQ(dense.totalSteps, 20 * 174);
+  EXPECT_EQ(planTraining(c, 500, 22801).totalSteps, 12000);
   // configs/converged.json is 4x every bound.
   TrainConfig longer = c;
   longer.epochs = 4 * c.epochs, longer.minSteps = 4 * c.minSteps;

@@ -73,6 +73,7 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
     if (!args.count("components"))
       throw Error("--method pca needs --components C (the number of principal components kept, >= 1)");
     o.pcaBaseline = true;
+    o.clustersAreDefault = false;
     if (o.pcaComponents < 1)
       throw Error("--components must be >= 1 with --method pca (the number of principal components kept), got " +
                   std::to_string(o.pcaComponents));
@@ -81,6 +82,7 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
       throw Error("--method per-texel has one latent per texel; it takes no --clusters (got " +
                   std::to_string(o.clusters) + ")");
     o.clusters = 0;
+    o.clustersAreDefault = false;
   } else if (method == "clustered") {
     if (args.count("method") && o.clusters == 0)
       throw Error("--method clustered needs --clusters k >= 1 (for one latent per texel use --method per-texel)");
@@ -133,8 +135,10 @@ void addCompressOptions(cxxopts::Options& options) {
       "clustered (the paper's clustered neural BTF), per-texel (neural, one latent per texel; = --clusters 0) or "
       "pca (the classic PCA baseline: --components C principal components, no training)",
       cxxopts::value<std::string>()->default_value("clustered"))(
-      "clusters", "k, the number of clusters (0 = per-texel: one latent per texel)",
-      cxxopts::value<int>()->default_value("500"))(
+      "clusters",
+      "k, the number of clusters (0 = per-texel: one latent per texel). Default: the config's clustering.clusters "
+      "(1000 in the default config), capped to one cluster per 10 texels on a small input",
+      cxxopts::value<int>())(
       "config",
       "Config JSON: the training recipe and the adaptive clusters; a file, or the name of a config of configs/, "
       "compiled in (" + builtInConfigList() + ") (default: identical to configs/default.json)",
@@ -193,7 +197,8 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   o.train = buildTrainConfig(config.train, args, output, program);
   if (isBuiltInConfig(configPath)) o.train.builtInConfig = configPath;
   if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
-  o.clusters = args["clusters"].as<int>();
+  o.clusters = args.count("clusters") ? args["clusters"].as<int>() : config.clusters;
+  o.clustersAreDefault = !args.count("clusters");
   if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
   o.pcaComponents = args["components"].as<int>();
   o.clusteringSpace = args.count("cluster-space")

@@ -137,11 +137,12 @@ struct TrainConfig {
   // to 0). An epoch's size follows k x images, so 20 epochs is 4,000 steps at k = 500 on 6561
   // images but 2 at k = 16 on 81 images. The lower bound is max(minSteps, minStepsPerInput x
   // encoder inputs): the decoder needs a number of optimizer steps whatever the data (minSteps),
-  // and more as it has more distinct latents to fit (minStepsPerInput: 24 x k, 12,000 steps at
-  // k = 500); huge encoder-input counts (per-texel, k >> 1000) must stay affordable (maxSteps).
+  // and more as it has more distinct latents to fit (minStepsPerInput: 24 x k); from k = 500 on
+  // (the default k = 1000, per-texel) maxSteps holds them at 12,000, so more clusters cost no
+  // more training (at equal steps k = 1000 beats k = 500: docs/model.md).
   int minSteps = 2000;
   int minStepsPerInput = 24;
-  int maxSteps = 24000;
+  int maxSteps = 12000;
   double timeBudgetSeconds = 0;    // 0 = no limit; otherwise training stops when it is spent
   std::string schedule = "cosine"; // "constant" | "cosine" | "step" (x0.1 at 50% and 75%)
   double warmupFraction = 0.02;    // linear learning-rate warm-up, fraction of the run

@@ -29,7 +29,11 @@ CompressConfig loadCompressConfig(const std::string& path) {
     ConfigSection clustering(root, "clustering", path);
     std::string space = clusteringSpaceName(c.clusteringSpace);
     clustering.read("space", space);
+    clustering.read("clusters", c.clusters);
     clustering.rejectUnknown();
+    if (c.clusters < 0)
+      throw fileError(path, "'clustering.clusters' must be >= 0 (the default k; 0 = per-texel), got " +
+                                std::to_string(c.clusters));
     try {
       c.clusteringSpace = parseClusteringSpace(space, "'clustering.space'");
     } catch (const Error& e) {

@@ -1,7 +1,7 @@
 // The config file of `nbtf compress`: the training recipe (model, optimizer, training,
-// modulation, storage: loadTrainConfig's objects), the "clustering" object (the space the
-// clusters are found in) and the "adaptive" object, which turns on adaptive clusters and sets
-// their targets (pipeline/adaptive.h). The command line's --cluster-space, --adaptive,
+// modulation, storage: loadTrainConfig's objects), the "clustering" object (the default k and
+// the space the clusters are found in) and the "adaptive" object, which turns on adaptive clusters and sets
+// their targets (pipeline/adaptive.h). The command line's --clusters, --cluster-space, --adaptive,
 // --target-rmse, ... override the file's values.
 #pragma once
 #include <string>
@@ -14,6 +14,7 @@ struct CompressConfig {
   TrainConfig train;
   AdaptiveOptions adaptive;  // the "adaptive" object ("enabled": false when absent)
   ClusteringSpace clusteringSpace = kDefaultClusteringSpace;  // the "clustering" object's "space"
+  int clusters = kDefaultClusters;  // its "clusters": k without --clusters (0 = per-texel), capped to small inputs
 };
 
 // Loads a compress config; unknown keys, wrong types and out-of-range values are errors that

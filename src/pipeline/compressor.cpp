@@ -68,6 +68,16 @@ void checkSizeBudgetAgainstTheDecoder(const CompressOptions& o) {
                 std::to_string(bytes) + " bytes as " + storage + ", before any cluster or texel data)");
 }
 
+// A default k becomes the input's (defaultClusterCount); the stats keep the configured one when
+// the input capped it.
+void resolveDefaultClusters(CompressOptions& o, std::int64_t texels, CompressStats& stats) {
+  if (!o.clustersAreDefault || o.pcaBaseline) return;
+  const int k = defaultClusterCount(o.clusters, texels);
+  if (k != o.clusters) stats.clustersConfigured = o.clusters;
+  o.clusters = k;
+  o.clustersAreDefault = false;
+}
+
 // k and, with adaptive clusters, its cap: both at most the texel count.
 void checkClusterCounts(const CompressOptions& o, std::int64_t texels, const std::string& what) {
   checkClusterCount(o.clusters, texels, what);
@@ -309,8 +319,15 @@ std::vector<std::pair<std::string, std::string>> distributedSettings(const BtfSt
 
 }  // namespace
 
-CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
-  if (o.pcaBaseline) return compressPcaStack(stack, o, stats);
+int defaultClusterCount(int configured, std::int64_t texels) {
+  if (configured <= 0) return configured;
+  return static_cast<int>(std::min<std::int64_t>(configured, std::max<std::int64_t>(1, texels / kTexelsPerDefaultCluster)));
+}
+
+CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& options, CompressStats& stats) {
+  if (options.pcaBaseline) return compressPcaStack(stack, options, stats);
+  CompressOptions o = options;
+  resolveDefaultClusters(o, stack.numTexels(), stats);
   if (o.adaptive.enabled && o.clusters <= 0) throw Error("--adaptive needs the clustered mode (--clusters > 0)");
   const int texels = stack.numTexels();
   stats.texels = texels;
@@ -506,18 +523,21 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     std::error_code ec;
     if (!o.adaptive.enabled) std::filesystem::remove(adaptiveStatePath(o.checkpointPath), ec);
   }
-  if (!o.pcaBaseline && !o.load.crop.empty()) {
-    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
-    checkClusterCounts(o, static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height, "the crop");
-  }
-
   CompressStats stats;
   stats.output = output;
+  if (!o.pcaBaseline && !o.load.crop.empty()) {
+    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
+    const std::int64_t texels = static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height;
+    resolveDefaultClusters(o, texels, stats);
+    checkClusterCounts(o, texels, "the crop");
+  }
+
   {
     // ---- Fail before loading when the run cannot fit in --memory-limit.
     stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
     o.load.expandUpTo = expandBudget(stats.memoryLimit);
     const StackShape shape = stackShape(input, o.load);
+    resolveDefaultClusters(o, shape.texels(), stats);
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
     MemoryEstimate estimate = estimateCompressMemory(
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
@@ -590,6 +610,9 @@ std::string formatCompressSummary(const CompressStats& s) {
   std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
                           : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
                                                          : "";
+  if (s.clustersConfigured > 0)
+    parameter += ": the config's " + std::to_string(s.clustersConfigured) + " capped to one cluster per " +
+                 std::to_string(kTexelsPerDefaultCluster) + " of the " + std::to_string(s.texels) + " texels";
   std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
                 parameter.c_str());
   out += line;
@@ -694,6 +717,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["output"] = s.output;
   j["method"] = codecMethodName(s.method);
   j["clusters"] = s.clusters;
+  j["clusters_configured"] = s.clustersConfigured > 0 ? json(s.clustersConfigured) : json(nullptr);
   j["pca_components"] = s.pcaComponents;
   j["kmeans_iterations"] = s.kmeansIterations;
   j["clustering_space"] = s.clusteringSpace.empty() ? json(nullptr) : json(s.clusteringSpace);

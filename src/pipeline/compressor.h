@@ -44,10 +44,23 @@ struct AdaptiveStage {
   int splits = 0, merges = 0, pruned = 0;  // edits made after this stage
 };
 
+// The default k (configs/default.json's "clustering": {"clusters"}): about 1:10,000 at
+// 100 x 100 texels (docs/model.md, *How many clusters the default uses*).
+constexpr int kDefaultClusters = 1000;
+// A default k is capped to the input: at most one cluster per this many texels, so that a small
+// input (a crop, a test patch) gets clusters that still group texels, not an error.
+constexpr int kTexelsPerDefaultCluster = 10;
+// The k a default of `configured` clusters gives on `texels` texels: min(configured,
+// max(1, texels / kTexelsPerDefaultCluster)); 0 (per-texel) stays 0.
+int defaultClusterCount(int configured, std::int64_t texels);
+
 struct CompressOptions {
   LoadOptions load;             // layout, crop
   TrainConfig train;            // the recipe, with command-line overrides already applied
-  int clusters = 500;           // k; 0 = per-texel mode (one latent per texel)
+  int clusters = kDefaultClusters;  // k; 0 = per-texel mode (one latent per texel)
+  // k is the config's default, not asked for (no --clusters): capped to the input by
+  // defaultClusterCount once the texel count is known. An asked-for k above the texel count is an error.
+  bool clustersAreDefault = false;
   // The classic PCA baseline instead of a neural method: pcaComponents components (>= 1),
   // no training; uses train.seed and train.holdoutFraction only.
   bool pcaBaseline = false;
@@ -90,6 +103,7 @@ struct CompressStats {
   std::string output;
   CodecMethod method = CodecMethod::ClusteredNeural;
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
+  int clustersConfigured = 0;  // the config's default k when the input capped it below (else 0)
   int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
   int kmeansIterations = 0;   // Lloyd rounds of the initial clustering (clustered only)
   std::string clusteringSpace;  // "log" or "linear" (clustered only; else empty)
