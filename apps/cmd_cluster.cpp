@@ -133,8 +133,9 @@ int clusterStack(const cxxopts::ParseResult& args) {
   const auto& sizes = summary["cluster_sizes"];
   std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, width, height, images,
               options.clusters, info.totalSeconds);
-  std::printf("  PCA          %d components: %.2f%% of the variance of the standardized log ABRDFs (%.2f s)\n",
-              options.pca.components, 100.0 * result.explainedVarianceRatio, result.pcaSeconds);
+  std::printf("  PCA          %d components: %.2f%% of the variance of the %s (%.2f s)\n", options.pca.components,
+              100.0 * result.explainedVarianceRatio,
+              space == ClusteringSpace::Linear ? "linear ABRDFs / alpha" : "standardized log ABRDFs", result.pcaSeconds);
   std::printf("  k-means      inertia %.6g in PCA space (%.4g per texel), %d iterations%s (%.2f s)\n",
               result.inertia, result.inertia / texels, result.iterations,
               result.converged ? ", converged" : ", iteration limit reached", result.kmeansSeconds);

@@ -123,6 +123,9 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
         EXPECT_EQ(labelFromColour(&spaceLabels.rgb[3 * (y * 12 + x)]) == labelFromColour(&spaceLabels.rgb[0]), x < 6)
             << space << " " << x << "," << y;
     EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "summary.json"))["space"], space);
+    // The explained variance says which values it is of.
+    const std::string values = std::string(space) == "linear" ? "linear ABRDFs / alpha" : "standardized log ABRDFs";
+    EXPECT_NE(output.find("of the variance of the " + values + " ("), std::string::npos) << output;
   }
   code = run((root_ / "stack").string() + " --clusters 2 --space srgb -q -o " + (root_ / "bad").string(), output);
   EXPECT_EQ(code, 1);
