@@ -231,6 +231,16 @@ TEST_F(CmdCompress, DefaultClusterCountAdaptsToASmallInput) {
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_TRUE(contains(r.output, "--clusters 100 is larger than the 64 texels")) << r.output;
   EXPECT_FALSE(fs::exists(out));
+  // The same with a crop: its texels decide, before loading.
+  r = run("compress " + stack + " -o " + out + " --clusters 20 --crop 0,0,4,4 --threads 1 --config " +
+          path("quick.json") + " -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_TRUE(contains(r.output, "--clusters 20 is larger than the 16 texels of the crop")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  r = run("compress " + stack + " -o " + out + " --crop 0,0,4,4 --seed 1 --threads 1 --config " + path("quick.json") +
+          " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "k = 1: the config's 1000 capped to one cluster per 10 of the 16 texels")) << r.output;
 }
 
 // --stack-storage file keeps the samples in an unnamed scratch file (under --scratch-dir): the

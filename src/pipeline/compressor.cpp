@@ -525,19 +525,16 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
   CompressStats stats;
   stats.output = output;
-  if (!o.pcaBaseline && !o.load.crop.empty()) {
-    checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
-    const std::int64_t texels = static_cast<std::int64_t>(o.load.crop.width) * o.load.crop.height;
-    resolveDefaultClusters(o, texels, stats);
-    checkClusterCounts(o, texels, "the crop");
-  }
+  const bool cropped = !o.pcaBaseline && !o.load.crop.empty();
+  if (cropped) checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
 
   {
     // ---- Fail before loading when the run cannot fit in --memory-limit.
     stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
     o.load.expandUpTo = expandBudget(stats.memoryLimit);
-    const StackShape shape = stackShape(input, o.load);
+    const StackShape shape = stackShape(input, o.load);  // the crop's texels when cropped
     resolveDefaultClusters(o, shape.texels(), stats);
+    if (cropped) checkClusterCounts(o, shape.texels(), "the crop");
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
     MemoryEstimate estimate = estimateCompressMemory(
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
