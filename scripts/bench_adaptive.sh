@@ -23,11 +23,8 @@ presets=${NBTF_BENCH_PRESETS:-"fabric glossy"}
 ks=${NBTF_BENCH_K:-"250 500 1000 2000"}
 subset=${NBTF_BENCH_SUBSET:-full}
 read -r -a extra <<< "${NBTF_BENCH_ARGS:-}"
-bin=$root/build/bin
-if [[ ! -x $bin/nbtf || ! -x $bin/nbtf-synth ]]; then
-  cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake_build "$root/build" --target nbtf_cli nbtf_synth_cli >/dev/null
-fi
+# NBTF_BIN_DIR: binaries to measure (default: build them into build/).
+nbtf_build
 mkdir -p "$work"
 
 # 9 view folders x 9 lights in each (every 9th, in name order), as scripts/bench_defaults.sh;

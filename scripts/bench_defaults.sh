@@ -27,11 +27,8 @@ work=${1:-$root/build/bench_defaults}
 grid=${NBTF_BENCH_GRID:-"view1:16:16 view1:32:32 sub9x9:64:500 view1:128:2000 sub9x9:128:16 view1:256:125"}
 runs=${NBTF_BENCH_RUNS:-default long}
 threads=${NBTF_BENCH_THREADS:-1}
-bin=$root/build/bin
-if [[ ! -x $bin/nbtf || ! -x $bin/nbtf-synth ]]; then
-  cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake_build "$root/build" --target nbtf_cli nbtf_synth_cli >/dev/null
-fi
+# NBTF_BIN_DIR: binaries to measure (default: build them into build/).
+nbtf_build
 mkdir -p "$work"
 
 # The fabric of a size (128 x 128, or 256 x 256 for larger points), generated once and cached.

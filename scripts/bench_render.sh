@@ -22,8 +22,8 @@ while [[ $# -gt 0 ]]; do
     *) echo "bench_render.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
-bin=$root/build/bin
-[[ -n "${NBTF_SKIP_BUILD:-}" ]] || nbtf_build
+# NBTF_BIN_DIR: binaries to measure (default: build them into build/).
+nbtf_build
 nbtf=$bin/nbtf
 work=$bench_data/render
 mkdir -p "$work"

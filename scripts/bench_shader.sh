@@ -29,7 +29,8 @@ while [[ $# -gt 0 ]]; do
     *) echo "bench_shader.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
-[[ -n "${NBTF_SKIP_BUILD:-}" ]] && bin=${NBTF_BIN_DIR:-$root/build/bin} || nbtf_build
+# NBTF_BIN_DIR: binaries to measure (default: build them into build/).
+nbtf_build
 nbtf=$bin/nbtf
 chromium=$(command -v chromium || command -v chromium-browser || true)
 if [[ -z "$chromium" ]]; then
