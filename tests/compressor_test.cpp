@@ -372,6 +372,15 @@ TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
                                                   {"coefficients", t.clusterParts.coefficients}};
   ASSERT_EQ(j["seconds"]["cluster_parts"].size(), 4u);
   for (const auto& [key, value] : parts) EXPECT_EQ(j["seconds"]["cluster_parts"][key].get<double>(), value) << key;
+  // The training steps' phases, likewise; the steps ran, so the decoder's part is counted.
+  const std::pair<const char*, double> trainParts[] = {{"sampling", t.trainParts.sampling},
+                                                       {"encoder", t.trainParts.encoder},
+                                                       {"decoder", t.trainParts.decoder},
+                                                       {"optimizer", t.trainParts.optimizer}};
+  ASSERT_EQ(j["seconds"]["train_parts"].size(), 4u);
+  for (const auto& [key, value] : trainParts)
+    EXPECT_EQ(j["seconds"]["train_parts"][key].get<double>(), value) << key;
+  EXPECT_GT(t.trainParts.decoder, 0);
   EXPECT_EQ(j["seconds"]["assemble"].get<double>(), t.assemble);
   EXPECT_EQ(j["seconds"]["total"].get<double>(), t.total());
   EXPECT_GE(j["kmeans_iterations"].get<int>(), 1);
@@ -382,6 +391,7 @@ TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
   std::string summary = formatCompressSummary(stats);
   EXPECT_TRUE(contains(summary, "on linear RGB / alpha")) << summary;
   EXPECT_TRUE(contains(summary, "ratio")) << summary;
+  EXPECT_TRUE(contains(summary, "  train: decoder ")) << summary;
 }
 
 // 8 x 8 texels that differ in two ways: the left half is twice as bright as the right in
@@ -466,6 +476,7 @@ TEST(Compressor, PcaBaselineFillsTheSameStatsAndJson) {
   EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), stats.sizes.ratio);
   EXPECT_GT(j["seconds"]["pca"].get<double>(), 0);
   EXPECT_FALSE(j["seconds"].contains("cluster_parts"));  // no k-means here
+  EXPECT_FALSE(j["seconds"].contains("train_parts"));    // nor training
   EXPECT_EQ(j["kmeans_iterations"].get<int>(), 0);
   EXPECT_DOUBLE_EQ(j["rmse_train"].get<double>(), stats.rmseTrain);
   // mean + coefficients x basis, computed here independently, gives the RMSE the compressor

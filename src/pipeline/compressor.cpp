@@ -446,6 +446,8 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
   t = Clock::now();
   TrainResult train = trainModel(inputs, config);
   stats.seconds.train = secondsSince(t);
+  stats.seconds.trainParts = {train.profile.sampling, train.profile.encoder, train.profile.decoder,
+                              train.profile.optimizer};
   stats.epochs = train.epochsRun;
   stats.steps = train.steps;
   stats.samplesPerSecond = train.samplesPerSecond;
@@ -599,6 +601,9 @@ std::string formatMemoryLine(const CompressStats& s) {
 
 // The cluster stage's parts are timed for one fixed-k clustering (not PCA, per-texel or adaptive).
 bool hasClusterParts(const CompressStats& s) { return s.clusters > 0 && s.adaptiveStages.empty(); }
+bool hasTrainParts(const CompressStats& s) {
+  return s.method != CodecMethod::Pca && s.adaptiveStages.empty() && s.steps > 0;
+}
 }  // namespace
 
 std::string formatCompressSummary(const CompressStats& s) {
@@ -705,6 +710,14 @@ std::string formatCompressSummary(const CompressStats& s) {
                   t.clusterParts.coefficients);
     out += line;
   }
+  if (hasTrainParts(s)) {
+    const auto& p = t.trainParts;
+    std::snprintf(line, sizeof line,
+                  "  train: decoder %.2f | encoder %.2f | sampling %.2f | optimizer %.2f | set-up and final "
+                  "evaluation %.2f\n",
+                  p.decoder, p.encoder, p.sampling, p.optimizer, std::max(0.0, t.train - p.steps()));
+    out += line;
+  }
   out += formatMemoryLine(s);
   return out;
 }
@@ -755,6 +768,11 @@ std::string compressStatsJson(const CompressStats& s) {
                                      {"kmeans", s.seconds.clusterParts.kmeans},
                                      {"medians", s.seconds.clusterParts.medians},
                                      {"coefficients", s.seconds.clusterParts.coefficients}};
+  if (hasTrainParts(s))
+    j["seconds"]["train_parts"] = {{"sampling", s.seconds.trainParts.sampling},
+                                   {"encoder", s.seconds.trainParts.encoder},
+                                   {"decoder", s.seconds.trainParts.decoder},
+                                   {"optimizer", s.seconds.trainParts.optimizer}};
   j["epochs"] = s.epochs;
   j["steps"] = s.steps;
   j["samples_per_second"] = s.samplesPerSecond;
