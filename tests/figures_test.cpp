@@ -121,6 +121,55 @@ TEST(Figures, LineChartLogAxisPlacesPointsByDecade) {
   test::expectErrorContaining([&] { renderLineChart({s}, "t", "x", "y", axes); }, {"1 labels for 3 points"});
 }
 
+// The legend goes to a corner that hides no point: here the points fill the top right (where
+// the legend used to be), and all three stay visible. A label at the right edge is written
+// left of its point, inside the image.
+TEST(Figures, LineChartLegendAndLabelsLeaveThePointsVisible) {
+  const Color8 pure{255, 0, 0};
+  ChartSeries s{"a series with a long name", {1, 8, 9, 10}, {0.1, 0.95, 0.95, 0.95}, pure, {"", "", "", "k=2000"}};
+  Image8 img = renderLineChart({s}, "t", "x", "y");
+  auto red = [&](int x, int y) {
+    const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
+    return p[0] == 255 && p[1] == 0 && p[2] == 0;
+  };
+  int lineRow = 0, most = 0;
+  for (int y = 0; y < img.height; ++y) {
+    int n = 0;
+    for (int x = 0; x < img.width; ++x) n += red(x, y);
+    if (n > most) most = n, lineRow = y;
+  }
+  std::vector<int> centres;  // in the right half: the legend's own marker may share the rows
+  for (int x = img.width / 2; x < img.width; ++x)
+    if (red(x, lineRow + 3) && !red(x - 1, lineRow + 3)) {
+      int e = x;
+      while (e + 1 < img.width && red(e + 1, lineRow + 3)) ++e;
+      centres.push_back((x + e) / 2);
+    }
+  ASSERT_EQ(centres.size(), 3u) << "each point of the top line keeps its marker";
+  // The last point's label: red text above it, to its left, none to its right.
+  auto redIn = [&](int x0, int x1) {
+    int n = 0;
+    for (int y = std::max(0, lineRow - 18); y <= lineRow - 6; ++y)
+      for (int x = std::max(0, x0); x <= std::min(img.width - 1, x1); ++x) n += red(x, y);
+    return n;
+  };
+  EXPECT_GT(redIn(centres[2] - 60, centres[2] - 6), 0);
+  EXPECT_EQ(redIn(centres[2] + 6, img.width - 1), 0);
+}
+
+// When every corner of the plot holds a point, the legend goes below it: the image grows by
+// the legend's height instead of covering data.
+TEST(Figures, LineChartLegendGoesBelowWhenEveryCornerHoldsData) {
+  ChartSeries top{"top", {1, 10}, {0.95, 0.95}, Color8{255, 0, 0}, {}};
+  ChartSeries low{"bottom", {1, 10}, {0.05, 0.05}, Color8{0, 0, 255}, {}};
+  const Image8 corners = renderLineChart({top, low}, "t", "x", "y");
+  top.x.push_back(20);  // the lines end left of x = 20: the right-hand corners are free
+  top.y.push_back(0);
+  const Image8 free = renderLineChart({top, low}, "t", "x", "y");
+  EXPECT_EQ(corners.width, free.width);
+  EXPECT_EQ(corners.height, free.height + 20 * 2 + 6 + 8);
+}
+
 // The cluster map: texels of one generation share a hue, generations differ, clusters differ
 // in shade; bad sizes are errors.
 TEST(Figures, ClusterMapColoursTexelsByGeneration) {

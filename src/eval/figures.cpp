@@ -152,9 +152,37 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   if (yTicks.back() < y1) yTicks.push_back(y1);
 
   const int left = 86, right = 24, top = 50, bottom = 62, plotW = 560, plotH = 300;
-  Canvas c(left + plotW + right, top + plotH + bottom);
   auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
   auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround(y / y1 * plotH)); };
+
+  // Legend: in the first corner of the plot (top right, top left, bottom right, bottom left)
+  // that hides no point or stretch of line; below the plot when every corner would.
+  int legendW = 0;
+  for (const auto& s : series) legendW = std::max(legendW, Canvas(1, 1).textWidth(s.name, 10));
+  const int boxW = legendW + 46, boxH = 20 * static_cast<int>(series.size()) + 6;
+  auto hides = [&](int bx, int by) {
+    auto covers = [&](double x, double y) { return x >= bx - 5 && x <= bx + boxW + 5 && y >= by - 5 && y <= by + boxH + 5; };
+    for (const auto& s : series)
+      for (std::size_t i = 0; i < s.x.size(); ++i) {
+        const double x = px(toAxis(s.x[i])), y = py(s.y[i]);
+        if (covers(x, y)) return true;
+        if (i == 0) continue;
+        const double xa = px(toAxis(s.x[i - 1])), ya = py(s.y[i - 1]);
+        for (int step = 1; step < 16; ++step)
+          if (covers(xa + (x - xa) * step / 16, ya + (y - ya) * step / 16)) return true;
+      }
+    return false;
+  };
+  const int inLeft = left + 8, inRight = left + plotW - boxW - 2, inTop = top + 4, inBottom = top + plotH - boxH - 4;
+  const std::pair<int, int> corners[] = {{inRight, inTop}, {inLeft, inTop}, {inRight, inBottom}, {inLeft, inBottom}};
+  int boxX = left + (plotW - boxW) / 2, boxY = top + plotH + bottom;  // below the plot
+  bool below = true;
+  for (const auto& [bx, by] : corners)
+    if (!hides(bx, by)) {
+      boxX = bx, boxY = by, below = false;
+      break;
+    }
+  Canvas c(left + plotW + right, top + plotH + bottom + (below ? boxH + 8 : 0));
   c.text(title, left + plotW / 2, 22, 14, kBlack, Align::Center);
 
   for (double t : yTicks) {
@@ -194,20 +222,22 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   c.text(xLabel, left + plotW / 2, top + plotH + 42, 11, kBlack, Align::Center);
   c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
 
+  const int canvasW = left + plotW + right;
   for (const auto& s : series) {
     for (std::size_t i = 1; i < s.x.size(); ++i)
       c.line(px(toAxis(s.x[i - 1])), py(s.y[i - 1]), px(toAxis(s.x[i])), py(s.y[i]), s.color, 2);
     for (std::size_t i = 0; i < s.x.size(); ++i) {
-      c.circle(px(toAxis(s.x[i])), py(s.y[i]), 4, s.color);
-      if (!s.labels.empty()) c.text(s.labels[i], px(toAxis(s.x[i])) + 6, py(s.y[i]) - 10, 9, s.color);
+      const int x = px(toAxis(s.x[i])), y = py(s.y[i]);
+      c.circle(x, y, 4, s.color);
+      if (s.labels.empty()) continue;
+      // Right of the point, or left of it where the text would leave the image.
+      const bool fitsRight = x + 6 + c.textWidth(s.labels[i], 9) < canvasW - 2;
+      c.text(s.labels[i], fitsRight ? x + 6 : x - 6, y - 10, 9, s.color, fitsRight ? Align::Left : Align::Right);
     }
   }
-  // Legend.
-  int legendW = 0;
-  for (const auto& s : series) legendW = std::max(legendW, c.textWidth(s.name, 10));
-  int lx = left + plotW - legendW - 44, ly = top + 8;
-  c.fillRect(lx - 6, ly - 4, legendW + 46, 20 * static_cast<int>(series.size()) + 6, kWhite);
-  c.strokeRect(lx - 6, ly - 4, legendW + 46, 20 * static_cast<int>(series.size()) + 6, kLightGrey);
+  const int lx = boxX + 6, ly = boxY + 4;
+  c.fillRect(boxX, boxY, boxW, boxH, kWhite);
+  c.strokeRect(boxX, boxY, boxW, boxH, kLightGrey);
   for (std::size_t i = 0; i < series.size(); ++i) {
     int yy = ly + 8 + 20 * static_cast<int>(i);
     c.line(lx, yy, lx + 24, yy, series[i].color, 2);
