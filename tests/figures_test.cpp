@@ -27,6 +27,30 @@ bool find(const Image8& img, Color8 c, int& fx, int& fy, int maxX = 1 << 30) {
   return false;
 }
 
+// The row with the most pixels of colour c (a chart's horizontal line of that colour).
+int rowWithMost(const Image8& img, Color8 c) {
+  int row = 0, most = 0;
+  for (int y = 0; y < img.height; ++y) {
+    int n = 0;
+    for (int x = 0; x < img.width; ++x) n += same(pixel(img, x, y), c);
+    if (n > most) most = n, row = y;
+  }
+  return row;
+}
+
+// The centres of the runs of colour c along a row, from column fromX on (a row through a
+// chart's round markers just off its line: one run per marker).
+std::vector<double> runCentres(const Image8& img, Color8 c, int row, int fromX = 0) {
+  std::vector<double> centres;
+  for (int x = fromX; x < img.width; ++x)
+    if (same(pixel(img, x, row), c) && (x == fromX || !same(pixel(img, x - 1, row), c))) {
+      int e = x;
+      while (e + 1 < img.width && same(pixel(img, e + 1, row), c)) ++e;
+      centres.push_back((x + e) / 2.0);
+    }
+  return centres;
+}
+
 TEST(Figures, HeatMapCellsHaveTheColourOfTheirValue) {
   // 2 x 3: the largest value maps to the top of the colour map, 0 to the bottom.
   std::vector<Direction> rows = {{0, 0}, {30, 0}}, cols = {{0, 0}, {45, 0}, {45, 180}};
@@ -92,25 +116,9 @@ TEST(Figures, LineChartLogAxisPlacesPointsByDecade) {
   ChartAxes axes;
   axes.logX = true;
   Image8 img = renderLineChart({s}, "t", "x", "y", axes);
-  auto red = [&](int x, int y) {
-    const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
-    return p[0] == 255 && p[1] == 0 && p[2] == 0;
-  };
   // The row through the points has the most red (the line); 3 rows above it only the round
   // markers are red: three runs, whose centres are the points.
-  int lineRow = 0, most = 0;
-  for (int y = 0; y < img.height; ++y) {
-    int n = 0;
-    for (int x = 0; x < img.width; ++x) n += red(x, y);
-    if (n > most) most = n, lineRow = y;
-  }
-  std::vector<double> centres;
-  for (int x = 0; x < img.width; ++x)
-    if (red(x, lineRow - 3) && (x == 0 || !red(x - 1, lineRow - 3))) {
-      int e = x;
-      while (e + 1 < img.width && red(e + 1, lineRow - 3)) ++e;
-      centres.push_back((x + e) / 2.0);
-    }
+  const std::vector<double> centres = runCentres(img, pure, rowWithMost(img, pure) - 3);
   ASSERT_EQ(centres.size(), 3u);
   // Linear in log10: 10^3 lies 1/3 of the way from 10^2 to 10^5 (on a linear axis, 1%).
   EXPECT_NEAR((centres[1] - centres[0]) / (centres[2] - centres[0]), 1.0 / 3.0, 0.01);
@@ -128,33 +136,20 @@ TEST(Figures, LineChartLegendAndLabelsLeaveThePointsVisible) {
   const Color8 pure{255, 0, 0};
   ChartSeries s{"a series with a long name", {1, 8, 9, 10}, {0.1, 0.95, 0.95, 0.95}, pure, {"", "", "", "k=2000"}};
   Image8 img = renderLineChart({s}, "t", "x", "y");
-  auto red = [&](int x, int y) {
-    const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
-    return p[0] == 255 && p[1] == 0 && p[2] == 0;
-  };
-  int lineRow = 0, most = 0;
-  for (int y = 0; y < img.height; ++y) {
-    int n = 0;
-    for (int x = 0; x < img.width; ++x) n += red(x, y);
-    if (n > most) most = n, lineRow = y;
-  }
-  std::vector<int> centres;  // in the right half: the legend's own marker may share the rows
-  for (int x = img.width / 2; x < img.width; ++x)
-    if (red(x, lineRow + 3) && !red(x - 1, lineRow + 3)) {
-      int e = x;
-      while (e + 1 < img.width && red(e + 1, lineRow + 3)) ++e;
-      centres.push_back((x + e) / 2);
-    }
+  const int lineRow = rowWithMost(img, pure);
+  // In the right half: the legend's own marker may share the rows.
+  const std::vector<double> centres = runCentres(img, pure, lineRow + 3, img.width / 2);
   ASSERT_EQ(centres.size(), 3u) << "each point of the top line keeps its marker";
   // The last point's label: red text above it, to its left, none to its right.
   auto redIn = [&](int x0, int x1) {
     int n = 0;
     for (int y = std::max(0, lineRow - 18); y <= lineRow - 6; ++y)
-      for (int x = std::max(0, x0); x <= std::min(img.width - 1, x1); ++x) n += red(x, y);
+      for (int x = std::max(0, x0); x <= std::min(img.width - 1, x1); ++x) n += same(pixel(img, x, y), pure);
     return n;
   };
-  EXPECT_GT(redIn(centres[2] - 60, centres[2] - 6), 0);
-  EXPECT_EQ(redIn(centres[2] + 6, img.width - 1), 0);
+  const int last = static_cast<int>(centres[2]);
+  EXPECT_GT(redIn(last - 60, last - 6), 0);
+  EXPECT_EQ(redIn(last + 6, img.width - 1), 0);
 }
 
 // When every corner of the plot holds a point, the legend goes below it: the image grows by
