@@ -152,6 +152,27 @@ TEST(Figures, LineChartLegendAndLabelsLeaveThePointsVisible) {
   EXPECT_EQ(redIn(last + 6, img.width - 1), 0);
 }
 
+// Two labelled points close together: the second label finds a place off the first, so
+// adding the blue point leaves every reddish pixel of the chart (the red label's smoothed
+// strokes included) as it was. A grey line along the top fixes the axes.
+TEST(Figures, LineChartLabelsDoNotCoverEachOther) {
+  const Color8 red{255, 0, 0}, blue{0, 0, 255};
+  ChartSeries axes{"axes", {1, 10}, {1.0, 1.0}, Color8{128, 128, 128}, {}};
+  ChartSeries a{"a", {5}, {0.3}, red, {"k=1000"}};
+  ChartSeries b{"b", {5.5}, {0.3}, blue, {"k=500"}};
+  auto count = [&](const Image8& img) {
+    int n = 0;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        const Color8 p = pixel(img, x, y);
+        n += p.r >= 128 && p.g < 96 && p.b < 96;
+      }
+    return n;
+  };
+  const int alone = count(renderLineChart({axes, a}, "t", "x", "y"));
+  EXPECT_EQ(count(renderLineChart({axes, a, b}, "t", "x", "y")), alone);
+}
+
 // When every corner of the plot holds a point, the legend goes below it: the image grows by
 // the legend's height instead of covering data.
 TEST(Figures, LineChartLegendGoesBelowWhenEveryCornerHoldsData) {

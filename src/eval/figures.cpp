@@ -222,19 +222,43 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   c.text(xLabel, left + plotW / 2, top + plotH + 42, 11, kBlack, Align::Center);
   c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
 
-  const int canvasW = left + plotW + right;
+  struct Box {
+    int x0, y0, x1, y1;
+    bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
+  };
+  std::vector<Box> taken;  // the markers, then each label as it is placed
   for (const auto& s : series) {
     for (std::size_t i = 1; i < s.x.size(); ++i)
       c.line(px(toAxis(s.x[i - 1])), py(s.y[i - 1]), px(toAxis(s.x[i])), py(s.y[i]), s.color, 2);
     for (std::size_t i = 0; i < s.x.size(); ++i) {
       const int x = px(toAxis(s.x[i])), y = py(s.y[i]);
       c.circle(x, y, 4, s.color);
-      if (s.labels.empty()) continue;
-      // Right of the point, or left of it where the text would leave the image.
-      const bool fitsRight = x + 6 + c.textWidth(s.labels[i], 9) < canvasW - 2;
-      c.text(s.labels[i], fitsRight ? x + 6 : x - 6, y - 10, 9, s.color, fitsRight ? Align::Left : Align::Right);
+      taken.push_back({x - 4, y - 4, x + 5, y + 5});
     }
   }
+  // Labels: above right of the point, else above left, below right, below left: the first
+  // place inside the image that no marker or earlier label holds (else the first inside).
+  const Box image{0, 0, left + plotW + right, top + plotH + bottom};
+  for (const auto& s : series)
+    for (std::size_t i = 0; i < s.labels.size(); ++i) {
+      if (s.labels[i].empty()) continue;
+      const int x = px(toAxis(s.x[i])), y = py(s.y[i]), w = c.textWidth(s.labels[i], 9);
+      const std::pair<int, int> offsets[] = {{6, -10}, {-6 - w, -10}, {6, 12}, {-6 - w, 12}};
+      int chosen = -1;
+      for (int k = 0; k < 4; ++k) {
+        const Box b{x + offsets[k].first, y + offsets[k].second - 6, x + offsets[k].first + w, y + offsets[k].second + 6};
+        if (b.x0 < image.x0 || b.x1 > image.x1 - 2 || b.y0 < image.y0 || b.y1 > image.y1) continue;
+        if (chosen < 0) chosen = k;
+        if (std::none_of(taken.begin(), taken.end(), [&](const Box& t) { return t.overlaps(b); })) {
+          chosen = k;
+          break;
+        }
+      }
+      if (chosen < 0) chosen = 0;
+      const int lx0 = x + offsets[chosen].first, ly0 = y + offsets[chosen].second;
+      taken.push_back({lx0, ly0 - 6, lx0 + w, ly0 + 6});
+      c.text(s.labels[i], lx0, ly0, 9, s.color, Align::Left);
+    }
   const int lx = boxX + 6, ly = boxY + 4;
   c.fillRect(boxX, boxY, boxW, boxH, kWhite);
   c.strokeRect(boxX, boxY, boxW, boxH, kLightGrey);

@@ -48,7 +48,8 @@ struct ChartAxes {
 
 // y axis from 0; the legend in the first corner of the plot that hides no point or line (top
 // right, top left, bottom right, bottom left), or below the plot when each would; point labels
-// right of their point, or left where they would leave the image. The one plotting path of nbtf: report figures and the sweep's
+// above right of their point, or where they hide no marker or other label and stay inside the
+// image. The one plotting path of nbtf: report figures and the sweep's
 // rate-distortion plots (no external program).
 Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
                        const std::string& yLabel, const ChartAxes& axes = {});
