@@ -173,6 +173,27 @@ TEST(Figures, LineChartLabelsDoNotCoverEachOther) {
   EXPECT_EQ(count(renderLineChart({axes, a, b}, "t", "x", "y")), alone);
 }
 
+// Values in a narrow band high above 0 fill the plot's height, as values from 0 to the same
+// top do: the y axis starts at a round value below them, not at 0.
+TEST(Figures, LineChartNarrowBandFillsThePlot) {
+  const Color8 red{255, 0, 0};
+  auto redRows = [&](const Image8& img) {
+    int rows = 0;
+    for (int y = 0; y < img.height; ++y) {
+      bool any = false;
+      for (int x = 0; x < img.width && !any; ++x) any = same(pixel(img, x, y), red);
+      rows += any;
+    }
+    return rows;
+  };
+  const int band = redRows(renderLineChart({ChartSeries{"a", {1, 2}, {0.9, 1.0}, red, {}}}, "t", "x", "y"));
+  const int full = redRows(renderLineChart({ChartSeries{"a", {1, 2}, {0.0, 1.0}, red, {}}}, "t", "x", "y"));
+  EXPECT_NEAR(band, full, 2);
+  // Below the upper half, the axis stays at 0: 0.4 to 1.0 spans 60% of what 0 to 1.0 does.
+  const int low = redRows(renderLineChart({ChartSeries{"a", {1, 2}, {0.4, 1.0}, red, {}}}, "t", "x", "y"));
+  EXPECT_LT(low, full - 50);
+}
+
 // When every corner of the plot holds a point, the legend goes below it: the image grows by
 // the legend's height instead of covering data.
 TEST(Figures, LineChartLegendGoesBelowWhenEveryCornerHoldsData) {

@@ -128,7 +128,7 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
                        const std::string& yLabel, const ChartAxes& axes) {
   // On a log axis everything below works on log10 x; ticks and labels convert back.
   auto toAxis = [&](double x) { return axes.logX ? std::log10(x) : x; };
-  double xmin = 1e300, xmax = -1e300, ymax = 0;
+  double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = 0;
   for (const auto& s : series) {
     if (s.x.size() != s.y.size()) throw Error("line chart: series '" + s.name + "' has unequal x and y counts");
     if (!s.labels.empty() && s.labels.size() != s.x.size())
@@ -139,21 +139,31 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
       if (axes.logX && s.x[i] <= 0)
         throw Error("line chart: series '" + s.name + "' has x = " + std::to_string(s.x[i]) + " on a log axis");
       double x = toAxis(s.x[i]);
-      xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymax = std::max(ymax, s.y[i]);
+      xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, s.y[i]), ymax = std::max(ymax, s.y[i]);
     }
   }
   if (xmin > xmax) xmin = 0, xmax = 1;
   if (xmax == xmin) xmin -= 1, xmax += 1;
   double pad = 0.05 * (xmax - xmin);
   double x0 = xmin - pad, x1 = xmax + pad;
-  auto yTicks = niceTicks(0, ymax > 0 ? ymax : 1, 6);
+  // The y axis starts at 0, unless every value lies in the upper half of that range: then at
+  // a round value below the smallest, so that close values do not share a few pixels (the
+  // ticks say where it starts).
+  double yLow = 0;
+  if (ymin > 0.5 * ymax && ymax > ymin) {
+    const std::vector<double> band = niceTicks(ymin, ymax, 6);
+    const double step = band.size() > 1 ? band[1] - band[0] : ymax - ymin;
+    yLow = std::floor(ymin / step + 1e-9) * step;
+  }
+  auto yTicks = niceTicks(yLow, ymax > yLow ? ymax : yLow + 1, 6);
   double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
+  if (yTicks.front() > yLow) yTicks.insert(yTicks.begin(), yLow);
   double y1 = yTicks.back() < ymax ? yTicks.back() + yStep : yTicks.back();
   if (yTicks.back() < y1) yTicks.push_back(y1);
 
   const int left = 86, right = 24, top = 50, bottom = 62, plotW = 560, plotH = 300;
   auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
-  auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround(y / y1 * plotH)); };
+  auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround((y - yLow) / (y1 - yLow) * plotH)); };
 
   // Legend: in the first corner of the plot (top right, top left, bottom right, bottom left)
   // that hides no point or stretch of line; below the plot when every corner would.

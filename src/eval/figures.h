@@ -46,7 +46,8 @@ struct ChartAxes {
   std::string xTickPrefix;     // before every x tick label (e.g. "1:" for ratios)
 };
 
-// y axis from 0; the legend in the first corner of the plot that hides no point or line (top
+// y axis from 0 (from a round value below the smallest where every value lies in the upper
+// half of that range); the legend in the first corner of the plot that hides no point or line (top
 // right, top left, bottom right, bottom left), or below the plot when each would; point labels
 // above right of their point, or where they hide no marker or other label and stay inside the
 // image. The one plotting path of nbtf: report figures and the sweep's
