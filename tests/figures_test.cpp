@@ -194,6 +194,25 @@ TEST(Figures, LineChartNarrowBandFillsThePlot) {
   EXPECT_LT(low, full - 50);
 }
 
+// The y ticks: evenly spaced, from 0 or (values in the upper half) from a round value at or
+// below the smallest, up to at least the largest.
+TEST(Figures, LineChartYTicksAreEvenAndCoverTheValues) {
+  const std::pair<double, double> ranges[] = {{0.0417, 0.0475}, {0.0466, 0.0510}, {0.9, 1.0}, {0.1, 1.0},
+                                              {0.0, 0.08}, {0.02, 0.02}, {0.0, 0.0}, {123.4, 125.0}};
+  for (const auto& [lo, hi] : ranges) {
+    const std::vector<double> t = lineChartYTicks(lo, hi);
+    ASSERT_GE(t.size(), 2u) << lo << " " << hi;
+    const double step = t[1] - t[0];
+    for (std::size_t i = 1; i < t.size(); ++i) EXPECT_NEAR(t[i] - t[i - 1], step, 1e-9 * step) << lo << " " << hi;
+    EXPECT_LE(t.front(), lo) << lo << " " << hi;
+    EXPECT_GE(t.back(), hi) << lo << " " << hi;
+    if (lo > 0.5 * hi && hi > lo)
+      EXPECT_GT(t.front(), 0) << lo << " " << hi;
+    else
+      EXPECT_EQ(t.front(), 0) << lo << " " << hi;
+  }
+}
+
 // When every corner of the plot holds a point, the legend goes below it: the image grows by
 // the legend's height instead of covering data.
 TEST(Figures, LineChartLegendGoesBelowWhenEveryCornerHoldsData) {

@@ -124,6 +124,29 @@ Image8 renderDirectionHeatMap(const std::vector<double>& values, const std::vect
 
 // ---- Line chart
 
+std::vector<double> lineChartYTicks(double ymin, double ymax) {
+  // From 0, unless every value lies in the upper half of that range: then from a round value
+  // below the smallest, so that close values do not share a few pixels. The start is put on
+  // the grid of the ticks it gives (a lower start can coarsen the step: redone).
+  std::vector<double> ticks = niceTicks(0, ymax > 0 ? ymax : 1, 6);
+  if (ymin > 0.5 * ymax && ymax > ymin) {
+    auto stepOf = [&](const std::vector<double>& t) { return t.size() > 1 ? t[1] - t[0] : ymax - ymin; };
+    double step = stepOf(niceTicks(ymin, ymax, 6)), low = 0;
+    for (int pass = 0; pass < 4; ++pass) {
+      low = std::floor(ymin / step + 1e-9) * step;
+      ticks = niceTicks(low, ymax, 6);
+      const double next = stepOf(ticks);
+      if (std::abs(next - step) <= 1e-6 * step) break;  // low lies on the grid of its ticks
+      step = next;
+    }
+    if (ticks.front() > low + 1e-6 * step) ticks.insert(ticks.begin(), low);
+  }
+  // One more step on top where the last tick is below the largest value.
+  const double step = ticks.size() > 1 ? ticks[1] - ticks[0] : 1;
+  if (ticks.back() < ymax) ticks.push_back(ticks.back() + step);
+  return ticks;
+}
+
 Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
                        const std::string& yLabel, const ChartAxes& axes) {
   // On a log axis everything below works on log10 x; ticks and labels convert back.
@@ -146,20 +169,9 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   if (xmax == xmin) xmin -= 1, xmax += 1;
   double pad = 0.05 * (xmax - xmin);
   double x0 = xmin - pad, x1 = xmax + pad;
-  // The y axis starts at 0, unless every value lies in the upper half of that range: then at
-  // a round value below the smallest, so that close values do not share a few pixels (the
-  // ticks say where it starts).
-  double yLow = 0;
-  if (ymin > 0.5 * ymax && ymax > ymin) {
-    const std::vector<double> band = niceTicks(ymin, ymax, 6);
-    const double step = band.size() > 1 ? band[1] - band[0] : ymax - ymin;
-    yLow = std::floor(ymin / step + 1e-9) * step;
-  }
-  auto yTicks = niceTicks(yLow, ymax > yLow ? ymax : yLow + 1, 6);
-  double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
-  if (yTicks.front() > yLow) yTicks.insert(yTicks.begin(), yLow);
-  double y1 = yTicks.back() < ymax ? yTicks.back() + yStep : yTicks.back();
-  if (yTicks.back() < y1) yTicks.push_back(y1);
+  std::vector<double> yTicks = lineChartYTicks(ymin, ymax);
+  const double yLow = yTicks.front(), y1 = yTicks.back();
+  const double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
 
   const int left = 86, right = 24, top = 50, bottom = 62, plotW = 560, plotH = 300;
   auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
@@ -247,8 +259,9 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
     }
   }
   // Labels: above right of the point, else above left, below right, below left: the first
-  // place inside the image that no marker or earlier label holds (else the first inside).
-  const Box image{0, 0, left + plotW + right, top + plotH + bottom};
+  // place right of the y axis and inside the image that no marker or earlier label holds (else
+  // the first such place).
+  const Box image{left + 2, 0, left + plotW + right, top + plotH + bottom};
   for (const auto& s : series)
     for (std::size_t i = 0; i < s.labels.size(); ++i) {
       if (s.labels[i].empty()) continue;

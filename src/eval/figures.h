@@ -54,6 +54,9 @@ struct ChartAxes {
 // rate-distortion plots (no external program).
 Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
                        const std::string& yLabel, const ChartAxes& axes = {});
+// The y ticks of a line chart whose values span [ymin, ymax]: evenly spaced, the first at
+// or below ymin (0, or a round value below ymin where ymin > ymax / 2), the last at or above ymax.
+std::vector<double> lineChartYTicks(double ymin, double ymax);
 
 // ---- Comparison strip
 
