@@ -177,21 +177,33 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
   auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround((y - yLow) / (y1 - yLow) * plotH)); };
 
+  // Rectangles in pixels: the markers', the legend's candidates, the labels'.
+  struct Box {
+    int x0, y0, x1, y1;
+    bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
+    bool holds(double x, double y) const { return x >= x0 && x <= x1 && y >= y0 && y <= y1; }
+  };
+  std::vector<Box> taken;  // the markers, then each label as it is placed
+  for (const auto& s : series)
+    for (std::size_t i = 0; i < s.x.size(); ++i) {
+      const int x = px(toAxis(s.x[i])), y = py(s.y[i]);
+      taken.push_back({x - 4, y - 4, x + 5, y + 5});
+    }
+
   // Legend: in the first corner of the plot (top right, top left, bottom right, bottom left)
   // that hides no point or stretch of line; below the plot when every corner would.
+  const Canvas measure(1, 1);
   int legendW = 0;
-  for (const auto& s : series) legendW = std::max(legendW, Canvas(1, 1).textWidth(s.name, 10));
+  for (const auto& s : series) legendW = std::max(legendW, measure.textWidth(s.name, 10));
   const int boxW = legendW + 46, boxH = 20 * static_cast<int>(series.size()) + 6;
   auto hides = [&](int bx, int by) {
-    auto covers = [&](double x, double y) { return x >= bx - 5 && x <= bx + boxW + 5 && y >= by - 5 && y <= by + boxH + 5; };
+    const Box box{bx - 5, by - 5, bx + boxW + 5, by + boxH + 5};
+    if (std::any_of(taken.begin(), taken.end(), [&](const Box& m) { return m.overlaps(box); })) return true;
     for (const auto& s : series)
-      for (std::size_t i = 0; i < s.x.size(); ++i) {
-        const double x = px(toAxis(s.x[i])), y = py(s.y[i]);
-        if (covers(x, y)) return true;
-        if (i == 0) continue;
-        const double xa = px(toAxis(s.x[i - 1])), ya = py(s.y[i - 1]);
+      for (std::size_t i = 1; i < s.x.size(); ++i) {
+        const double xa = px(toAxis(s.x[i - 1])), ya = py(s.y[i - 1]), xb = px(toAxis(s.x[i])), yb = py(s.y[i]);
         for (int step = 1; step < 16; ++step)
-          if (covers(xa + (x - xa) * step / 16, ya + (y - ya) * step / 16)) return true;
+          if (box.holds(xa + (xb - xa) * step / 16, ya + (yb - ya) * step / 16)) return true;
       }
     return false;
   };
@@ -244,19 +256,10 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
   c.text(xLabel, left + plotW / 2, top + plotH + 42, 11, kBlack, Align::Center);
   c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
 
-  struct Box {
-    int x0, y0, x1, y1;
-    bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
-  };
-  std::vector<Box> taken;  // the markers, then each label as it is placed
   for (const auto& s : series) {
     for (std::size_t i = 1; i < s.x.size(); ++i)
       c.line(px(toAxis(s.x[i - 1])), py(s.y[i - 1]), px(toAxis(s.x[i])), py(s.y[i]), s.color, 2);
-    for (std::size_t i = 0; i < s.x.size(); ++i) {
-      const int x = px(toAxis(s.x[i])), y = py(s.y[i]);
-      c.circle(x, y, 4, s.color);
-      taken.push_back({x - 4, y - 4, x + 5, y + 5});
-    }
+    for (std::size_t i = 0; i < s.x.size(); ++i) c.circle(px(toAxis(s.x[i])), py(s.y[i]), 4, s.color);
   }
   // Labels: above right of the point, else above left, below right, below left: the first
   // place right of the y axis and inside the image that no marker or earlier label holds (else

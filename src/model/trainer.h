@@ -266,9 +266,11 @@ struct TrainResult {
   bool worker = false;
   double allReduceBytesPerStep = 0, allReduceSecondsPerStep = 0;
   // Where the loop's time went (seconds): drawing samples and gathering targets, encoder
-  // forward + backward, the decoder's forward + backward, the optimizer update.
+  // forward + backward, the decoder's forward + backward (with the planes' gradients), the
+  // optimizer update (with the all-reduce when data-parallel).
   struct Profile {
     double sampling = 0, encoder = 0, decoder = 0, optimizer = 0;
+    double steps() const { return sampling + encoder + decoder + optimizer; }
   } profile;
 };
 

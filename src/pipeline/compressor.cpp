@@ -446,8 +446,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
   t = Clock::now();
   TrainResult train = trainModel(inputs, config);
   stats.seconds.train = secondsSince(t);
-  stats.seconds.trainParts = {train.profile.sampling, train.profile.encoder, train.profile.decoder,
-                              train.profile.optimizer};
+  stats.seconds.trainParts = train.profile;
   stats.epochs = train.epochsRun;
   stats.steps = train.steps;
   stats.samplesPerSecond = train.samplesPerSecond;

@@ -96,14 +96,9 @@ struct StageSeconds {
     double pca = 0, kmeans = 0, medians = 0;
     double coefficients = 0;  // per-texel modulation coefficients and the floor RMSE
   } clusterParts;
-  // The training stage's steps by phase (neural runs without --adaptive): drawing the samples,
-  // the encoder, the decoder (with the direction and cluster planes' gradients), the optimizer
-  // (with the all-reduce when data-parallel). The rest of `train` is set-up and the exact
-  // evaluation at the end.
-  struct {
-    double sampling = 0, encoder = 0, decoder = 0, optimizer = 0;
-    double steps() const { return sampling + encoder + decoder + optimizer; }
-  } trainParts;
+  // The training stage's steps by phase (neural runs without --adaptive; TrainResult::Profile).
+  // The rest of `train` is set-up and the exact evaluation at the end.
+  TrainResult::Profile trainParts;
   double total() const { return load + preprocess + cluster + train + assemble + write + pca; }
 };
 
