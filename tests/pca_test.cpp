@@ -28,6 +28,14 @@ PcaOptions quietOptions(int components) {
   return o;
 }
 
+// A decaying spectrum (column scales 10, 7, 5, 3.5, ... plus isotropic noise), rotated.
+MatrixXfCol decayingSpectrum(int rows, int dims) {
+  MatrixXfCol z = gaussian(rows, dims, 4);
+  Eigen::MatrixXf rotation = Eigen::HouseholderQR<Eigen::MatrixXf>(gaussian(dims, dims, 5)).householderQ();
+  for (int d = 0; d < dims; ++d) z.col(d) *= 10.0f * std::pow(0.7f, d) + 0.1f;
+  return z * rotation.transpose();
+}
+
 TEST(Pca, RecoversTheSubspaceOfExactlyLowRankData) {
   const int rows = 400, dims = 300, rank = 6;
   MatrixXfCol factors = gaussian(rows, rank, 1);
@@ -54,12 +62,8 @@ TEST(Pca, RecoversTheSubspaceOfExactlyLowRankData) {
 }
 
 TEST(Pca, MatchesTheExactEigendecomposition) {
-  // Decaying spectrum: column scales 10, 7, 5, 3.5, ... plus isotropic noise.
   const int rows = 800, dims = 300, components = 5;  // the sketch (53 columns) sees part of it
-  MatrixXfCol z = gaussian(rows, dims, 4);
-  Eigen::MatrixXf rotation = Eigen::HouseholderQR<Eigen::MatrixXf>(gaussian(dims, dims, 5)).householderQ();
-  for (int d = 0; d < dims; ++d) z.col(d) *= 10.0f * std::pow(0.7f, d) + 0.1f;
-  MatrixXfCol x = z * rotation.transpose();
+  MatrixXfCol x = decayingSpectrum(rows, dims);
 
   PcaResult pca = randomizedPca(x, quietOptions(components));
   Eigen::MatrixXd xd = x.cast<double>();
@@ -75,6 +79,67 @@ TEST(Pca, MatchesTheExactEigendecomposition) {
   EXPECT_NEAR(pca.totalVariance, covariance.trace(), 1e-4 * covariance.trace());
   // Components come out sorted by variance.
   for (int c = 1; c < components; ++c) EXPECT_GE(pca.explainedVariance[c - 1], pca.explainedVariance[c]);
+}
+
+TEST(Pca, LargeMaterialsFindTheSubspaceOnASampleOfTexels) {
+  const int rows = 10000, dims = 120, components = 5;
+  MatrixXfCol x = decayingSpectrum(rows, dims);
+  PcaOptions sampling = quietOptions(components), everyTexel = quietOptions(components);
+  sampling.sampleBytes = 1;  // the smallest sample: 2048 texels, and 10,000 >= 4 x 2048
+  everyTexel.sampleBytes = 0;
+  ASSERT_EQ(sampling.sampleRows(dims), 2048);
+  ASSERT_TRUE(sampling.samples(rows, dims));
+  ASSERT_FALSE(everyTexel.samples(rows, dims));
+  PcaResult sampled = randomizedPca(x, sampling), full = randomizedPca(x, everyTexel);
+  EXPECT_EQ(sampled.sampledTexels, 2048);
+  EXPECT_EQ(full.sampledTexels, 0);
+
+  Eigen::MatrixXd xd = x.cast<double>();
+  Eigen::MatrixXd centred = xd.rowwise() - xd.colwise().mean();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(centred.transpose() * centred / rows);
+  for (const PcaResult* pca : {&sampled, &full}) {
+    for (int c = 0; c < components; ++c) {
+      const double exact = eig.eigenvalues()[dims - 1 - c];
+      EXPECT_NEAR(pca->explainedVariance[c], exact, 1e-3 * exact) << "component " << c;
+      const double alignment = std::abs(eig.eigenvectors().col(dims - 1 - c).dot(pca->basis.col(c).cast<double>()));
+      EXPECT_GT(alignment, 0.999) << "component " << c;
+    }
+    EXPECT_LT((pca->basis.transpose() * pca->basis - Eigen::MatrixXf::Identity(components, components)).norm(), 1e-4f);
+  }
+  // Every texel is projected onto the sampled subspace: the scores are (X - mean) * basis.
+  MatrixXfCol projected = (x.rowwise() - x.colwise().mean()) * sampled.basis;
+  EXPECT_LT((projected - sampled.scores).norm() / projected.norm(), 1e-5f);
+  EXPECT_EQ(sampled.totalVariance, full.totalVariance);
+}
+
+TEST(Pca, TheSampleFollowsTheSeedNotTheThreadCount) {
+  MatrixXfCol x = decayingSpectrum(9000, 64);
+  PcaOptions o = quietOptions(4);
+  o.sampleBytes = 1;
+  setThreadCount(1);
+  PcaResult a = randomizedPca(x, o);
+  setThreadCount(2);
+  PcaResult b = randomizedPca(x, o);
+  setThreadCount(0);
+  EXPECT_EQ(a.basis, b.basis);
+  EXPECT_EQ(a.scores, b.scores);
+  o.seed = 2;
+  PcaResult c = randomizedPca(x, o);
+  EXPECT_NE(a.basis, c.basis);
+  EXPECT_GT(std::abs(a.basis.col(0).dot(c.basis.col(0))), 0.999f);  // another sample, the same leading direction
+}
+
+TEST(Pca, TheSampleFitsItsMemoryAndOnlyLargeMaterialsTakeOne) {
+  const PcaOptions o;  // 256 MiB of floats
+  EXPECT_EQ(o.sampleRows(3 * 6561), 3409);     // a UBO2003 material: 268,435,456 / (4 x 19,683)
+  EXPECT_EQ(o.sampleRows(3 * 22801), 2048);    // a UBO2014 one: 981 texels fit, raised to the floor
+  EXPECT_EQ(o.sampleRows(3 * 81), 16384);      // one view: capped
+  EXPECT_FALSE(o.samples(100 * 100, 3 * 6561));
+  EXPECT_FALSE(o.samples(4 * 3409 - 1, 3 * 6561));
+  EXPECT_TRUE(o.samples(4 * 3409, 3 * 6561));
+  EXPECT_TRUE(o.samples(256 * 256, 3 * 6561));
+  EXPECT_TRUE(o.samples(256 * 256, 3 * 81));   // 4 x 16,384
+  EXPECT_FALSE(o.samples(256 * 256 - 1, 3 * 81));
 }
 
 TEST(Pca, SameSeedSameResult) {

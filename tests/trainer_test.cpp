@@ -98,6 +98,11 @@ TEST(Trainer, HandWrittenBackpropMatchesAutograd) {
   half.directionInputs = DirectionEncoding::StereographicHalf;
   EXPECT_LT(decoderBackpropError(half, 8, 4, 7), 1e-5);
   for (int threads : {1, 2}) EXPECT_LT(decoderBackpropError(half, 9, 5, 211, threads), 1e-5) << threads << " threads";
+  // The direction planes' features get each row's gradient of its last direction inputs.
+  for (int threads : {1, 2}) {
+    EXPECT_LT(decoderInputGradientError(model, 6, 5, 211, threads), 1e-5) << threads << " threads";
+    EXPECT_LT(decoderInputGradientError(wide, 7, 2, 300, threads), 1e-5) << threads << " threads";
+  }
 }
 
 TEST(Trainer, HandWrittenBackpropIsTheSameOnAnyThreadCount) {
@@ -127,6 +132,14 @@ TEST(Trainer, Bf16ProductsStayCloseToAutograd) {
   ModelConfig small;
   small.latentDim = 5, small.decoderWidth = 17, small.decoderLayers = 6;
   EXPECT_LT(decoderBackpropError(small, 5, 3, 2, 1, true), 3e-2);
+  // One row's gradient of its direction inputs is a single sum over the units, not a sum over
+  // rows: the hidden layers' roundings do not average out in it (measured 9-15% of the
+  // largest); the planes add it up over many rows. A wrong layout or a missing term would be
+  // of the order of the largest itself.
+  for (int threads : {1, 2}) {
+    EXPECT_LT(decoderInputGradientError(model, 6, 5, 211, threads, true), 0.3) << threads << " threads";
+    EXPECT_LT(decoderInputGradientError(wide, 7, 2, 301, threads, true), 0.3) << threads << " threads";
+  }
 }
 
 TEST(Trainer, Bf16ProductsAreTheSameOnAnyThreadCountAndBuild) {
@@ -212,6 +225,26 @@ TEST(Trainer, ClusteredModeLearnsAndReportsExactPerTexelRmse) {
   EXPECT_LT(r.rmseTrain, floor + 0.1 * (baseline - floor)) << "floor " << floor << " baseline " << baseline;
   // Computed by the trainer from per-cluster sums; recomputed here texel by texel.
   EXPECT_NEAR(testing::decodedRmse(m, r, asInts(m.ids), allImages(m)), r.rmseTrain, 1e-4 + 1e-3 * r.rmseTrain);
+}
+
+// Without the final evaluation (the compressor measures the stored file instead) the same
+// training gives the same model, no RMSE (-1), and still the floor from training's own sums.
+TEST(Trainer, FinalEvaluationCanBeLeftOut) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 20;
+  c.holdoutFraction = 0.1;
+  const TrainResult measured = trainModel(m.clustered(), c);
+  c.finalEvaluation = false;
+  const TrainResult unmeasured = trainModel(m.clustered(), c);
+  EXPECT_GT(measured.rmseTrain, 0);
+  EXPECT_GT(measured.rmseHoldout, 0);
+  EXPECT_EQ(unmeasured.rmseTrain, -1);
+  EXPECT_EQ(unmeasured.rmseHoldout, -1);
+  EXPECT_EQ(unmeasured.rmseFloor, measured.rmseFloor);
+  EXPECT_GT(unmeasured.rmseFloor, 0);
+  EXPECT_EQ(unmeasured.steps, measured.steps);
+  EXPECT_EQ(unmeasured.latents, measured.latents);
 }
 
 // The torch backend (stock modules, autograd, torch::optim::Adam) computes the same model as

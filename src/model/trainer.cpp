@@ -284,7 +284,7 @@ class TrainingRun {
   // forward pass over every group x image costs about a third of a training sample).
   double finalEvalSeconds() const {
     const double loopSeconds = secondsSince(loopStart_);
-    if (step_ == firstStep_ || loopSeconds < 0.5) return 0.0;
+    if (!config_.finalEvaluation || step_ == firstStep_ || loopSeconds < 0.5) return 0.0;
     const double evalSamples = static_cast<double>(set_.groups()) * set_.images();
     return evalSamples / (3 * samplesPerSecond(loopSeconds));
   }
@@ -704,13 +704,14 @@ TrainResult TrainingRun::finish() {
   if (!config_.checkpointPath.empty() && !result.interrupted) writeCheckpointNow();
 
   // ---- Exact RMSE over texels x images x channels (eq. 10), from per-cluster sums.
-  if (result.interrupted) {
-    result.rmseTrain = result.rmseHoldout = -1;
-  } else {
-    detail::RmsError rmse = detail::evaluateRmse(set_, *backprop_, latents, config_.progress,
-                                                 clusterInputs_ > 0 ? clusterPlanes_.data_ptr<float>() : nullptr);
-    result.rmseTrain = rmse.train;
-    result.rmseHoldout = rmse.holdout;
+  result.rmseTrain = result.rmseHoldout = -1;
+  if (!result.interrupted) {
+    if (config_.finalEvaluation) {
+      detail::RmsError rmse = detail::evaluateRmse(set_, *backprop_, latents, config_.progress,
+                                                   clusterInputs_ > 0 ? clusterPlanes_.data_ptr<float>() : nullptr);
+      result.rmseTrain = rmse.train;
+      result.rmseHoldout = rmse.holdout;
+    }
     if (!set_.perTexel()) result.rmseFloor = std::sqrt(withinTrain_);
     if (!set_.plainWithinSse().empty()) {
       double sse = 0;

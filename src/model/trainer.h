@@ -163,6 +163,11 @@ struct TrainConfig {
   // skipped. (Weight shapes do not depend on k: latents are the encoder's outputs.)
   bool warmStart = false;
   bool progress = true;
+  // The final exact RMSE over every cluster (or texel) x image: TrainResult::rmseTrain and
+  // rmseHoldout. The compressor turns it off when it measures the stored file instead (its
+  // rounded parts and refit coefficients): then both are -1, and a time budget keeps no time
+  // for it.
+  bool finalEvaluation = true;
   // ---- backend (docs/model.md, *Training backends*)
   // "fused": the hand-written CPU kernels (decoder pass, conv + pool, BatchNorm, Adam), fast
   // and checked against torch in tests. "torch": stock libtorch modules, autograd and

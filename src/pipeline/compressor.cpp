@@ -166,6 +166,12 @@ std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, cons
   return orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, ids, clusters, mc.channels);
 }
 
+bool assemblyMeasures(const TrainConfig& config, int clusters) {
+  const StorageConfig& s = config.storage;
+  return (clusters > 0 && config.modulation.mode != "none") || s.decoder == "half" || s.decoder == "int8" ||
+         s.latents == "half";
+}
+
 CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
                                  TrainResult& train, std::vector<std::int32_t> ids, int clusters,
                                  const std::vector<float>& texelCoefficients, const std::vector<int>& trainImages,
@@ -214,7 +220,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
         fitted, mc.terms, mc.bits, mc.channels,
         mc.codes == "decorrelated" && mc.channels == 3 ? ModulationCodes::Decorrelated : ModulationCodes::Linear);
   }
-  if (b.storage.anyRounding() || modulated) {
+  if (b.storage.anyRounding() || modulated || train.rmseTrain < 0) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
@@ -440,6 +446,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
   config.progress = config.progress && o.progress;
   config.stopFlag = o.stopFlag;
   config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
+  config.finalEvaluation = !detail::assemblyMeasures(config, o.clusters);  // its figures would be replaced
   stats.checkpointPath = config.checkpointPath;
   if (config.distributed.enabled())
     config.distributed.mustAgree = distributedSettings(stack, o, config, inputs.ids, pcaComponents);

@@ -28,10 +28,15 @@ std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, cons
                                         int clusters, const std::vector<std::uint8_t>& holdout,
                                         const ModulationConfig& modulation, bool progress);
 
+// Whether assembleCompressed measures the decoded file under `config` (its decoder or latents
+// rounded, or per-texel modulation refit): then training's own final evaluation is not needed.
+bool assemblyMeasures(const TrainConfig& config, int clusters);
+
 // The trained parts -> a compressed material: decoder, latents, ids, hold-out list, storage
 // rounding and (modulated) the per-texel coefficients refit to the trained terms. When
-// rounding or modulation changes what the file decodes to, train.rmseTrain / rmseHoldout are
-// replaced by the decoded RMSE. Moves the decoder, latents and encoder state out of `train`.
+// rounding or modulation changes what the file decodes to, or training did not measure it
+// (train.rmseTrain < 0), train.rmseTrain / rmseHoldout become the decoded RMSE. Moves the
+// decoder, latents and encoder state out of `train`.
 CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
                                  TrainResult& train, std::vector<std::int32_t> ids, int clusters,
                                  const std::vector<float>& texelCoefficients, const std::vector<int>& trainImages,

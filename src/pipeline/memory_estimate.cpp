@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "cluster/cluster_values.h"
+#include "cluster/pca.h"
 #include "io/ubo2014_btf.h"
 #include "preprocess/abrdf_source.h"
 #include "util/error.h"
@@ -27,12 +28,21 @@ struct Stage {
 };
 
 // Clustering from the stack: the source's tables and slices, the PCA's texels x sketch and
-// 3N x sketch matrices (a few alive at once: Q, the product, the QR's copy), k-means' scores.
+// 3N x sketch matrices (a few alive at once: Q, the product, the QR's copy; on a large
+// material its sample of texels instead), k-means' scores.
 Stage clusteringStage(const StackShape& shape, int components, int oversampling, int workers) {
   const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
   const std::size_t sketch = static_cast<std::size_t>(std::max(1, components + oversampling));
   const std::size_t source = StackAbrdfSource::workingBytes(shape.texels(), shape.images(), shape.type, workers);
-  const std::size_t pca = 4 * m * sketch * kFloat + 4 * d * sketch * kFloat;
+  // Sampling (cluster/pca.h): the sample and its small products, then the texels x sketch
+  // projection; never both at once.
+  const PcaOptions pcaOptions;
+  const auto dims = static_cast<Eigen::Index>(d);
+  const std::size_t sample =
+      pcaOptions.samples(shape.texels(), dims) ? static_cast<std::size_t>(pcaOptions.sampleRows(dims)) : 0;
+  const std::size_t products = sample ? std::max((sample * d + 4 * sample * sketch) * kFloat, 2 * m * sketch * kFloat)
+                                      : 4 * m * sketch * kFloat;
+  const std::size_t pca = products + 4 * d * sketch * kFloat;
   const std::size_t kmeans = 3 * m * static_cast<std::size_t>(std::max(1, components)) * kFloat + 32 * m;
   return {source + pca + kmeans, "PCA of the streamed ABRDF matrix"};
 }

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <ctime>
 #include <tuple>
+#include <utility>
 
 #include "model/batch_norm.h"
 #include "model/conv_pool.h"
@@ -50,14 +51,17 @@ DecoderBatch randomDecoderBatch(const ModelConfig& model, std::uint64_t seed, in
 
 }  // namespace
 
-double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads,
-                            bool bf16Products) {
+namespace {
+
+// decoderBackpropError's and decoderInputGradientError's figures, from one batch.
+std::pair<double, double> decoderBackpropErrors(const ModelConfig& model, std::uint64_t seed, int tiles,
+                                                int rowsPerTile, int threads, bool bf16Products) {
   if (threads > 0) torch::set_num_threads(threads);
   auto [decoder, z, dirs, targets] = randomDecoderBatch(model, seed, tiles, rowsPerTile);
 
   // Autograd on the plain concatenated input.
-  torch::Tensor zAuto = z.clone().requires_grad_(true);
-  torch::Tensor input = torch::cat({zAuto.repeat_interleave(rowsPerTile, 0), dirs}, 1);
+  torch::Tensor zAuto = z.clone().requires_grad_(true), dirsAuto = dirs.clone().requires_grad_(true);
+  torch::Tensor input = torch::cat({zAuto.repeat_interleave(rowsPerTile, 0), dirsAuto}, 1);
   torch::Tensor loss = torch::mse_loss(decoder->forward(input), targets);
   decoder->zero_grad();
   loss.backward();
@@ -67,22 +71,41 @@ double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int ti
   for (auto& p : decoder->parameters())
     if (p.grad().defined()) expected.push_back(p.grad().clone());
   expected.push_back(zAuto.grad().clone());
+  // The gradient of the last few direction inputs (what the direction planes' features get).
+  constexpr int kTrailing = 3;
+  const torch::Tensor expectedInputs = dirsAuto.grad().narrow(1, dirs.size(1) - kTrailing, kTrailing).contiguous();
 
   // The hand-written pass.
   detail::DecoderBackprop backprop(decoder, model.latentDim);
   backprop.setBf16Products(bf16Products);
+  backprop.setTrailingInputGradient(kTrailing);
   torch::Tensor dz;
   double manualLoss = backprop.trainStep(z, dirs, targets, rowsPerTile, dz);
   std::vector<torch::Tensor> got;
   for (auto& p : decoder->parameters())
     if (p.grad().defined()) got.push_back(p.grad().clone());
   got.push_back(dz);
+  const torch::Tensor gotInputs =
+      torch::from_blob(const_cast<float*>(backprop.inputGradient().data()), expectedInputs.sizes(), torch::kFloat);
 
   double scale = 0, err = std::abs(manualLoss - loss.item<double>()) / std::max(1e-30, loss.item<double>());
   for (auto& e : expected) scale = std::max(scale, e.abs().max().item<double>());
   for (std::size_t i = 0; i < got.size(); ++i)
     err = std::max(err, (got[i] - expected[i]).abs().max().item<double>() / scale);
-  return err;
+  const double inputScale = std::max(1e-30, expectedInputs.abs().max().item<double>());
+  return {err, (gotInputs - expectedInputs).abs().max().item<double>() / inputScale};
+}
+
+}  // namespace
+
+double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads,
+                            bool bf16Products) {
+  return decoderBackpropErrors(model, seed, tiles, rowsPerTile, threads, bf16Products).first;
+}
+
+double decoderInputGradientError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile, int threads,
+                                 bool bf16Products) {
+  return decoderBackpropErrors(model, seed, tiles, rowsPerTile, threads, bf16Products).second;
 }
 
 std::vector<float> decoderTrainStepResult(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,

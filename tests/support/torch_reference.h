@@ -21,9 +21,13 @@ ReferenceDecoder referenceDecoder(const ModelConfig& model, std::uint64_t seed, 
 // same random batch (tiles x rowsPerTile rows); returns the largest difference over all
 // parameter gradients and the latent gradient, relative to the largest gradient magnitude.
 // threads > 0 sets torch's thread count first (the pass splits its rows among threads).
-// bf16Products: the hand-written pass's hidden layers take bfloat16 operands (autograd stays float).
+// bf16Products: the hand-written pass's products take bfloat16 operands (autograd stays float).
 double decoderBackpropError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
                             int threads = 0, bool bf16Products = false);
+// The same pass's gradient of the last 3 direction inputs of every row (what the direction
+// planes' features get): the largest difference relative to its largest magnitude.
+double decoderInputGradientError(const ModelConfig& model, std::uint64_t seed, int tiles, int rowsPerTile,
+                                 int threads = 0, bool bf16Products = false);
 
 // The hand-written decoder pass's loss, every parameter gradient and the latent gradient,
 // concatenated, for a random batch like decoderBackpropError's, on `threads` threads.
