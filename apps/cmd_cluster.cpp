@@ -37,6 +37,9 @@ int clusterStack(const cxxopts::ParseResult& args) {
   options.pca.components = args["components"].as<int>();
   options.pca.powerIterations = args["power-iterations"].as<int>();
   options.pca.oversampling = args["oversampling"].as<int>();
+  const int sampleMib = args["pca-sample"].as<int>();
+  if (sampleMib < 0) throw Error("--pca-sample must be >= 0 (MiB; 0: every texel), got " + std::to_string(sampleMib));
+  options.pca.sampleBytes = static_cast<std::size_t>(sampleMib) << 20;
   options.kmeans.maxIterations = args["max-iterations"].as<int>();
   options.seed = args["seed"].as<std::uint64_t>();
   const std::string representative = args["representative"].as<std::string>();
@@ -72,7 +75,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   {
     const StackShape shape = stackShape(input, load);
     MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,
-                                                    options.pca.oversampling, threadCount());
+                                                    options.pca.oversampling, threadCount(), options.pca.sampleBytes);
     // The output folder may not exist yet: its nearest existing folder holds the scratch file.
     fs::path near = fs::absolute(outDir);
     while (!near.empty() && !fs::is_directory(near) && near != near.parent_path()) near = near.parent_path();
@@ -133,9 +136,13 @@ int clusterStack(const cxxopts::ParseResult& args) {
   const auto& sizes = summary["cluster_sizes"];
   std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, width, height, images,
               options.clusters, info.totalSeconds);
-  std::printf("  PCA          %d components: %.2f%% of the variance of the %s (%.2f s)\n", options.pca.components,
+  const std::string sampled = result.pcaSampledTexels > 0
+                                  ? ", subspace from " + std::to_string(result.pcaSampledTexels) + " sampled texels"
+                                  : "";
+  std::printf("  PCA          %d components: %.2f%% of the variance of the %s (%.2f s%s)\n", options.pca.components,
               100.0 * result.explainedVarianceRatio,
-              space == ClusteringSpace::Linear ? "linear ABRDFs / alpha" : "standardized log ABRDFs", result.pcaSeconds);
+              space == ClusteringSpace::Linear ? "linear ABRDFs / alpha" : "standardized log ABRDFs", result.pcaSeconds,
+              sampled.c_str());
   std::printf("  k-means      inertia %.6g in PCA space (%.4g per texel), %d iterations%s (%.2f s)\n",
               result.inertia, result.inertia / texels, result.iterations,
               result.converged ? ", converged" : ", iteration limit reached", result.kmeansSeconds);
@@ -163,6 +170,10 @@ int clusterMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value(std::to_string(PcaOptions().powerIterations)))(
         "oversampling", "PCA sketch columns beyond --components",
         cxxopts::value<int>()->default_value(std::to_string(PcaOptions().oversampling)))(
+        "pca-sample",
+        "MiB of texels (as floats) PCA finds its subspace on when the input has at least 4 times as many; every "
+        "texel is then projected onto it (0: every texel in every pass)",
+        cxxopts::value<int>()->default_value(std::to_string(PcaOptions().sampleBytes >> 20)))(
         "max-iterations", "k-means iteration limit",
         cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
         "representative", "Cluster representative: median or mean",

@@ -110,6 +110,10 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
   EXPECT_GT(summary["pca"]["explained_variance_ratio"].get<double>(), 0.5);
   EXPECT_TRUE(summary["seconds"].contains("total"));
   EXPECT_EQ(summary["space"], clusteringSpaceName(kDefaultClusteringSpace));
+  // 96 texels are far too few for PCA to sample (cluster/pca.h); the budget is recorded.
+  EXPECT_EQ(summary["pca"]["sampled_texels"], 0);
+  EXPECT_EQ(summary["pca"]["sample_mib"], PcaOptions().sampleBytes >> 20);
+  EXPECT_EQ(output.find("sampled texels"), std::string::npos) << output;
 
   // Either space finds the two materials: the same halves, recorded as such.
   for (const char* space : {"linear", "log"}) {
@@ -190,6 +194,9 @@ TEST_F(ClusterCliTest, BadClusterCountsFailClearlyAndWriteNothing) {
 
   EXPECT_EQ(run((root_ / "stack").string() + " --clusters 2 --components 13 -q -o " + out.string(), output), 1);
   EXPECT_NE(output.find("--components 13"), std::string::npos) << output;
+
+  EXPECT_EQ(run((root_ / "stack").string() + " --clusters 2 --pca-sample -1 -q -o " + out.string(), output), 1);
+  EXPECT_NE(output.find("--pca-sample must be >= 0"), std::string::npos) << output;
 
   EXPECT_EQ(run((root_ / "missing").string() + " --clusters 2 -q -o " + out.string(), output), 1);
   EXPECT_NE(output.find("missing"), std::string::npos) << output;

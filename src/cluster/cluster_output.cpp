@@ -164,6 +164,8 @@ nlohmann::json clusteringSummary(const ClusteringResult& result, const Clusterin
   j["pca"] = {{"components", result.explainedVariance.size()},
               {"power_iterations", options.pca.powerIterations},
               {"oversampling", options.pca.oversampling},
+              {"sample_mib", options.pca.sampleBytes >> 20},
+              {"sampled_texels", result.pcaSampledTexels},
               {"space", "standardized log(x + 1) ABRDFs"},
               {"explained_variance_ratio", result.explainedVarianceRatio},
               {"explained_variance", std::vector<float>(result.explainedVariance.data(),

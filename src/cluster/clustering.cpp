@@ -216,6 +216,7 @@ ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& op
   result.pcaSeconds = secondsSince(start);
   result.explainedVariance = pca.explainedVariance;
   result.explainedVarianceRatio = pca.explainedRatio();
+  result.pcaSampledTexels = pca.sampledTexels;
 
   start = std::chrono::steady_clock::now();
   KMeansOptions kmeansOptions = options.kmeans;

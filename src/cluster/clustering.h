@@ -45,6 +45,7 @@ struct ClusteringResult {
   int reseeded = 0, emptyClusters = 0;
   double explainedVarianceRatio = 0;
   Eigen::VectorXf explainedVariance;  // C: variance of the clustered ABRDFs (x, or space) along each component
+  Eigen::Index pcaSampledTexels = 0;  // texels PCA found its subspace on (0: all; cluster/pca.h)
   MatrixXfCol scores;                 // M x C PCA scores when options.keepScores, else empty
   double pcaSeconds = 0, kmeansSeconds = 0, representativeSeconds = 0;
 };

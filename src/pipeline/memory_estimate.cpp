@@ -30,13 +30,15 @@ struct Stage {
 // Clustering from the stack: the source's tables and slices, the PCA's texels x sketch and
 // 3N x sketch matrices (a few alive at once: Q, the product, the QR's copy; on a large
 // material its sample of texels instead), k-means' scores.
-Stage clusteringStage(const StackShape& shape, int components, int oversampling, int workers) {
+Stage clusteringStage(const StackShape& shape, int components, int oversampling, int workers,
+                      std::size_t pcaSampleBytes = PcaOptions().sampleBytes) {
   const std::size_t m = static_cast<std::size_t>(shape.texels()), d = 3 * static_cast<std::size_t>(shape.images());
   const std::size_t sketch = static_cast<std::size_t>(std::max(1, components + oversampling));
   const std::size_t source = StackAbrdfSource::workingBytes(shape.texels(), shape.images(), shape.type, workers);
   // Sampling (cluster/pca.h): the sample and its small products, then the texels x sketch
   // projection; never both at once.
-  const PcaOptions pcaOptions;
+  PcaOptions pcaOptions;
+  pcaOptions.sampleBytes = pcaSampleBytes;
   const auto dims = static_cast<Eigen::Index>(d);
   const std::size_t sample =
       pcaOptions.samples(shape.texels(), dims) ? static_cast<std::size_t>(pcaOptions.sampleRows(dims)) : 0;
@@ -111,12 +113,12 @@ std::string stackScratchDir(const StackStorageOptions& options, const std::strin
 }
 
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
-                                     int workers) {
+                                     int workers, std::size_t pcaSampleBytes) {
   (void)clusters;
   MemoryEstimate e;
   e.stack = shape.stackBytes();
   e.process = kProcess;
-  Stage a = clusteringStage(shape, components, oversampling, workers);
+  Stage a = clusteringStage(shape, components, oversampling, workers, pcaSampleBytes);
   e.working = a.bytes;
   e.stage = a.name;
   return e;

@@ -47,9 +47,9 @@ struct StackStorageOptions {
 // file (Auto) or warns about tmpfs (File).
 std::string stackScratchDir(const StackStorageOptions& options, const std::string& defaultDir,
                             const std::string& input, MemoryEstimate& estimate, std::size_t limit, bool announce);
-// `nbtf cluster` (no training; the texel colour images).
+// `nbtf cluster` (no training; the texel colour images); pcaSampleBytes: PcaOptions::sampleBytes.
 MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int components, int oversampling,
-                                     int workers);
+                                     int workers, std::size_t pcaSampleBytes);
 
 // Throws nbtf::Error naming the input, its shape, the estimate and the limit when the estimate
 // is above `limit`; `limitText` says where the limit came from (e.g. "--memory-limit 8G").
