@@ -63,6 +63,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
 
   ClusterRunInfo info;
   info.input = input;
+  info.space = space;
   info.threads = threadCount();
   auto step = std::chrono::steady_clock::now();
   LoadOptions load;

@@ -126,7 +126,10 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
       for (int x = 0; x < 12; ++x)
         EXPECT_EQ(labelFromColour(&spaceLabels.rgb[3 * (y * 12 + x)]) == labelFromColour(&spaceLabels.rgb[0]), x < 6)
             << space << " " << x << "," << y;
-    EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "summary.json"))["space"], space);
+    const nlohmann::json spaceSummary = nlohmann::json::parse(std::ifstream(dir / "summary.json"));
+    EXPECT_EQ(spaceSummary["space"], space);
+    EXPECT_EQ(spaceSummary["pca"]["space"],
+              std::string(space) == "linear" ? "linear ABRDFs / alpha" : "standardized log(x + 1) ABRDFs");
     // The explained variance says which values it is of.
     const std::string values = std::string(space) == "linear" ? "linear ABRDFs / alpha" : "standardized log ABRDFs";
     EXPECT_NE(output.find("of the variance of the " + values + " ("), std::string::npos) << output;

@@ -90,6 +90,10 @@ TEST(ClusterOutput, SummaryReportsTheRun) {
   EXPECT_EQ(j["clusters"][1]["size"], 3);
   EXPECT_TRUE(j["seconds"].contains("pca"));
   EXPECT_EQ(j["input"], "/data/wool");
+  // The explained variance says which values it is of.
+  EXPECT_EQ(j["pca"]["space"], "standardized log(x + 1) ABRDFs");
+  info.space = ClusteringSpace::Linear;
+  EXPECT_EQ(clusteringSummary(r, o, info)["pca"]["space"], "linear ABRDFs / alpha");
 }
 
 }  // namespace

@@ -166,7 +166,7 @@ nlohmann::json clusteringSummary(const ClusteringResult& result, const Clusterin
               {"oversampling", options.pca.oversampling},
               {"sample_mib", options.pca.sampleBytes >> 20},
               {"sampled_texels", result.pcaSampledTexels},
-              {"space", "standardized log(x + 1) ABRDFs"},
+              {"space", info.space == ClusteringSpace::Linear ? "linear ABRDFs / alpha" : "standardized log(x + 1) ABRDFs"},
               {"explained_variance_ratio", result.explainedVarianceRatio},
               {"explained_variance", std::vector<float>(result.explainedVariance.data(),
                                                         result.explainedVariance.data() +

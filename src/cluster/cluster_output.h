@@ -44,6 +44,7 @@ struct ClusterRunInfo {
   int width = 0, height = 0, images = 0;
   Crop crop;
   float alpha = 0;  // target normalization (linear)
+  ClusteringSpace space = ClusteringSpace::Log;  // the values PCA and k-means ran on
   int threads = 0;
   // matrixSeconds: the texel colours (one read of the stack); standardizeSeconds: the
   // standardization's statistics (another). The ABRDF matrix is streamed, never built.
