@@ -140,6 +140,12 @@ TEST(Pca, TheSampleFitsItsMemoryAndOnlyLargeMaterialsTakeOne) {
   EXPECT_TRUE(o.samples(256 * 256, 3 * 6561));
   EXPECT_TRUE(o.samples(256 * 256, 3 * 81));   // 4 x 16,384
   EXPECT_FALSE(o.samples(256 * 256 - 1, 3 * 81));
+  // A sketch the sample could not hold twice over: every texel instead.
+  PcaOptions wide;
+  wide.components = 1700;  // sketch 1748; 2 x 1748 > 3409
+  EXPECT_FALSE(wide.samples(256 * 256, 3 * 6561));
+  wide.components = 1650;  // 2 x 1698 <= 3409
+  EXPECT_TRUE(wide.samples(256 * 256, 3 * 6561));
 }
 
 TEST(Pca, SameSeedSameResult) {

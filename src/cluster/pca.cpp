@@ -26,7 +26,8 @@ Eigen::Index PcaOptions::sampleRows(Eigen::Index dims) const {
 }
 
 bool PcaOptions::samples(Eigen::Index rows, Eigen::Index dims) const {
-  return sampleBytes > 0 && rows >= 4 * sampleRows(dims);
+  const Eigen::Index sample = sampleRows(dims);
+  return sampleBytes > 0 && rows >= 4 * sample && sample >= 2 * (components + oversampling);
 }
 
 double PcaResult::explainedRatio() const {

@@ -31,7 +31,8 @@ struct PcaOptions {
   std::size_t sampleBytes = std::size_t(256) << 20;
   // The sample for D dimensions: sampleBytes of float rows, between 2048 and 16384 texels.
   Eigen::Index sampleRows(Eigen::Index dims) const;
-  // Whether a PCA of rows x dims samples (sampleBytes > 0 and rows >= 4 x sampleRows(dims)).
+  // Whether a PCA of rows x dims samples (sampleBytes > 0, rows >= 4 x sampleRows(dims), and
+  // the sample at least twice the sketch, components + oversampling).
   bool samples(Eigen::Index rows, Eigen::Index dims) const;
 };
 

@@ -166,10 +166,26 @@ std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, cons
   return orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, ids, clusters, mc.channels);
 }
 
+namespace {
+
+// How `storage` stores a material's parts; clusterPlanes: whether it has per-cluster planes.
+PartStorage partStorage(const StorageConfig& storage, bool clusterPlanes) {
+  PartStorage s;
+  s.decoderHalf = storage.decoder == "half";
+  s.decoderInt8 = storage.decoder == "int8";
+  s.latentsHalf = storage.latents == "half";
+  s.idsZstd = storage.ids == "zstd";
+  s.metadataZstd = storage.metadata == "zstd";
+  s.directionsZstd = storage.directions == "zstd";
+  s.clusterPlanes8Bit = clusterPlanes && storage.clusterPlanes == "8bit";
+  return s;
+}
+
+}  // namespace
+
 bool assemblyMeasures(const TrainConfig& config, int clusters) {
-  const StorageConfig& s = config.storage;
-  return (clusters > 0 && config.modulation.mode != "none") || s.decoder == "half" || s.decoder == "int8" ||
-         s.latents == "half";
+  const bool modulated = clusters > 0 && config.modulation.mode != "none";
+  return modulated || partStorage(config.storage, config.model.clusterPlaneFeatures > 0).anyRounding();
 }
 
 CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& config, CodecMethod method, float alpha,
@@ -191,13 +207,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   std::sort(b.holdoutImages.begin(), b.holdoutImages.end());
   b.holdoutImages.erase(std::unique(b.holdoutImages.begin(), b.holdoutImages.end()), b.holdoutImages.end());
   b.encoderState = std::move(train.encoderState);
-  b.storage.decoderHalf = config.storage.decoder == "half";
-  b.storage.decoderInt8 = config.storage.decoder == "int8";
-  b.storage.latentsHalf = config.storage.latents == "half";
-  b.storage.idsZstd = config.storage.ids == "zstd";
-  b.storage.metadataZstd = config.storage.metadata == "zstd";
-  b.storage.directionsZstd = config.storage.directions == "zstd";
-  b.storage.clusterPlanes8Bit = !b.clusterPlanes.empty() && config.storage.clusterPlanes == "8bit";
+  b.storage = partStorage(config.storage, !b.clusterPlanes.empty());
   roundToStorage(b);
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
@@ -470,8 +480,6 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
     stats.worker = true;
     return {};
   }
-  stats.rmseTrain = train.rmseTrain;
-  stats.rmseHoldout = train.rmseHoldout;
   if (o.clusters > 0) {
     if (!modulated) {
       stats.rmseFloor = train.rmseFloor;

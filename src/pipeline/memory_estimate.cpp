@@ -38,6 +38,8 @@ Stage clusteringStage(const StackShape& shape, int components, int oversampling,
   // Sampling (cluster/pca.h): the sample and its small products, then the texels x sketch
   // projection; never both at once.
   PcaOptions pcaOptions;
+  pcaOptions.components = components;
+  pcaOptions.oversampling = oversampling;
   pcaOptions.sampleBytes = pcaSampleBytes;
   const auto dims = static_cast<Eigen::Index>(d);
   const std::size_t sample =
