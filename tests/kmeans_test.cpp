@@ -117,6 +117,41 @@ TEST(KMeans, ASettledFractionStopsOnceFewPointsMove) {
   EXPECT_THROW(kmeansFromCenters(blobs.points, start, bad), Error);
 }
 
+// The centre-shift rule stops Lloyd once the centres' squared moves in a round sum to at most
+// shiftTolerance x the points' mean variance, with points still moving; it is off (the run is
+// the full one) where the settled fraction is under one point, and at 0.
+TEST(KMeans, ACentreShiftToleranceStopsOnceTheCentresHardlyMove) {
+  auto blobs = makeBlobs(12, 50, 8, 5.0f, 4);  // 600 points
+  MatrixXfCol start(20, 8);
+  for (int j = 0; j < 20; ++j) start.row(j) = blobs.points.row(j * 29);
+  KMeansOptions full = quiet(20);
+  full.settledFraction = 0;
+  const KMeansResult exact = kmeansFromCenters(blobs.points, start, full);
+  ASSERT_TRUE(exact.converged);
+  ASSERT_GT(exact.iterations, 3);
+
+  KMeansOptions small = quiet(20);  // 600 x 1e-5 < 1 point: no settling rule
+  small.shiftTolerance = 1e3;
+  EXPECT_EQ(kmeansFromCenters(blobs.points, start, small).ids, exact.ids);
+
+  KMeansOptions large = quiet(20);
+  large.settledFraction = 1.0 / 600 + 1e-9;  // one point: the rules apply
+  large.shiftTolerance = 0;
+  const KMeansResult off = kmeansFromCenters(blobs.points, start, large);
+  large.shiftTolerance = 0.05;
+  const KMeansResult early = kmeansFromCenters(blobs.points, start, large);
+  EXPECT_TRUE(early.converged);
+  EXPECT_LT(early.iterations, off.iterations);
+  EXPECT_GT(early.lastMoved, 1u);  // stopped by the shift, not by the moved points
+  EXPECT_LT(early.inertia, exact.inertia * 1.05);
+  EXPECT_GE(early.inertia, exact.inertia * (1 - 1e-6));
+
+  large.shiftTolerance = -1;
+  EXPECT_THROW(kmeansFromCenters(blobs.points, start, large), Error);
+  large.shiftTolerance = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(kmeansFromCenters(blobs.points, start, large), Error);
+}
+
 TEST(KMeans, InertiaAndCentresMatchTheAssignment) {
   auto blobs = makeBlobs(10, 30, 3, 6.0f, 5);
   KMeansResult r = kmeansPlusPlus(blobs.points, quiet(10));

@@ -204,10 +204,24 @@ struct Lloyd {
   }
 };
 
+// The points' variance per coordinate, averaged over the coordinates (in double).
+double meanVariance(const RowMatrixXf& points) {
+  const Eigen::Index m = points.rows(), dims = points.cols();
+  Eigen::RowVectorXd mean = Eigen::RowVectorXd::Zero(dims);
+  for (Eigen::Index i = 0; i < m; ++i) mean += points.row(i).cast<double>();
+  mean /= static_cast<double>(m);
+  double sum = 0;
+  for (Eigen::Index i = 0; i < m; ++i) sum += (points.row(i).cast<double>() - mean).squaredNorm();
+  return sum / (static_cast<double>(m) * static_cast<double>(dims));
+}
+
 KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, const KMeansOptions& options,
                       KMeansResult result) {
   if (!(options.settledFraction >= 0 && options.settledFraction < 1))
     throw Error("k-means: the settled fraction must be in [0, 1), got " + std::to_string(options.settledFraction));
+  if (!(options.shiftTolerance >= 0 && std::isfinite(options.shiftTolerance)))
+    throw Error("k-means: the centre-shift tolerance must be finite and >= 0, got " +
+                std::to_string(options.shiftTolerance));
   const auto start = std::chrono::steady_clock::now();
   Lloyd lloyd(points);
   lloyd.centers = std::move(initialCenters);
@@ -217,6 +231,7 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
 
   Progress bar("k-means", options.maxIterations, options.progress);
   const auto settled = static_cast<std::size_t>(options.settledFraction * static_cast<double>(points.rows()));
+  const double shiftLimit = settled > 0 ? options.shiftTolerance * meanVariance(points) : -1.0;
   RowMatrixXf previous;
   for (int iteration = 1; iteration <= options.maxIterations; ++iteration) {
     previous = lloyd.centers;
@@ -227,13 +242,17 @@ KMeansResult runLloyd(const RowMatrixXf& points, RowMatrixXf initialCenters, con
       result.reseeded += reseeded;
       if (reseeded > 0) empty = lloyd.updateCenters();
     }
-    for (int j = 0; j < k; ++j) moved[j] = (lloyd.centers.row(j) - previous.row(j)).norm();
+    double shift = 0;  // squared, summed over the centres
+    for (int j = 0; j < k; ++j) {
+      moved[j] = (lloyd.centers.row(j) - previous.row(j)).norm();
+      shift += static_cast<double>(moved[j]) * moved[j];
+    }
     std::size_t changed = lloyd.assignStep(moved, false);
     result.iterations = iteration;
     bar.setStatus("moved " + std::to_string(changed) + " points");
     bar.advance();
     result.lastMoved = changed;
-    if (changed <= settled && reseeded == 0) {
+    if ((changed <= settled || shift <= shiftLimit) && reseeded == 0) {
       result.converged = true;
       break;
     }

@@ -12,11 +12,15 @@ namespace nbtf {
 struct KMeansOptions {
   int clusters = 500;
   int maxIterations = 300;  // Lloyd rounds; stops earlier when no point changes cluster
-  // Also stops once a round moves at most this fraction of the points (and re-seeds none):
-  // on large materials a few points on cluster borders can swap back and forth for hundreds
-  // of rounds that no longer change the inertia. Below 1 / fraction points (100,000 at the
-  // default) that is 0 points: only a round that moves none stops it.
+  // Two settling rules stop a round that re-seeds no cluster early: on large materials points
+  // on cluster borders can swap back and forth for hundreds of rounds that no longer change
+  // the inertia. Both apply only where settledFraction x points >= 1 (100,000 points at the
+  // default); smaller sets run until a round moves no point.
+  // 1. The round moved at most this fraction of the points.
   double settledFraction = 1e-5;
+  // 2. The centres' squared moves in the round sum to at most this times the points' mean
+  //    variance per coordinate (scikit-learn's tol). 0 turns the rule off.
+  double shiftTolerance = 1e-4;
   std::uint64_t seed = 1;
   bool progress = true;
   // Candidates drawn per k-means++ step, the one lowering the potential most is kept
@@ -31,7 +35,7 @@ struct KMeansResult {
   double inertia = 0;             // sum of squared distances to the assigned centre
   int iterations = 0;
   int reseeded = 0;               // empty clusters re-seeded
-  bool converged = false;         // stopped because no point (or at most settledFraction of them) changed cluster
+  bool converged = false;         // stopped because no point changed cluster, or by a settling rule
   std::size_t lastMoved = 0;      // points the last round moved (0 when fully converged)
   int emptyClusters = 0;          // clusters left empty (only when fewer distinct points than k)
   double seedingSeconds = 0, lloydSeconds = 0;
