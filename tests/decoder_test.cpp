@@ -184,6 +184,20 @@ void checkModulatedTexelsMix(int channels) {
   const Direction l{37.5, 200}, v{10, 45};
   std::vector<float> img(3 * 54);
   dec.decodeImage(l, v, img.data(), OutputScale::Normalized);
+  {
+    // The row terms, then their mix (what the compressor's RMSE reuses): decodeImage's floats,
+    // at the material's size and tiled, in both scales.
+    std::vector<float> rowTerms(3 * terms * k), mixed(3 * 54);
+    dec.decodeRowTerms(l, v, rowTerms.data());
+    dec.imageFromRowTerms(rowTerms.data(), mixed.data(), OutputScale::Normalized);
+    EXPECT_EQ(mixed, img);
+    std::vector<float> tiled(3 * 11 * 8), tiledMixed(3 * 11 * 8);
+    dec.decodeImage(l, v, tiled.data(), OutputScale::Linear, 11, 8);
+    dec.imageFromRowTerms(rowTerms.data(), tiledMixed.data(), OutputScale::Linear, 11, 8);
+    EXPECT_EQ(tiledMixed, tiled);
+    test::expectErrorContaining([&] { NbtfDecoder(rowsOnly).imageFromRowTerms(rowTerms.data(), mixed.data()); },
+                                {"no per-texel modulation"});
+  }
   std::vector<TexelQuery> byTexel;
   std::vector<UvQuery> byUv;
   auto lu = l.unitVector(), vu = v.unitVector();

@@ -503,6 +503,27 @@ void NbtfDecoder::decodeRowTerms(const Direction& light, const Direction& view, 
   else body(0, tiles);
 }
 
+void NbtfDecoder::imageFromRowTerms(const float* terms, float* rgb, OutputScale scale, int outWidth,
+                                    int outHeight) const {
+  if (!modulated()) throw Error(name_ + ": imageFromRowTerms: the material has no per-texel modulation");
+  if (outWidth == 0) outWidth = width();
+  if (outHeight == 0) outHeight = height();
+  if (outWidth < 0 || outHeight < 0)
+    throw Error("image size " + std::to_string(outWidth) + " x " + std::to_string(outHeight) + " is negative");
+  const int r = terms_;
+  const float factor = scale == OutputScale::Linear ? material_.alpha : 1.0f;
+  for (int y = 0; y < outHeight; ++y) {
+    const int sy = y % height();
+    float* dst = rgb + static_cast<std::size_t>(y) * outWidth * 3;
+    for (int x = 0, sx = 0; x < outWidth; ++x, sx = sx + 1 == width() ? 0 : sx + 1) {
+      const int texel = sy * width() + sx;
+      combineTerms(coefficients_.data() + static_cast<std::size_t>(texel) * r * channels_,
+                   terms + 3 * static_cast<std::size_t>(r) * latentRowOfTexel(texel), r, channels_, dst + 3 * x);
+      if (factor != 1.0f) dst[3 * x] *= factor, dst[3 * x + 1] *= factor, dst[3 * x + 2] *= factor;
+    }
+  }
+}
+
 void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, float* rgb, OutputScale scale,
                               int outWidth, int outHeight, bool parallel) const {
   if (outWidth == 0) outWidth = width();
@@ -518,20 +539,9 @@ void NbtfDecoder::decodeImage(const Direction& light, const Direction& view, flo
     // The R terms of every latent row once, then per texel its coefficients' mix.
     checkHemisphere(light, "light");
     checkHemisphere(view, "view");
-    const int r = terms_;
-    std::vector<float> terms(3 * static_cast<std::size_t>(r) * latentRows());
+    std::vector<float> terms(3 * static_cast<std::size_t>(terms_) * latentRows());
     decodeRowTerms(light, view, directionInput(light, view), terms.data(), parallel);
-    const float factor = scale == OutputScale::Linear ? material_.alpha : 1.0f;
-    for (int y = 0; y < outHeight; ++y) {
-      const int sy = y % height();
-      float* dst = rgb + static_cast<std::size_t>(y) * outWidth * 3;
-      for (int x = 0, sx = 0; x < outWidth; ++x, sx = sx + 1 == width() ? 0 : sx + 1) {
-        const int texel = sy * width() + sx;
-        combineTerms(coefficients_.data() + static_cast<std::size_t>(texel) * r * channels_,
-                     terms.data() + 3 * static_cast<std::size_t>(r) * latentRowOfTexel(texel), r, channels_, dst + 3 * x);
-        if (factor != 1.0f) dst[3 * x] *= factor, dst[3 * x + 1] *= factor, dst[3 * x + 2] *= factor;
-      }
-    }
+    imageFromRowTerms(terms.data(), rgb, scale, outWidth, outHeight);
     return;
   }
   std::vector<float> rows(3 * static_cast<std::size_t>(latentRows()));

@@ -161,6 +161,11 @@ class NbtfDecoder {
   // mixing: 3 x modulationTerms() floats per row (R = 1 without modulation), normalized
   // (linear / alpha). What the compressor refits per-texel coefficients to.
   void decodeRowTerms(const Direction& light, const Direction& view, float* terms, bool parallel = false) const;
+  // A modulated material's image from the terms decodeRowTerms gave at one (light, view): each
+  // texel's coefficients mix its row's terms (decodeImage's second half, bit for bit; an
+  // nbtf::Error for a material that is not modulated). Sizes as in decodeImage.
+  void imageFromRowTerms(const float* terms, float* rgb, OutputScale scale = OutputScale::Linear, int outWidth = 0,
+                         int outHeight = 0) const;
 
   // ---- Checks and mappings used by the above (exposed for front ends)
   void checkTexel(int x, int y) const;  // throws unless 0 <= x < width, 0 <= y < height

@@ -131,7 +131,8 @@ std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
 // and the held-out images, measured through the decoder: what the file will decode to.
 // Per-image sums added in image order, so the result does not depend on the thread count.
 std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack& stack, float alpha,
-                                      const std::vector<std::uint8_t>& holdout) {
+                                      const std::vector<std::uint8_t>& holdout,
+                                      const std::vector<const float*>& rowTerms) {
   const int images = stack.numImages(), views = stack.numViews();
   const std::size_t values = 3 * static_cast<std::size_t>(stack.numTexels());
   std::vector<double> sse(images, 0.0);
@@ -139,7 +140,11 @@ std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack
   parallelFor(images, [&](std::size_t begin, std::size_t end) {
     std::vector<float> decoded(values), reference(values);
     for (std::size_t i = begin; i < end; ++i) {
-      decoder.decodeImage(stack.lights()[i / views], stack.views()[i % views], decoded.data(), OutputScale::Normalized);
+      if (i < rowTerms.size() && rowTerms[i])
+        decoder.imageFromRowTerms(rowTerms[i], decoded.data(), OutputScale::Normalized);
+      else
+        decoder.decodeImage(stack.lights()[i / views], stack.views()[i % views], decoded.data(),
+                            OutputScale::Normalized);
       stack.imageLinear(static_cast<int>(i), reference.data());
       double s = 0;
       for (std::size_t j = 0; j < values; ++j) {
@@ -209,13 +214,17 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   b.encoderState = std::move(train.encoderState);
   b.storage = partStorage(config.storage, !b.clusterPlanes.empty());
   roundToStorage(b);
+  std::vector<float> terms;  // modulated: image by image (trainImages), every cluster's terms
+  std::vector<const float*> rowTerms;  // per image of the stack: its terms in `terms`, or null
   if (modulated) {
     // Refit: each texel's coefficients that best mix its cluster's trained (and rounded)
     // terms over the training images, then quantized as stored.
     b.modulation = quantizeTexelCoefficients(texelCoefficients, mc.terms, mc.bits, mc.channels);  // any valid codes
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
     const std::size_t k = static_cast<std::size_t>(clusters), n = trainImages.size(), outs = 3 * mc.terms;
-    std::vector<float> terms(k * n * outs);  // image by image, every cluster's terms
+    terms.resize(k * n * outs);
+    rowTerms.assign(stack.numImages(), nullptr);
+    for (std::size_t i = 0; i < n; ++i) rowTerms[trainImages[i]] = &terms[i * k * outs];
     const int views = stack.numViews();
     parallelFor(n, [&](std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) {
@@ -233,7 +242,7 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
   if (b.storage.anyRounding() || modulated || train.rmseTrain < 0) {
     // The rounded parts are what the file decodes to: measure those, not the trained floats.
     NbtfDecoder decoder(b, DecoderOptions{}, "compressed result");
-    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout);
+    std::tie(train.rmseTrain, train.rmseHoldout) = decodedRmse(decoder, stack, alpha, holdout, rowTerms);
   }
   return b;
 }

@@ -18,9 +18,12 @@ std::string metadataJson(const BtfStack& stack, const TrainConfig& config,
                          const CompressStats& stats, const std::string& adaptiveJson);
 
 // RMSE (eq. 10, linear / alpha) of what `decoder` decodes, on the training and the held-out
-// images (-1 when none). Independent of the thread count.
+// images (-1 when none). Independent of the thread count. A modulated material may pass, per
+// image, the terms decodeRowTerms already gave there (null: decoded here); the result is the
+// same to the bit, without evaluating the network again.
 std::pair<double, double> decodedRmse(const NbtfDecoder& decoder, const BtfStack& stack, float alpha,
-                                      const std::vector<std::uint8_t>& holdout);
+                                      const std::vector<std::uint8_t>& holdout,
+                                      const std::vector<const float*>& rowTerms = {});
 
 // The per-texel coefficients training uses for a clustering: a rank-`terms` SVD per cluster
 // (and channel, with channels 3) over the training images, orthonormalized per cluster.
