@@ -9,12 +9,14 @@
 #include <cmath>
 #include <random>
 
+#include "cluster/cluster_output.h"
 #include "cluster/clustering.h"
 #include "cluster/pca.h"
 #include "test_util.h"
 #include "util/error.h"
 #include "util/parallel.h"
 #include "util/progress.h"
+#include "util/scratch_mapping.h"
 
 namespace nbtf {
 namespace {
@@ -58,6 +60,30 @@ class AbrdfSourceTest : public ::testing::Test {
   void SetUp() override { Progress::setQuiet(true); }
   void TearDown() override { setThreadCount(0); }
 };
+
+// The texel colours `nbtf cluster` draws, from the stack (8-bit or half, in memory or in a
+// scratch file): the matrix version's floats, and read image by image, so a stack in a scratch
+// file is copied out, not mapped (read texel by texel, every page of the file was mapped in).
+TEST_F(AbrdfSourceTest, TexelColoursEqualTheMatrixVersionAndMapNoScratchPages) {
+  test::TempDir scratch;
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half}) {
+    for (const std::string& dir : {std::string(), scratch.path()}) {
+      const std::string where = std::string(sampleTypeName(type)) + (dir.empty() ? " in memory" : " in a scratch file");
+      const BtfStack stack = structuredStack(67, 61, 9, 9, type, 3, dir);
+      const std::size_t mappedBefore = residentFileBytes();
+      const Eigen::MatrixXf fromStack = texelMeanColour(stack);
+      const std::size_t mappedAfter = residentFileBytes();
+      MatrixXfCol linear(stack.numTexels(), 3 * stack.numImages());
+      for (int t = 0; t < stack.numTexels(); ++t) {
+        const std::vector<float> abrdf = stack.abrdfLinear(t);
+        for (int d = 0; d < linear.cols(); ++d) linear(t, d) = abrdf[d];
+      }
+      EXPECT_TRUE(fromStack == texelMeanColour(linear)) << where;
+      if (!dir.empty())
+        EXPECT_LT(mappedAfter, mappedBefore + stack.numImages() * stack.bytesPerImage() / 4) << where;
+    }
+  }
+}
 
 // An 8-bit stack's pass takes the logarithms from a table of its 256 values, in memory or read
 // out of a scratch file; a half stack's computes them: the same statistics either way.

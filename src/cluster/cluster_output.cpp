@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <numeric>
 #include <sstream>
 
 #include "io/color.h"
@@ -84,16 +85,25 @@ Eigen::MatrixXf texelMeanColour(const BtfStack& stack) {
   if (images == 0) throw Error("texel colours: the stack has no images");
   Eigen::MatrixXf out(m, 3);
   // Texel ranges in parallel; within a range, images in order: the sums of the matrix version.
+  // A range is read image by image as one span (copied out of a stack in a scratch file), not
+  // texel by texel across all images, which would map every page of such a file at once.
+  constexpr std::size_t kSpan = 2048;
   parallelFor(m, [&](std::size_t begin, std::size_t end) {
-    const Eigen::Index n = static_cast<Eigen::Index>(end - begin);
-    Eigen::ArrayXXd sum = Eigen::ArrayXXd::Zero(n, 3);
-    std::vector<float> abrdf(3 * static_cast<std::size_t>(images));
-    for (Eigen::Index i = 0; i < n; ++i) {
-      stack.abrdfLinear(static_cast<int>(begin + i), abrdf.data());
-      for (int image = 0; image < images; ++image)
-        for (int c = 0; c < 3; ++c) sum(i, c) += static_cast<double>(abrdf[3 * image + c]);
+    std::vector<int> texels;
+    std::vector<float> values;
+    for (std::size_t first = begin; first < end; first += kSpan) {
+      const int n = static_cast<int>(std::min(kSpan, end - first));
+      texels.resize(n);
+      std::iota(texels.begin(), texels.end(), static_cast<int>(first));
+      values.resize(3 * static_cast<std::size_t>(n));
+      Eigen::ArrayXXd sum = Eigen::ArrayXXd::Zero(n, 3);
+      for (int image = 0; image < images; ++image) {
+        stack.gatherLinear(&image, 1, texels.data(), n, values.data());  // values[c * n + i]
+        for (int c = 0; c < 3; ++c)
+          for (int i = 0; i < n; ++i) sum(i, c) += static_cast<double>(values[static_cast<std::size_t>(c) * n + i]);
+      }
+      out.middleRows(static_cast<Eigen::Index>(first), n) = (sum / static_cast<double>(images)).cast<float>().matrix();
     }
-    out.middleRows(begin, n) = (sum / static_cast<double>(images)).cast<float>().matrix();
   }, 256);
   return out;
 }
