@@ -90,16 +90,26 @@ TEST(KMeans, BoundsReproducePlainLloyd) {
   EXPECT_EQ(r.iterations, referenceIterations);
 }
 
+// What the settling rules are checked on: 600 points in 12 blobs, 20 starting centres, and
+// the full run from them (no settling rule).
+struct SettlingCase {
+  testing::Blobs blobs = makeBlobs(12, 50, 8, 5.0f, 4);
+  MatrixXfCol start = MatrixXfCol(20, 8);
+  KMeansResult exact;
+  SettlingCase() {
+    for (int j = 0; j < 20; ++j) start.row(j) = blobs.points.row(j * 29);
+    KMeansOptions full = quiet(20);
+    full.settledFraction = 0;
+    exact = kmeansFromCenters(blobs.points, start, full);
+  }
+};
+
 // A settled fraction stops Lloyd once a round moves at most that share of the points: no
 // later than the full run, with an inertia within a hair of it; below 1 / fraction points it
 // is the full run (the default changes nothing under 100,000 points).
 TEST(KMeans, ASettledFractionStopsOnceFewPointsMove) {
-  auto blobs = makeBlobs(12, 50, 8, 5.0f, 4);  // 600 points
-  MatrixXfCol start(20, 8);
-  for (int j = 0; j < 20; ++j) start.row(j) = blobs.points.row(j * 29);
-  KMeansOptions full = quiet(20);
-  full.settledFraction = 0;
-  const KMeansResult exact = kmeansFromCenters(blobs.points, start, full);
+  const SettlingCase c;
+  const auto& [blobs, start, exact] = c;
   ASSERT_TRUE(exact.converged);
   ASSERT_GT(exact.iterations, 3);
   EXPECT_EQ(exact.lastMoved, 0u);
@@ -121,12 +131,8 @@ TEST(KMeans, ASettledFractionStopsOnceFewPointsMove) {
 // shiftTolerance x the points' mean variance, with points still moving; it is off (the run is
 // the full one) where the settled fraction is under one point, and at 0.
 TEST(KMeans, ACentreShiftToleranceStopsOnceTheCentresHardlyMove) {
-  auto blobs = makeBlobs(12, 50, 8, 5.0f, 4);  // 600 points
-  MatrixXfCol start(20, 8);
-  for (int j = 0; j < 20; ++j) start.row(j) = blobs.points.row(j * 29);
-  KMeansOptions full = quiet(20);
-  full.settledFraction = 0;
-  const KMeansResult exact = kmeansFromCenters(blobs.points, start, full);
+  const SettlingCase c;
+  const auto& [blobs, start, exact] = c;
   ASSERT_TRUE(exact.converged);
   ASSERT_GT(exact.iterations, 3);
 
