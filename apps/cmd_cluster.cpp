@@ -144,9 +144,11 @@ int clusterStack(const cxxopts::ParseResult& args) {
               100.0 * result.explainedVarianceRatio,
               space == ClusteringSpace::Linear ? "linear ABRDFs / alpha" : "standardized log ABRDFs", result.pcaSeconds,
               sampled.c_str());
+  const std::string stop = !result.converged      ? ", iteration limit reached"
+                          : result.lastMoved == 0 ? ", converged"
+                                                  : ", settled (" + std::to_string(result.lastMoved) + " texels still moving)";
   std::printf("  k-means      inertia %.6g in PCA space (%.4g per texel), %d iterations%s (%.2f s)\n",
-              result.inertia, result.inertia / texels, result.iterations,
-              result.converged ? ", converged" : ", iteration limit reached", result.kmeansSeconds);
+              result.inertia, result.inertia / texels, result.iterations, stop.c_str(), result.kmeansSeconds);
   std::printf("  sizes        min %d, median %d, max %d texels%s\n", sizes["min"].get<int>(), sizes["median"].get<int>(),
               sizes["max"].get<int>(),
               result.emptyClusters ? (", " + std::to_string(result.emptyClusters) + " empty (too few distinct ABRDFs)").c_str()

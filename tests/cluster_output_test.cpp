@@ -83,6 +83,7 @@ TEST(ClusterOutput, SummaryReportsTheRun) {
   info.width = 3, info.height = 2, info.images = 4;
   auto j = clusteringSummary(r, o, info);
   EXPECT_EQ(j["kmeans"]["k"], 3);
+  EXPECT_EQ(j["kmeans"]["last_moved_texels"], 0);
   EXPECT_DOUBLE_EQ(j["kmeans"]["inertia_per_texel"].get<double>(), 1.0);
   EXPECT_DOUBLE_EQ(j["pca"]["explained_variance_ratio"].get<double>(), 0.75);
   EXPECT_EQ(j["cluster_sizes"]["max"], 3);
@@ -92,6 +93,8 @@ TEST(ClusterOutput, SummaryReportsTheRun) {
   EXPECT_EQ(j["input"], "/data/wool");
   // The explained variance says which values it is of.
   EXPECT_EQ(j["pca"]["space"], "standardized log(x + 1) ABRDFs");
+  r.lastMoved = 7;  // stopped by a settling rule
+  EXPECT_EQ(clusteringSummary(r, o, info)["kmeans"]["last_moved_texels"], 7);
   info.space = ClusteringSpace::Linear;
   EXPECT_EQ(clusteringSummary(r, o, info)["pca"]["space"], "linear ABRDFs / alpha");
 }

@@ -190,6 +190,7 @@ nlohmann::json clusteringSummary(const ClusteringResult& result, const Clusterin
                  {"inertia_space", "sum of squared distances to the cluster centre in PCA space"},
                  {"iterations", result.iterations},
                  {"converged", result.converged},
+                 {"last_moved_texels", result.lastMoved},
                  {"reseeded_clusters", result.reseeded},
                  {"empty_clusters", result.emptyClusters}};
   j["representative"] = options.representative == Representative::Median ? "per-dimension median" : "mean";

@@ -228,6 +228,7 @@ ClusteringResult clusterAbrdfs(const AbrdfSource& x, const ClusteringOptions& op
   result.inertia = kmeans.inertia;
   result.iterations = kmeans.iterations;
   result.converged = kmeans.converged;
+  result.lastMoved = kmeans.lastMoved;
   result.reseeded = kmeans.reseeded;
   result.emptyClusters = kmeans.emptyClusters;
 

@@ -41,7 +41,8 @@ struct ClusteringResult {
   std::vector<int> sizes;         // k
   double inertia = 0;              // k-means inertia in PCA space (squared distances of the scores)
   int iterations = 0;
-  bool converged = false;          // k-means stopped because no texel changed cluster
+  bool converged = false;          // k-means stopped before its limit: no texel moved, or a settling rule
+  std::size_t lastMoved = 0;       // texels its last round moved (> 0: settled, cluster/kmeans.h)
   int reseeded = 0, emptyClusters = 0;
   double explainedVarianceRatio = 0;
   Eigen::VectorXf explainedVariance;  // C: variance of the clustered ABRDFs (x, or space) along each component
