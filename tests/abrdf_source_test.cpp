@@ -6,7 +6,9 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <atomic>
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include "cluster/cluster_output.h"
@@ -83,6 +85,93 @@ TEST_F(AbrdfSourceTest, TexelColoursEqualTheMatrixVersionAndMapNoScratchPages) {
         EXPECT_LT(mappedAfter, mappedBefore + stack.numImages() * stack.bytesPerImage() / 4) << where;
     }
   }
+}
+
+// Values computed on demand that count how many they were asked for: a stand-in for a
+// factorized UBO2014 file, whose values cost a product each.
+class CountingValues : public ComputedStackValues {
+ public:
+  CountingValues(int texels, int images) : texels_(texels), images_(images) {}
+  void image(int image, float* out) const override {
+    for (int t = 0; t < texels_; ++t) value(image, t, out + 3 * t);
+  }
+  void value(int image, int texel, float rgb[3]) const override {
+    ++computed;
+    for (int c = 0; c < 3; ++c) rgb[c] = 0.05f + 0.01f * ((texel * 7 + image * 3 + c * 5) % 23) + 0.002f * (texel % 5);
+  }
+  void gather(const int* images, int numImages, const int* texels, int count, float* out) const override {
+    const int n = images ? numImages : images_;
+    for (int j = 0; j < n; ++j)
+      for (int k = 0; k < count; ++k) {
+        float rgb[3];
+        value(images ? images[j] : j, texels[k], rgb);
+        for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(3 * j + c) * count + k] = rgb[c];
+      }
+  }
+  std::size_t bytes() const override { return 0; }
+  mutable std::atomic<std::int64_t> computed{0};
+
+ private:
+  int texels_, images_;
+};
+
+// A sample of texels (PCA's, step 3 of docs/clustering.md) holds the rows' values bit for bit,
+// and costs its own size: a computed stack computes only the sampled texels, not a pass.
+TEST_F(AbrdfSourceTest, GatheredRowsHoldTheRowsValuesAndComputeOnlyThoseTexels) {
+  std::vector<Eigen::Index> texels;
+  for (Eigen::Index t = 0; t < 1107; t += 3) texels.push_back(t);  // 369: two runs, both row slices
+  texels.push_back(1106);
+  auto expectRows = [&](const AbrdfSource& source, const MatrixXfCol& x, const std::string& where) {
+    const MatrixXfCol rows = source.gatherRows(texels);
+    ASSERT_EQ(rows.rows(), static_cast<Eigen::Index>(texels.size()));
+    ASSERT_EQ(rows.cols(), x.cols());
+    std::int64_t mismatches = 0;
+    for (std::size_t k = 0; k < texels.size(); ++k)
+      for (Eigen::Index d = 0; d < x.cols(); ++d) mismatches += rows(static_cast<Eigen::Index>(k), d) != x(texels[k], d);
+    EXPECT_EQ(mismatches, 0) << where;
+  };
+  test::TempDir scratch;
+  for (SampleType type : {SampleType::Srgb8, SampleType::Half})
+    for (const std::string& dir : {std::string(), scratch.path()}) {
+      const std::string where = std::string(sampleTypeName(type)) + (dir.empty() ? " in memory" : " in a scratch file");
+      BtfStack stack = structuredStack(41, 27, 5, 4, type, 2, dir);  // 1107 texels
+      Standardization s;
+      const MatrixXfCol x = standardizedMatrix(stack, s);
+      expectRows(DenseAbrdfSource(x), x, where + ", in-memory X");
+      expectRows(StackAbrdfSource(stack, s), x, where + ", standardized log");
+      const float alpha = targetAlpha(stack);
+      const MatrixXfCol linear = abrdfMatrix(stack, false) / alpha;
+      expectRows(StackAbrdfSource::linear(stack, alpha), linear, where + ", linear");
+    }
+  std::vector<Direction> lights, views;
+  for (int i = 0; i < 5; ++i) lights.push_back({10.0 * i, 40.0 * i}), views.push_back({12.0 * i, 60.0 * i});
+  auto values = std::make_shared<CountingValues>(41 * 27, 25);
+  const BtfStack computed(lights, views, 41, 27, SampleType::Half, values);
+  Standardization s;
+  const MatrixXfCol x = standardizedMatrix(computed, s);
+  values->computed = 0;
+  expectRows(StackAbrdfSource(computed, s), x, "computed");
+  EXPECT_EQ(values->computed.load(), static_cast<std::int64_t>(texels.size()) * computed.numImages());
+  // Out of order, repeated or outside the material: refused, naming the position.
+  const StackAbrdfSource source(computed, s);
+  for (const std::vector<Eigen::Index>& bad : {std::vector<Eigen::Index>{3, 2}, {4, 4}, {-1}, {1107}})
+    EXPECT_THROW(source.gatherRows(bad), Error);
+
+  // PCA on a sample (8,281 texels: at least 4 x the 2,048 of the smallest sample): the stack's
+  // sample is the in-memory X's, so the results are the same bits.
+  BtfStack large = structuredStack(91, 91, 4, 5, SampleType::Srgb8, 4);
+  Standardization ls;
+  const MatrixXfCol lx = standardizedMatrix(large, ls);
+  PcaOptions o;
+  o.components = 8;
+  o.oversampling = 10;
+  o.progress = false;
+  o.sampleBytes = 1;  // the smallest sample, 2048 texels
+  ASSERT_TRUE(o.samples(lx.rows(), lx.cols()));
+  const PcaResult dense = randomizedPca(lx, o), streamed = randomizedPca(StackAbrdfSource(large, ls), o);
+  EXPECT_EQ(streamed.sampledTexels, 2048);
+  EXPECT_TRUE(streamed.basis == dense.basis);
+  EXPECT_TRUE(streamed.scores == dense.scores);
 }
 
 // An 8-bit stack's pass takes the logarithms from a table of its 256 values, in memory or read

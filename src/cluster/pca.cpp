@@ -153,22 +153,6 @@ std::vector<Eigen::Index> drawTexels(Eigen::Index rows, Eigen::Index count, std:
   return texels;
 }
 
-// The rows `texels` (increasing) of X, in memory: one pass over X.
-MatrixXfCol gatherTexels(const AbrdfSource& x, const std::vector<Eigen::Index>& texels, const std::string& label) {
-  MatrixXfCol out(static_cast<Eigen::Index>(texels.size()), x.cols());
-  x.forEachRowSlice([&](Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld) {
-    const auto first = std::lower_bound(texels.begin(), texels.end(), r0);
-    const auto last = std::lower_bound(first, texels.end(), r1);
-    const Eigen::Index at = first - texels.begin();
-    for (Eigen::Index d = 0; d < x.cols(); ++d) {
-      const float* column = data + d * ld - r0;
-      float* to = out.col(d).data() + at;
-      for (auto t = first; t != last; ++t) *to++ = column[*t];
-    }
-  }, label);
-  return out;
-}
-
 // The SVD of X - mean within the row space that a sample of its texels spans: V (D x sketch,
 // orthonormal) from the sample, Y = (X - mean) V over every texel, and the eigenvectors W of
 // Y^T Y (sketch x sketch; summed in double) give basis V W and scores Y W, exact projections.
@@ -177,7 +161,7 @@ void svdInSampledRowRange(const AbrdfSource& x, const PcaOptions& options, Eigen
   const std::vector<Eigen::Index> texels = drawTexels(x.rows(), options.sampleRows(x.cols()), options.seed);
   MatrixXfCol v;
   {
-    const MatrixXfCol sample = gatherTexels(x, texels, label("sample, texels"));
+    const MatrixXfCol sample = x.gatherRows(texels, label("sample, texels"));
     const DenseAbrdfSource sampled(sample);
     const PassLabel inMemory = [](const char*) { return std::string(); };
     const MatrixXfCol q = columnRange(sampled, result.mean, sketch, options, inMemory);

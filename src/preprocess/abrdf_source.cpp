@@ -78,6 +78,25 @@ void AbrdfSource::forEachRowSlice(const RowVisit& visit, const std::string& labe
   bar.finish();
 }
 
+MatrixXfCol AbrdfSource::gatherRows(const std::vector<Eigen::Index>& texels, const std::string& label) const {
+  const Eigen::Index count = static_cast<Eigen::Index>(texels.size());
+  for (Eigen::Index k = 0; k < count; ++k)
+    if (texels[k] < 0 || texels[k] >= rows() || (k > 0 && texels[k] <= texels[k - 1]))
+      throw Error("ABRDF source: texel " + std::to_string(texels[k]) + " at position " + std::to_string(k) +
+                  " is out of order or outside [0, " + std::to_string(rows()) + ")");
+  MatrixXfCol out(count, cols());
+  // Runs of a few hundred texels: enough runs to keep every thread busy on a sample of 2,048.
+  constexpr Eigen::Index kRun = 256;
+  Progress bar(label, static_cast<std::size_t>(count), !label.empty());
+  parallelForDynamic(static_cast<std::size_t>((count + kRun - 1) / kRun), [&](std::size_t run, int) {
+    const Eigen::Index k0 = static_cast<Eigen::Index>(run) * kRun, n = std::min(kRun, count - k0);
+    fillTexels(texels.data() + k0, n, out.data() + k0, count);
+    bar.advance(static_cast<std::size_t>(n));
+  });
+  bar.finish();
+  return out;
+}
+
 void AbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const {
   const float* x = dense();
   if (!x) throw Error("ABRDF source: no column data");
@@ -88,6 +107,13 @@ void AbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
   const float* x = dense();
   if (!x) throw Error("ABRDF source: no row data");
   for (Eigen::Index d = 0; d < cols(); ++d) std::copy(x + d * rows() + r0, x + d * rows() + r1, out + d * (r1 - r0));
+}
+
+void AbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const {
+  const float* x = dense();
+  if (!x) throw Error("ABRDF source: no row data");
+  for (Eigen::Index d = 0; d < cols(); ++d)
+    for (Eigen::Index k = 0; k < n; ++k) out[d * ld + k] = x[d * rows() + texels[k]];
 }
 
 // ---- From the stack
@@ -210,6 +236,36 @@ void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) co
       const float* t = table(d);
       float* column = out + d * n;
       for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
+    }
+  }
+}
+
+void StackAbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const {
+  if (n == 0) return;
+  if (stack_.sampleType() != SampleType::Srgb8) {
+    // Half or computed: these texels' linear values (computed for them alone), then this
+    // source's values per dimension, as fillRows makes them.
+    const std::vector<int> ids(texels, texels + n);
+    std::vector<float> linear(static_cast<std::size_t>(n) * cols());
+    stack_.gatherLinear(nullptr, 0, ids.data(), static_cast<int>(n), linear.data());
+    for (Eigen::Index d = 0; d < cols(); ++d) {
+      std::copy_n(linear.data() + d * n, n, out + d * ld);
+      transformRun(out + d * ld, n, d);
+    }
+    return;
+  }
+  // 8-bit: of each image the bytes from the first texel to the last, read out of a scratch
+  // file rather than mapped (as fillRows reads them).
+  const Eigen::Index first = texels[0];
+  const std::size_t span = 3 * static_cast<std::size_t>(texels[n - 1] - first + 1);
+  std::vector<std::uint8_t> copy;
+  for (int image = 0; image < stack_.numImages(); ++image) {
+    const std::uint8_t* bytes = stack_.readImageBytes(image, 3 * static_cast<std::size_t>(first), span, copy);
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
+      const float* t = table(d);
+      float* column = out + d * ld;
+      for (Eigen::Index k = 0; k < n; ++k) column[k] = t[bytes[3 * (texels[k] - first) + c]];
     }
   }
 }

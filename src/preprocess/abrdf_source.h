@@ -51,6 +51,11 @@ class AbrdfSource {
   // Slices of kRowSlice texels, in parallel; `label`: a progress bar in texels (empty: none).
   using RowVisit = std::function<void(Eigen::Index r0, Eigen::Index r1, const float* data, Eigen::Index ld)>;
   void forEachRowSlice(const RowVisit& visit, const std::string& label = "") const;
+  // Rows `texels` (increasing, each once) of X, in memory: texels.size() x cols(), the values
+  // the row slices hold. A stack reads only these texels of each image (a computed stack
+  // computes only them): a sample costs its own size, not a pass over X. In parallel over runs
+  // of texels; `label`: a progress bar in texels (empty: none).
+  MatrixXfCol gatherRows(const std::vector<Eigen::Index>& texels, const std::string& label = "") const;
 
   // Bytes of working memory the slices take on `workers` threads (0 for an in-memory X).
   virtual std::size_t sliceBytes(int /*workers*/) const { return 0; }
@@ -76,6 +81,8 @@ class AbrdfSource {
   virtual void fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const;
   // Texels [r0, r1) into out (leading dimension r1 - r0).
   virtual void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const;
+  // Texels texels[0, n) (increasing) into out, entry (k, d) at out[d x ld + k].
+  virtual void fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const;
 };
 
 class DenseAbrdfSource : public AbrdfSource {
@@ -115,6 +122,7 @@ class StackAbrdfSource : public AbrdfSource {
  protected:
   void fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const override;
   void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const override;
+  void fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const override;
 
  private:
   StackAbrdfSource(const BtfStack& stack, float alpha);
