@@ -88,7 +88,6 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.loadSeconds = secondsSince(step);
   info.width = stack.width(), info.height = stack.height(), info.images = stack.numImages();
   info.crop = stack.crop;
-  info.alpha = targetAlpha(stack);
 
   const int texels = stack.numTexels(), dims = 3 * stack.numImages();
   if (options.clusters > texels)
@@ -106,8 +105,8 @@ int clusterStack(const cxxopts::ParseResult& args) {
   info.matrixSeconds = secondsSince(step);
   const int width = stack.width(), height = stack.height(), images = stack.numImages();
   step = std::chrono::steady_clock::now();
-  ColumnMoments moments;  // spare PCA a pass over the stack
-  Standardization standardization = fitStandardization(stack, !Progress::quiet(), nullptr, &moments);
+  ColumnMoments moments;  // spare PCA a pass over the stack, as alpha spares one (targetAlpha's)
+  Standardization standardization = fitStandardization(stack, !Progress::quiet(), &info.alpha, &moments);
   StackAbrdfSource source(stack, std::move(standardization), std::move(moments));
   info.standardizeSeconds = secondsSince(step);
 
