@@ -18,10 +18,10 @@ namespace nbtf {
 //
 // Large materials (at least 4 x sampleRows(D) texels) find the sketch's subspace on a random
 // sample of texels held in memory (AbrdfSource::gatherRows: a stack reads, or computes, only
-// those texels), then project every texel onto
-// that subspace in one product pass and take the SVD within it from all of X: 2 passes over X
-// instead of 2 * powerIterations + 2, and scores that are exactly (X - mean) * basis. Why: on
-// a full material the passes are most of the clustering stage (docs/clustering.md, *PCA*).
+// those texels), then project every texel onto that subspace in one product pass and take the
+// SVD within it from all of X: 2 passes over X instead of 2 * powerIterations + 2, and scores
+// that are exactly (X - mean) * basis. Why: on a full material the passes are most of the
+// clustering stage (docs/clustering.md, *PCA*).
 struct PcaOptions {
   int components = 32;
   int oversampling = 48;
