@@ -218,26 +218,9 @@ void StackAbrdfSource::fillColumns(Eigen::Index c0, Eigen::Index c1, float* out)
 }
 
 void StackAbrdfSource::fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const {
-  const Eigen::Index n = r1 - r0;
-  if (stack_.sampleType() != SampleType::Srgb8) {
-    // Half or computed: the linear values of the slice, then this source's values per dimension.
-    std::vector<int> texels(static_cast<std::size_t>(n));
-    std::iota(texels.begin(), texels.end(), static_cast<int>(r0));
-    stack_.gatherLinear(nullptr, 0, texels.data(), static_cast<int>(n), out);
-    for (Eigen::Index d = 0; d < cols(); ++d) transformRun(out + d * n, n, d);
-    return;
-  }
-  std::vector<std::uint8_t> copy;  // the slice of an image read out of a scratch file
-  for (int image = 0; image < stack_.numImages(); ++image) {
-    const std::uint8_t* bytes =
-        stack_.readImageBytes(image, 3 * static_cast<std::size_t>(r0), 3 * static_cast<std::size_t>(n), copy);
-    for (int c = 0; c < 3; ++c) {
-      const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
-      const float* t = table(d);
-      float* column = out + d * n;
-      for (Eigen::Index i = 0; i < n; ++i) column[i] = t[bytes[3 * i + c]];
-    }
-  }
+  std::vector<Eigen::Index> texels(static_cast<std::size_t>(r1 - r0));
+  std::iota(texels.begin(), texels.end(), r0);
+  fillTexels(texels.data(), r1 - r0, out, r1 - r0);
 }
 
 void StackAbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const {
@@ -246,18 +229,20 @@ void StackAbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, fl
     // Half or computed: these texels' linear values (computed for them alone), then this
     // source's values per dimension, as fillRows makes them.
     const std::vector<int> ids(texels, texels + n);
-    std::vector<float> linear(static_cast<std::size_t>(n) * cols());
-    stack_.gatherLinear(nullptr, 0, ids.data(), static_cast<int>(n), linear.data());
+    std::vector<float> linear(ld == n ? 0 : static_cast<std::size_t>(n) * cols());  // out itself when dense
+    stack_.gatherLinear(nullptr, 0, ids.data(), static_cast<int>(n), ld == n ? out : linear.data());
     for (Eigen::Index d = 0; d < cols(); ++d) {
-      std::copy_n(linear.data() + d * n, n, out + d * ld);
+      if (ld != n) std::copy_n(linear.data() + d * n, n, out + d * ld);
       transformRun(out + d * ld, n, d);
     }
     return;
   }
   // 8-bit: of each image the bytes from the first texel to the last, read out of a scratch
-  // file rather than mapped (as fillRows reads them).
+  // file rather than mapped (a pass over a large stack through the mapping maps it again
+  // fault by fault).
   const Eigen::Index first = texels[0];
   const std::size_t span = 3 * static_cast<std::size_t>(texels[n - 1] - first + 1);
+  const bool contiguous = texels[n - 1] - first == n - 1;
   std::vector<std::uint8_t> copy;
   for (int image = 0; image < stack_.numImages(); ++image) {
     const std::uint8_t* bytes = stack_.readImageBytes(image, 3 * static_cast<std::size_t>(first), span, copy);
@@ -265,7 +250,10 @@ void StackAbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, fl
       const Eigen::Index d = 3 * static_cast<Eigen::Index>(image) + c;
       const float* t = table(d);
       float* column = out + d * ld;
-      for (Eigen::Index k = 0; k < n; ++k) column[k] = t[bytes[3 * (texels[k] - first) + c]];
+      if (contiguous)  // a row slice: no index to load per value (the projection pass's loop)
+        for (Eigen::Index k = 0; k < n; ++k) column[k] = t[bytes[3 * k + c]];
+      else
+        for (Eigen::Index k = 0; k < n; ++k) column[k] = t[bytes[3 * (texels[k] - first) + c]];
     }
   }
 }

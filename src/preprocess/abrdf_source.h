@@ -81,7 +81,8 @@ class AbrdfSource {
   virtual void fillColumns(Eigen::Index c0, Eigen::Index c1, float* out) const;
   // Texels [r0, r1) into out (leading dimension r1 - r0).
   virtual void fillRows(Eigen::Index r0, Eigen::Index r1, float* out) const;
-  // Texels texels[0, n) (increasing) into out, entry (k, d) at out[d x ld + k].
+  // Texels texels[0, n) (increasing) into out, entry (k, d) at out[d x ld + k]; a stack's
+  // fillRows is this over the slice's texels.
   virtual void fillTexels(const Eigen::Index* texels, Eigen::Index n, float* out, Eigen::Index ld) const;
 };
 
