@@ -227,7 +227,7 @@ void StackAbrdfSource::fillTexels(const Eigen::Index* texels, Eigen::Index n, fl
   if (n == 0) return;
   if (stack_.sampleType() != SampleType::Srgb8) {
     // Half or computed: these texels' linear values (computed for them alone), then this
-    // source's values per dimension, as fillRows makes them.
+    // source's values per dimension.
     const std::vector<int> ids(texels, texels + n);
     std::vector<float> linear(ld == n ? 0 : static_cast<std::size_t>(n) * cols());  // out itself when dense
     stack_.gatherLinear(nullptr, 0, ids.data(), static_cast<int>(n), ld == n ? out : linear.data());
