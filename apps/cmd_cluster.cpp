@@ -31,7 +31,7 @@ int clusterStack(const cxxopts::ParseResult& args) {
   const auto start = std::chrono::steady_clock::now();
   const std::string input = args["input"].as<std::string>();
   const std::string outDir = args["output"].as<std::string>();
-  refuseOverlappingPaths({{"<input>", input, isFolder(input)}}, {{"-o", outDir, true}});
+  refuseOverlappingPaths({{"<input>", input}}, {{"-o", outDir, true}});
   ClusteringOptions options;
   options.clusters = args["clusters"].as<int>();
   options.pca.components = args["components"].as<int>();

@@ -1,10 +1,6 @@
 // nbtf compress <input> -o <out.nbtf>: the whole pipeline (load, preprocess, PCA,
 // k-means++, train, write) with a summary table at the end; --method pca: the classic PCA
 // baseline instead (load, PCA, write).
-#include <signal.h>
-#include <unistd.h>
-
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -13,35 +9,12 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "interrupt.h"
 #include "options/compress_options.h"
 #include "util/atomic_file.h"
 #include "util/progress.h"
 
 namespace nbtf::cli {
-namespace {
-
-// SIGINT: the first Ctrl-C asks training to checkpoint and stop; SA_RESETHAND restores the
-// default action, so a second Ctrl-C ends the process at once.
-std::atomic<bool> gStopRequested{false};
-
-extern "C" void onInterrupt(int) {
-  gStopRequested.store(true);
-  const char msg[] = "\nnbtf compress: interrupt received, stopping after a checkpoint (Ctrl-C again to abort)\n";
-  ssize_t ignored = ::write(STDERR_FILENO, msg, sizeof msg - 1);
-  (void)ignored;
-}
-
-void installInterruptHandler() {
-  struct sigaction sa;
-  std::memset(&sa, 0, sizeof sa);
-  sa.sa_handler = onInterrupt;
-  sa.sa_flags = SA_RESETHAND;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-}
-
-}  // namespace
-
 int compressMain(int argc, char** argv) {
   return runGuarded("compress", [&] {
     cxxopts::Options options("nbtf compress", "Compress a BTF image stack into a .nbtf file");
@@ -63,8 +36,8 @@ int compressMain(int argc, char** argv) {
         std::fprintf(stderr, "nbtf compress: --resume: no checkpoint at %s, starting from the beginning\n",
                      o.train.checkpointPath.c_str());
     }
-    o.stopFlag = &gStopRequested;
-    installInterruptHandler();
+    o.stopFlag = stopOnInterrupt(
+        "\nnbtf compress: interrupt received, stopping after a checkpoint (Ctrl-C again to abort)\n");
 
     CompressStats stats = compressBtf(request.input, output, o);
     if (stats.interrupted) {

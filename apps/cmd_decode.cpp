@@ -1,12 +1,14 @@
 // nbtf decode <file.nbtf> -o <dir>: reconstruct the image stack (all measured images, a
 // subset, or unmeasured angles) in the layout and naming the loaders read.
 #include <cstdio>
+#include <filesystem>
 #include <tuple>
 
 #include "cli_common.h"
 #include "codec/decoder.h"
 #include "pipeline/decoder_output.h"
 #include "commands.h"
+#include "interrupt.h"
 #include "util/atomic_file.h"
 #include "util/progress.h"
 
@@ -78,7 +80,17 @@ int decodeMain(int argc, char** argv) {
     }
     for (const char* only : {"components", "color-model"})
       if (args.count(only)) throw Error(std::string("--") + only + " applies to --layout ubo2014 only");
+    o.stopFlag = stopOnInterrupt("\nnbtf decode: interrupt received, stopping after the images being written "
+                                 "(Ctrl-C again to abort)\n");
     DecodeStackResult result = writeDecodedStack(decoder, output, o);
+    if (result.interrupted) {
+      std::fprintf(stderr,
+                   "nbtf decode: interrupted after %d of %d images; they were in a staging folder, now removed: "
+                   "nothing was written to %s%s\n",
+                   result.written, result.images, output.c_str(),
+                   std::filesystem::exists(output) ? " (what was there is unchanged)" : "");
+      return 130;
+    }
     std::fputs(formatDecodeSummary(result, decoder).c_str(), stdout);  // -q hides progress only, as everywhere
     return 0;
   });

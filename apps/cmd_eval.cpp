@@ -47,9 +47,8 @@ int runEval(const cxxopts::ParseResult& args) {
   // Fail on an unwritable output, or one that would overwrite an input, before decoding
   // anything; the folder (and its missing parents) is made when the report is written.
   refuseOverlappingPaths({{"<file.nbtf>", file},
-                          {"--reference", referencePath, isFolder(referencePath)},
-                          {"--render-compare", args.count("render-compare") ? args["render-compare"].as<std::string>() : "",
-                           true}},
+                          {"--reference", referencePath},
+                          {"--render-compare", args.count("render-compare") ? args["render-compare"].as<std::string>() : ""}},
                          {{"-o", outDir, true}});
   checkFolderCreatable(outDir);
   EvaluateFileOptions fileOptions;

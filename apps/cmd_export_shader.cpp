@@ -24,6 +24,7 @@ int exportShaderMain(int argc, char** argv) {
     if (!args.count("file")) throw Error("missing <file.nbtf> (see 'nbtf export-shader --help')");
     if (!args.count("output")) throw Error("missing -o DIR (the folder to write the shader into)");
     const std::string path = args["file"].as<std::string>(), dir = args["output"].as<std::string>();
+    refuseOverlappingPaths({{"<file.nbtf>", path}}, {{"-o", dir, true}});
     checkFolderCreatable(dir);
     const ShaderDecoder shader =
         buildShaderDecoder(readNbtf(path), path, parseShaderWeights(args["weights"].as<std::string>()));

@@ -80,6 +80,7 @@ int queryMain(int argc, char** argv) {
     if (source == "-") {
       stats = answerQueryCsv(decoder, std::cin, "<stdin>", std::cout, std::cerr, o);
     } else {
+      if (isFolder(source)) throw fileError(source, "is a folder; --batch reads a CSV file of queries (or '-')");
       std::ifstream in(source);
       if (!in) throw fileError(source, "cannot open the query file");
       stats = answerQueryCsv(decoder, in, source, std::cout, std::cerr, o);

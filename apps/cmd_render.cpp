@@ -284,8 +284,8 @@ int renderMain(int argc, char** argv) {
     p.stack = optional("compare");
     p.referenceExr = optional("reference");
     // No output may overwrite an input or another output; then every output's folders are made.
-    refuseOverlappingPaths({{"<material>", p.material, isFolder(p.material)},
-                            {"--compare", p.stack, isFolder(p.stack)},
+    refuseOverlappingPaths({{"<material>", p.material},
+                            {"--compare", p.stack},
                             {"--reference", p.referenceExr}},
                            {{"-o", p.output, compare}, {"--exr", p.exr}, {"--show-refined", p.mask}, {"--stats-json", p.stats}});
     for (const std::string& out : {p.exr, p.mask, p.stats})

@@ -3,7 +3,8 @@
 # component counts (`nbtf compress --method pca`), the per-texel neural BTF and the
 # clustered neural BTF at several k, evaluates each against the reference with
 # `nbtf eval`, and writes the paper-style table (sweep.md) and a rate-distortion plot
-# (rd_<material>.png, drawn by nbtf itself) into the output folder.
+# (rd_<material>.png, drawn by nbtf itself) into the folder summary/ of the output folder
+# (beside the runs' files and report folders, which it reads).
 #
 # usage: scripts/sweep.sh <input stack> [options] [-- extra nbtf compress options]
 #   -o DIR            output folder (default: sweep_<material>)
@@ -18,6 +19,8 @@
 #   -- OPTIONS        extra `nbtf compress` options for the neural runs
 # Several materials: run once per material, then combine the reports:
 #   build/bin/nbtf eval --summarize -o all sweep_*/*/report.json
+# Re-running the same command keeps every finished report and resumes an interrupted neural run
+# from its checkpoint.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 nbtf=${NBTF_BIN:-$root/build/bin/nbtf}
@@ -47,29 +50,25 @@ while [[ $# -gt 0 ]]; do
   shift
 done
 
-# ---- Tools: the nbtf binary and its compress command.
+# ---- Tools: the nbtf binary.
 [[ -x "$nbtf" ]] || "$root/scripts/build.sh" "$root/build"
 [[ -x "$nbtf" ]] || die "no nbtf binary at $nbtf"
-compress_help=$("$nbtf" compress --help 2>&1) || die "this build of nbtf has no 'compress' command yet"
-has_pca=0
-grep -q -- "--method" <<<"$compress_help" && grep -qi "pca" <<<"$compress_help" && has_pca=1
 
 mkdir -p "$out"
 runs=()    # label|kind|compress options
-if [[ $has_pca -eq 1 ]]; then
-  for c in $pcas; do runs+=("pca_$c|pca|--method pca --components $c"); done
-fi
+for c in $pcas; do runs+=("pca_$c|pca|--method pca --components $c"); done
 [[ $per_texel -eq 1 ]] && runs+=("per_texel|neural|--method per-texel")
 for k in $ks; do runs+=("k$k|neural|--clusters $k"); done
 
-# ---- Compress and evaluate each setting (a finished report is kept: re-running resumes).
+# ---- Compress and evaluate each setting (a finished report is kept; an interrupted neural
+# run continues from its checkpoint: --resume starts afresh where there is none).
 reports=()
 for run in "${runs[@]}"; do
   label=${run%%|*}
   rest=${run#*|}
   kind=${rest%%|*}
   read -r -a opts <<<"${rest#*|}"
-  [[ $kind == neural ]] && opts+=(${neural[@]+"${neural[@]}"})
+  [[ $kind == neural ]] && opts+=(--resume ${neural[@]+"${neural[@]}"})
   file="$out/$label.nbtf"
   report="$out/$label/report.json"
   if [[ ! -f "$report" ]]; then
@@ -82,9 +81,6 @@ for run in "${runs[@]}"; do
   reports+=("$report")
 done
 
-# ---- Table and plot.
-"$nbtf" eval --summarize -o "$out" "${reports[@]}"
-echo "sweep: table $out/sweep.md, plot(s): $(ls "$out"/rd_*.png | tr '\n' ' ')"
-if [[ $has_pca -eq 0 ]]; then
-  echo "sweep: PCA baseline pending: this build's 'nbtf compress' has no '--method pca' (issue 6); neural methods only"
-fi
+# ---- Table and plot, in a folder of their own (the report folders are the summary's inputs).
+"$nbtf" eval --summarize -o "$out/summary" "${reports[@]}"
+echo "sweep: table $out/summary/sweep.md, plot(s): $(ls "$out"/summary/rd_*.png | tr '\n' ' ')"

@@ -463,6 +463,15 @@ TEST_F(CmdCompress, PcaCompressThenInfoEndToEnd) {
   for (const char* part : {"format 1.4", "pca (classic baseline), C = 4 components", "coefficients   64 texels x 4",
                            "mean", "basis", "raw float32", "ratio", "kept out of the PCA fit"})
     EXPECT_TRUE(contains(info.output, part)) << part << "\n" << info.output;
+  // --json lists the file's own parts (the PCA parts, no neural ones), as Python's sizes does.
+  RunResult infoJson = run("info " + out + " --json");
+  ASSERT_EQ(infoJson.exitCode, 0) << infoJson.output;
+  const nlohmann::json bytes = nlohmann::json::parse(infoJson.output)["bytes"];
+  EXPECT_EQ(bytes["pca_coefficients"].get<std::uint64_t>(), 64u * 4 * 4);
+  EXPECT_EQ(bytes["pca_components"].get<int>(), 4);
+  EXPECT_EQ(bytes["pca_mean"].get<std::uint64_t>() + bytes["pca_basis"].get<std::uint64_t>() + 64u * 4 * 4,
+            bytes["total"].get<std::uint64_t>());
+  for (const char* neural : {"decoder", "latents", "ids"}) EXPECT_FALSE(bytes.contains(neural)) << neural;
 
   // The default method is unchanged: --clusters 0 is still the per-texel neural method.
   RunResult perTexel = run("compress " + stack + " -o " + path("t.nbtf") + " --clusters 0 --epochs 1 -q");
@@ -502,7 +511,58 @@ TEST_F(CmdCompress, ResumeRefusesADamagedCheckpointOrAnotherPlanByName) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// Issue 38's smaller rough edges, each as a new user met it.
+TEST_F(CmdCompress, AnInterruptedRunsCheckpointIsNeitherReplacedNorDeletedUnasked) {
+  std::string stack = writeStack();
+  std::string out = path("int.nbtf"), ckpt = out + ".ckpt";
+  ASSERT_EQ(WEXITSTATUS(interruptTraining(stack, out).status), 130);
+  const std::vector<std::uint8_t> saved = readFileBytes(ckpt);
+  const std::string same = "compress " + stack + " -o " + out + " --clusters 5 --threads 1 --config " + path("quick.json") + " -q";
+  // The same command without --resume: refused, saying how far the run got and the two ways on.
+  RunResult again = run(same);
+  EXPECT_EQ(again.exitCode, 1) << again.output;
+  EXPECT_TRUE(contains(again.output, ckpt + ": an earlier run's training checkpoint (step ")) << again.output;
+  EXPECT_TRUE(contains(again.output, "s of training")) << again.output;
+  EXPECT_TRUE(contains(again.output, "--resume continues that run, --restart deletes it")) << again.output;
+  EXPECT_EQ(readFileBytes(ckpt), saved);
+  EXPECT_FALSE(fs::exists(out));
+  // Both at once is a contradiction.
+  RunResult both = run(same + " --resume --restart");
+  EXPECT_EQ(both.exitCode, 1) << both.output;
+  EXPECT_TRUE(contains(both.output, "give one of them")) << both.output;
+  EXPECT_EQ(readFileBytes(ckpt), saved);
+  // --restart deletes it knowingly and trains a new run to the end.
+  writeQuickConfig(1);
+  RunResult restart = run(same + " --restart");
+  EXPECT_EQ(restart.exitCode, 0) << restart.output;
+  EXPECT_TRUE(contains(restart.output, "--restart: deleted " + ckpt)) << restart.output;
+  EXPECT_TRUE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(ckpt));
+}
+
+TEST_F(CmdCompress, ADamagedCheckpointIsRefusedBeforeTheStackIsLoaded) {
+  std::string stack = writeStack();
+  std::string out = path("int.nbtf"), ckpt = out + ".ckpt";
+  ASSERT_EQ(WEXITSTATUS(interruptTraining(stack, out).status), 130);
+  std::vector<std::uint8_t> bytes = readFileBytes(ckpt);
+  bytes[bytes.size() / 2] ^= 0x10;
+  writeFileAtomic(ckpt, bytes.data(), bytes.size());
+  // The stack is made unreadable too: the checkpoint's error coming first shows that it was
+  // judged before the stack was loaded.
+  for (const auto& e : fs::recursive_directory_iterator(stack))
+    if (e.is_regular_file()) {
+      writeFileAtomic(e.path().string(), std::string("not an image"));
+      break;
+    }
+  for (const char* how : {" --resume", ""}) {
+    RunResult r = run("compress " + stack + " -o " + out + " --clusters 5 --threads 1 --config " + path("quick.json") + " -q" + how);
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_TRUE(contains(r.output, ckpt + ": checkpoint is damaged (checksum")) << r.output;
+    EXPECT_TRUE(contains(r.output, "--restart deletes it and starts over")) << r.output;
+    EXPECT_EQ(readFileBytes(ckpt), bytes);
+  }
+}
+
+// Smaller rough edges, each as a new user met it.
 TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   std::string stack = writeStack();  // 8 x 8 texels (UTIA names), 9 x 9 directions
   const std::string out = path("x.nbtf");
@@ -510,6 +570,14 @@ TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--memory-limit")) << r.output;
   EXPECT_TRUE(contains(r.output, "too large")) << r.output;
+  // A material too small for the neural methods: refused before loading, with the reason.
+  for (const std::string& crop : {std::string("0,0,1,1"), std::string("0,0,2,2"), std::string("0,0,5,3")}) {
+    r = run("compress " + stack + " -o " + out + " -q --crop " + crop);
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_TRUE(contains(r.output, "texels are too few for the neural methods (at least 16")) << r.output;
+    EXPECT_TRUE(contains(r.output, "--method pca")) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(out));
   r = run("compress " + stack + " -o " + out + " -q --crop 0,0,4294967296,4");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--crop: 4294967296 in '0,0,4294967296,4' is too large")) << r.output;
@@ -523,6 +591,11 @@ TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 1000 --stages 2 --epochs 2");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--size-budget 1000 bytes is below the decoder alone")) << r.output;
+  // Sizes take units as --memory-limit does (one parser): 1K is 1024 bytes.
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 1K --stages 2 --epochs 2");
+  EXPECT_TRUE(contains(r.output, "--size-budget 1024 bytes is below the decoder alone")) << r.output;
+  r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 36Q --stages 2 --epochs 2");
+  EXPECT_TRUE(contains(r.output, "--size-budget: expected a size in bytes")) << r.output;
   EXPECT_FALSE(fs::exists(out + ".ckpt"));
   r = run("compress " + stack + " -o " + out + " -q --clusters 8 --adaptive --size-budget 28400 --stages 2 --epochs 2");
   EXPECT_EQ(r.exitCode, 1);
@@ -546,6 +619,14 @@ TEST_F(CmdCompress, LimitsOverflowsLayoutsAndAdaptiveTargetsAreNamed) {
   r = run("info " + ubo + " --layout utia");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_TRUE(contains(r.output, "--layout utia: the images are named in the ubo2003 layout")) << r.output;
+  // --layout ubo2014 names a .btf file: on a folder it is an error, not "(forced)" and ignored.
+  for (const std::string& cmd : {"info " + ubo + " --layout ubo2014", "info " + ubo + " --layout ubo2014 --directions",
+                                 "compress " + ubo + " -o " + path("u.nbtf") + " --layout ubo2014 -q"}) {
+    r = run(cmd);
+    EXPECT_EQ(r.exitCode, 1) << cmd << ": " << r.output;
+    EXPECT_TRUE(contains(r.output, "is a folder of images: --layout ubo2014 applies to UBO2014 .btf files only"))
+        << cmd << ": " << r.output;
+  }
 }
 
 TEST_F(CmdCompress, AnOutputThatIsAnInputIsRefusedAndTheInputKept) {

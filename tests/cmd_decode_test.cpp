@@ -211,6 +211,9 @@ TEST_F(NbtfCommand, QueryRejectsBadInput) {
   r = runNbtf("query '" + file + "' --texel 1,1 --light 30,60", dir);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("needs --light and --view"), std::string::npos) << r.err;
+  r = runNbtf("query '" + file + "' --batch '" + dir.path() + "'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(dir.path() + ": is a folder; --batch reads a CSV file of queries"), std::string::npos) << r.err;
 }
 
 TEST_F(NbtfCommand, QueryBatchAnswersTheRestAndFailsAtTheEnd) {

@@ -199,7 +199,7 @@ TEST_F(CmdEval, AnotherMaterialIsRejectedByTheSourceFingerprint) {
                                   "' -q --force",
                               tmp / "log");
   ASSERT_EQ(forced.code, 0) << forced.output;
-  EXPECT_NE(forced.output.find("evaluating anyway (--force)"), std::string::npos) << forced.output;
+  EXPECT_NE(forced.output.find("using it anyway (--force)"), std::string::npos) << forced.output;
   EXPECT_NE(reportOf("d")["details"]["reference check"].get<std::string>().find("MISMATCH"), std::string::npos);
 
   // An older file without a fingerprint: a warning, and the evaluation goes on.

@@ -193,9 +193,8 @@ LoadOptions quietLoad() {
   return o;
 }
 
-TEST(KillDecode, EveryImageUnderItsFinalNameIsCompleteAndARerunFinishes) {
-  test::TempDir dir;
-  // 81 lights x 12 views of 24 x 16 texels, 8-bit PNG: long enough to be killed mid-way.
+// 81 lights x 12 views of 24 x 16 texels, 8-bit PNG: long enough to be stopped mid-way.
+void writeDecodeMaterial(const std::string& path) {
   CompressedBtf m = testing::makeDisplayableMaterial(4, 24, 16);
   m.lights = hemisphere81();
   m.views.assign(hemisphere81().begin(), hemisphere81().begin() + 12);
@@ -204,7 +203,46 @@ TEST(KillDecode, EveryImageUnderItsFinalNameIsCompleteAndARerunFinishes) {
   m.sourceSampleType = SampleType::Srgb8;
   m.crop = {};
   m.sourceWidth = m.width, m.sourceHeight = m.height;
-  writeNbtf(dir / "m.nbtf", m);
+  writeNbtf(path, m);
+}
+
+// Ctrl-C during a decode: the images written so far were in the staging folder, which is
+// removed; the earlier decode at the destination is untouched; the command says so, exit 130.
+TEST(KillDecode, CtrlCRemovesTheStagingFolderAndSaysWhatHappened) {
+  test::TempDir dir;
+  writeDecodeMaterial(dir / "m.nbtf");
+  const std::string out = dir / "out", staging = dir / ".out.nbtf-decoding", log = dir / "log.txt";
+  ASSERT_EQ(waitExit(spawnNbtf({"decode", dir / "m.nbtf", "-o", out, "--lights", "0", "-q"})), 0);
+  const Listing earlier = listFiles(out);
+  // Large images, so that the decode runs long enough to be interrupted in the middle.
+  const std::string cmd = "exec '" + std::string(NBTF_BIN_DIR) + "/nbtf' decode '" + (dir / "m.nbtf") + "' -o '" + out +
+                          "' --size 512x512 --format png -q > '" + log + "' 2>&1";
+  pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  bool started = false;
+  for (int i = 0; i < 3000 && !started; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    started = listFiles(staging).visible.size() >= 3;  // the description and two images
+  }
+  ::kill(pid, SIGINT);
+  const int code = waitExit(pid);
+  ASSERT_TRUE(started) << "the decode never wrote an image";
+  const std::vector<std::uint8_t> bytes = readFileBytes(log);
+  const std::string text(bytes.begin(), bytes.end());
+  EXPECT_EQ(code, 130) << text;
+  EXPECT_NE(text.find("nbtf decode: interrupted after "), std::string::npos) << text;
+  EXPECT_NE(text.find("now removed: nothing was written to " + out + " (what was there is unchanged)"), std::string::npos)
+      << text;
+  EXPECT_FALSE(fs::exists(staging));
+  EXPECT_EQ(listFiles(out).visible, earlier.visible);
+}
+
+TEST(KillDecode, EveryImageUnderItsFinalNameIsCompleteAndARerunFinishes) {
+  test::TempDir dir;
+  writeDecodeMaterial(dir / "m.nbtf");
   auto decodeArgs = [&](const std::string& out) {
     return std::vector<std::string>{"decode", dir / "m.nbtf", "-o", out, "--format", "png", "-q"};
   };

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -33,6 +34,11 @@ std::map<std::string, std::vector<std::uint8_t>> snapshot(const std::string& fol
   for (const auto& e : fs::recursive_directory_iterator(folder))
     if (e.is_regular_file()) files[fs::relative(e.path(), folder).string()] = readFileBytes(e.path().string());
   return files;
+}
+
+std::string readText(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = readFileBytes(path);
+  return std::string(bytes.begin(), bytes.end());
 }
 
 LoadOptions quietLoad() {
@@ -133,6 +139,34 @@ TEST_F(DecodeSafety, AnInterruptedDecodeIsRefusedByTheLoaderAndCleanedByTheNextD
   const test::RunResult r = decode(a_, out);
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_TRUE(fs::exists(dir_ / ".out.nbtf-decoding/precious.txt"));
+}
+
+// Removing a decode (an earlier one after the exchange, or a staging folder) marks it
+// incomplete before its images go: a removal stopped half-way never leaves a folder that
+// claims to be complete. The stop is made real with an immutable view folder (chattr +i).
+TEST_F(DecodeSafety, ARemovalStoppedHalfWayLeavesADecodeMarkedIncomplete) {
+  const std::string out = dir_ / "out";
+  ASSERT_EQ(decode(a_, out).exitCode, 0);
+  std::string view;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.is_directory()) view = e.path().string();
+  ASSERT_FALSE(view.empty());
+  if (std::system(("chattr +i '" + view + "' 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "chattr +i is not available here (it makes the removal stop half-way)";
+  std::error_code ec;
+  removeDecodeFolder(out, ec);
+  const std::string description = readText(out + "/" + kDecodeDescriptionName);
+  const int undo = std::system(("chattr -i '" + view + "'").c_str());
+  EXPECT_EQ(undo, 0);
+  EXPECT_TRUE(ec) << "the immutable folder should have stopped the removal";
+  EXPECT_NE(description.find("\"complete\": false"), std::string::npos) << description;
+  try {
+    loadBtfStack(out, quietLoad());
+    ADD_FAILURE() << "a half-removed decode loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("interrupted nbtf decode"), std::string::npos) << e.what();
+  }
+  ASSERT_EQ(decode(b_, out).exitCode, 0);  // the next decode still recognises it as its own
 }
 
 TEST_F(DecodeSafety, ImpossibleSizesAreRefusedAndFileOutputsGetTheirFolders) {

@@ -291,9 +291,11 @@ class DistributedCli : public ::testing::Test {
   // Starts rank 1 (`args`: its input and options) in the background; its output goes to
   // rank1.log, its exit code to rank1.rc; returns its pid (the nbtf process itself, so that a
   // test can kill it; waitFor bounds the wait).
-  pid_t startRank1(int port, const std::string& extra = "", const std::string& args = "") {
+  // Every rank is given rank 0's -o (two.nbtf) unless `output` says otherwise.
+  pid_t startRank1(int port, const std::string& extra = "", const std::string& args = "",
+                   const std::string& output = "two.nbtf") {
     std::string cmd = "( " + std::string(NBTF_BIN_DIR) + "/nbtf compress " + (args.empty() ? common() : args) +
-                      " -o " + path("rank1.nbtf") + " --world-size 2 --rank 1 --master 127.0.0.1:" +
+                      " -o " + path(output) + " --world-size 2 --rank 1 --master 127.0.0.1:" +
                       std::to_string(port) + " " + extra + " > " + path("rank1.log") + " 2>&1 & echo $! > " +
                       path("rank1.pid") + "; wait $!; echo $? > " + path("rank1.rc") + " ) > /dev/null 2>&1 &";
     if (std::system(cmd.c_str()) != 0) return -1;
@@ -308,6 +310,27 @@ class DistributedCli : public ::testing::Test {
     const std::string rc = slurp(path("rank1.rc"));
     return rc.empty() ? -1 : std::stoi(rc);
   }
+  // Rank 1 runs `rank1Args` (its input and options) writing `rank1Output`, rank 0 runs
+  // `rank0Args` writing two.nbtf: both must stop at the rendezvous (exit 1, neither file
+  // written), each saying `expected`.
+  void expectBothStopSaying(const std::string& rank1Args, const std::string& rank1Output, const std::string& rank0Args,
+                            const std::string& expected) {
+    const int port = freePort();
+    pid_t rank1 = startRank1(port, kSecret + std::string(" --dist-timeout 30"), rank1Args, rank1Output);
+    ASSERT_GT(rank1, 0);
+    RunResult r = runBounded("compress " + rank0Args + " -o " + path("two.nbtf") +
+                             " --world-size 2 --rank 0 --dist-timeout 30 --master 127.0.0.1:" + std::to_string(port) +
+                             kSecret);
+    const int rc1 = waitFor(rank1);
+    const std::string log1 = slurp(path("rank1.log"));
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_EQ(rc1, 1) << "134 is SIGABRT\n" << log1;
+    EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+    EXPECT_NE(log1.find(expected), std::string::npos) << log1;
+    EXPECT_FALSE(fs::exists(path("two.nbtf")));
+    EXPECT_FALSE(fs::exists(path(rank1Output)));
+  }
+
   fs::path dir_;
   std::string stack_;
 };
@@ -330,7 +353,8 @@ TEST_F(DistributedCli, TwoProcessesMatchOneWithTheSameGlobalBatch) {
   }
   EXPECT_NE(slurp(path("rank1.log")).find("rank 1 of 2: trained its share"), std::string::npos)
       << slurp(path("rank1.log"));
-  EXPECT_FALSE(fs::exists(path("rank1.nbtf"))) << "only rank 0 writes the file";
+  EXPECT_NE(slurp(path("rank1.log")).find("rank 0 writes " + path("two.nbtf")), std::string::npos)
+      << slurp(path("rank1.log"));
   auto a = nlohmann::json::parse(slurp(path("one.json"))), b = nlohmann::json::parse(slurp(path("two.json")));
   EXPECT_EQ(a["steps"], b["steps"]);
   // The same steps over the same samples and the same encoder batches; the gradients are summed
@@ -382,20 +406,13 @@ TEST_F(DistributedCli, APortInUseIsReportedAtOnce) {
 }
 
 TEST_F(DistributedCli, RanksWithDifferentSeedsBothStopNamingTheSeed) {
-  const int port = freePort();
-  pid_t rank1 = startRank1(port, kSecret + std::string(" --dist-timeout 30"), common("", 2));
-  ASSERT_GT(rank1, 0);
-  RunResult r = runBounded("compress " + common("", 1) + " -o " + path("two.nbtf") +
-                           " --world-size 2 --rank 0 --dist-timeout 30 --master 127.0.0.1:" + std::to_string(port) +
-                           kSecret);
-  const int rc1 = waitFor(rank1);
-  const std::string log1 = slurp(path("rank1.log"));
-  EXPECT_EQ(r.exitCode, 1) << r.output;
-  EXPECT_EQ(rc1, 1) << log1;
-  EXPECT_NE(r.output.find("--seed differs: rank 0 has 1, rank 1 has 2"), std::string::npos) << r.output;
-  EXPECT_NE(log1.find("--seed differs: rank 0 has 1, rank 1 has 2"), std::string::npos) << log1;
-  EXPECT_FALSE(fs::exists(path("two.nbtf")));
-  EXPECT_FALSE(fs::exists(path("rank1.nbtf")));
+  expectBothStopSaying(common("", 2), "two.nbtf", common("", 1), "--seed differs: rank 0 has 1, rank 1 has 2");
+}
+
+TEST_F(DistributedCli, RanksWritingDifferentFilesStop) {
+  // Only rank 0 writes: a rank given another -o would believe its path written.
+  expectBothStopSaying(common(), "rank1.nbtf", common(),
+                       "-o differs: rank 0 has " + path("two.nbtf") + ", rank 1 has " + path("rank1.nbtf"));
 }
 
 TEST_F(DistributedCli, RanksOnDifferentMaterialsStopWithAnErrorNotACrash) {
@@ -413,20 +430,8 @@ TEST_F(DistributedCli, RanksOnDifferentMaterialsStopWithAnErrorNotACrash) {
                  m.stack.height(), rgb.data(), false);
       }
   }
-  const int port = freePort();
-  pid_t rank1 = startRank1(port, kSecret + std::string(" --dist-timeout 30"), common(other));
-  ASSERT_GT(rank1, 0);
-  RunResult r = runBounded("compress " + common() + " -o " + path("two.nbtf") +
-                           " --world-size 2 --rank 0 --dist-timeout 30 --master 127.0.0.1:" + std::to_string(port) +
-                           kSecret);
-  const int rc1 = waitFor(rank1);
-  const std::string log1 = slurp(path("rank1.log"));
-  EXPECT_EQ(r.exitCode, 1) << r.output;
-  EXPECT_EQ(rc1, 1) << "134 is SIGABRT\n" << log1;
-  EXPECT_NE(r.output.find("source size (width x height, lights x views) differs: rank 0 has 8x8"), std::string::npos)
-      << r.output;
-  EXPECT_NE(log1.find("source size"), std::string::npos) << log1;
-  EXPECT_FALSE(fs::exists(path("two.nbtf")));
+  expectBothStopSaying(common(other), "two.nbtf", common(),
+                       "source size (width x height, lights x views) differs: rank 0 has 8x8");
 }
 
 TEST_F(DistributedCli, AKilledWorkerStopsTheOthersWithAnError) {

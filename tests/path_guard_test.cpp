@@ -1,5 +1,6 @@
 // util/path_guard.h: an output that is an input (or another output) is refused, through
-// symbolic links, `..` and hard links; folder outputs may not hold or lie inside an input.
+// symbolic links, `..` and hard links; no output may lie inside an input folder, and a folder
+// output may not hold an input.
 #include "util/path_guard.h"
 
 #include <gtest/gtest.h>
@@ -52,8 +53,36 @@ TEST(PathGuard, FolderOutputsMayNotHoldOrLieInsideAnInput) {
   test::expectErrorContaining(
       [&] { refuseOverlappingPaths({}, {{"-o", dir / "report", true}, {"--stats-json", dir / "report/s.json"}}); },
       {"--stats-json", "lies inside the output folder -o"});
-  // A file written into an input folder is allowed (it does not replace the input).
-  EXPECT_NO_THROW(refuseOverlappingPaths({{"<input>", dir / "stack", true}}, {{"-o", dir / "stack/out.nbtf"}}));
+}
+
+TEST(PathGuard, NoOutputLiesAnywhereInsideAnInputFolder) {
+  test::TempDir dir;
+  fs::create_directories(dir / "stack/tv000_pv000");
+  const std::string image = dir / "stack/tv000_pv000/00000.jpg";
+  writeFileAtomic(image, std::string("measured"));
+  fs::create_symlink(dir / "stack", dir / "linked");
+  fs::create_symlink(image, dir / "image.jpg");
+  // The folder is an input whatever `folder` says: it is found out from the file system.
+  for (const std::string& out : {image, dir / "stack/new.nbtf", dir / "linked/tv000_pv000/00000.jpg",
+                                 dir / "image.jpg", dir / "stack/ground_truth/x.exr"})
+    test::expectErrorContaining([&] { refuseOverlappingPaths({{"<input>", dir / "stack"}}, {{"-o", out}}); },
+                                {"-o '" + out + "'", "input folder <input>", "nothing was written"});
+  test::expectErrorContaining([&] { refuseOverlappingPaths({{"<input>", dir / "linked"}}, {{"-o", dir / "stack/x", true}}); },
+                              {"lies inside the input folder <input>"});
+  // Beside the folder is fine.
+  EXPECT_NO_THROW(refuseOverlappingPaths({{"<input>", dir / "stack"}}, {{"-o", dir / "out.nbtf"}, {"--x", dir / "rep", true}}));
+}
+
+TEST(PathGuard, ADotDotAfterAMissingFolderIsResolvedAsTheWriteWouldBe) {
+  test::TempDir dir;
+  const std::string in = dir / "in.btf";
+  writeFileAtomic(in, std::string("measured"));
+  const std::string out = dir / "x/y/../../in.btf";  // x does not exist: the kernel cannot resolve it yet
+  test::expectErrorContaining([&] { refuseOverlappingPaths({{"<input>", in}}, {{"-o", out}}); },
+                              {"same file as the input"});
+  EXPECT_TRUE(samePath(in, out));
+  EXPECT_TRUE(pathInside(dir / "x/../in.btf", dir.path()));
+  EXPECT_FALSE(fs::exists(dir / "x"));  // checking creates nothing
 }
 
 }  // namespace

@@ -49,5 +49,16 @@ TEST(ReportDoc, HtmlEscapesTextAndEmbedsFigures) {
   EXPECT_NE(renderHtml(sample(), {}).find("src=\"fig.png\""), std::string::npos);
 }
 
+// A table never widens the page: text cells wrap, and each table scrolls inside a box of the
+// page's width (a report's first table, with a long file path, overflowed 1000 px before).
+TEST(ReportDoc, TablesWrapTextAndScrollInsideThePage) {
+  const std::string html = renderHtml(sample(), {});
+  EXPECT_NE(html.find("<div class=\"table\"><table>"), std::string::npos);
+  EXPECT_NE(html.find("</table></div>"), std::string::npos);
+  EXPECT_NE(html.find("div.table { max-width: 100%; overflow-x: auto; }"), std::string::npos);
+  EXPECT_NE(html.find("td { overflow-wrap: anywhere; }"), std::string::npos);
+  EXPECT_EQ(html.find("td { white-space: nowrap; }"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace nbtf

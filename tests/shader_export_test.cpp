@@ -3,6 +3,10 @@
 // generated GLSL runs in a browser in viewer_browser_test.cpp.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -11,6 +15,7 @@
 #include "shader/viewer_page.h"
 #include "shader_test_materials.h"
 #include "test_util.h"
+#include "util/directions.h"
 
 namespace nbtf {
 namespace {
@@ -269,6 +274,12 @@ TEST(ShaderExport, CommandWritesTheFolder) {
   EXPECT_EQ(manifest["material"]["method"], "per-texel-neural");
   EXPECT_EQ(manifest["material"]["direction_encoding"], "stereographic+half");
   EXPECT_EQ(manifest["material"]["layers"][0]["activation"], "sigmoid");
+  // The folder gets the mode every output folder gets (0777 less the umask), not mkdtemp's 0700.
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  struct stat st;
+  ASSERT_EQ(::stat((tmp / "glsl").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0777 & ~mask);
 }
 
 TEST(ViewerPage, EmbedsTheDecoderAndRefusesALargeReference) {
@@ -295,6 +306,73 @@ TEST(ViewerPage, EmbedsTheDecoderAndRefusesALargeReference) {
   small.srgb.assign(9 * 7 * 3 * 9, 128);
   o.reference = &small;
   EXPECT_NE(buildViewerPage(s, m, o).find("\"reference\":{"), std::string::npos);
+}
+
+// The embedded subset: every pair while it fits, else the same share of the lights and the
+// views, spread over the hemisphere; at 100 x 100 texels 40 of UBO2003's 81 each.
+TEST(ViewerPage, AReferenceTooLargeForThePageEmbedsDirectionsSpreadOverTheHemisphere) {
+  const std::vector<Direction>& dirs = hemisphere81();
+  const ViewerReferenceSelection small = viewerReferenceDirections(dirs, dirs, 16 * 16);
+  EXPECT_EQ(small.lights.size(), 81u);
+  EXPECT_EQ(small.views.size(), 81u);
+  const ViewerReferenceSelection full = viewerReferenceDirections(dirs, dirs, 100 * 100);
+  EXPECT_EQ(full.lights.size(), 40u);
+  EXPECT_EQ(full.views.size(), 40u);
+  EXPECT_LE(full.lights.size() * full.views.size() * 100 * 100 * 3, kMaxViewerReferenceBytes);
+  EXPECT_TRUE(std::is_sorted(full.lights.begin(), full.lights.end()));
+  // Spread: the normal is kept, and no measured direction is more than 25 degrees from a kept one.
+  EXPECT_EQ(dirs[full.lights.front()].thetaDeg, 0);
+  for (const Direction& d : dirs) {
+    double nearest = 180;
+    for (int i : full.lights) {
+      const auto a = d.unitVector(), b = dirs[i].unitVector();
+      nearest = std::min(nearest, std::acos(std::min(1.0, a[0] * b[0] + a[1] * b[1] + a[2] * b[2])) * 180 / M_PI);
+    }
+    EXPECT_LT(nearest, 25) << d.thetaDeg << ", " << d.phiDeg;
+  }
+  test::expectErrorContaining([&] { viewerReferenceDirections(dirs, dirs, std::size_t(1) << 30); },
+                              {"one image", "MiB", "--crop"});
+}
+
+// The reference must be the file's material, checked as nbtf eval checks it.
+TEST(ViewerPage, AnotherMaterialsStackIsRefusedUnlessForced) {
+  test::TempDir tmp;
+  for (const char* preset : {"wool", "corduroy"}) {
+    const auto synth = test::runProgram("nbtf-synth", std::string("--preset ") + preset +
+                                                          " --size 8x8 --layout ubo2003 --no-ground-truth -q --seed 1 -o " +
+                                                          tmp / preset);
+    ASSERT_EQ(synth.exitCode, 0) << synth.output;
+  }
+  const std::string file = tmp / "wool.nbtf";
+  ASSERT_EQ(test::runNbtf("compress " + tmp / "wool" + " -o " + file + " --method pca --components 2 -q").exitCode, 0);
+  const auto wrong = test::runNbtf("view " + file + " -o " + tmp / "w.html --reference " + tmp / "corduroy" + " -q");
+  EXPECT_EQ(wrong.exitCode, 1) << wrong.output;
+  EXPECT_NE(wrong.output.find("is not the material"), std::string::npos) << wrong.output;
+  EXPECT_NE(wrong.output.find("--force"), std::string::npos) << wrong.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "w.html"));
+  const auto forced = test::runNbtf("view " + file + " -o " + tmp / "w.html --reference " + tmp / "corduroy" + " --force -q");
+  ASSERT_EQ(forced.exitCode, 0) << forced.output;
+  EXPECT_NE(forced.output.find("using it anyway (--force)"), std::string::npos) << forced.output;
+  EXPECT_NE(readText(tmp / "w.html").find("\"fingerprint\":\"MISMATCH"), std::string::npos);
+  const auto right = test::runNbtf("view " + file + " -o " + tmp / "r.html --reference " + tmp / "wool" + " -q");
+  ASSERT_EQ(right.exitCode, 0) << right.output;
+  EXPECT_NE(readText(tmp / "r.html").find("\"fingerprint\":\"matches"), std::string::npos);
+}
+
+// The paper's 100 x 100 texels with its reference: the page is written, with a subset.
+TEST(ViewerPage, AHundredByHundredMaterialWithItsReferenceFitsThePage) {
+  test::TempDir tmp;
+  const auto synth = test::runProgram(
+      "nbtf-synth", "--preset fabric --size 100x100 --layout ubo2003 --no-ground-truth -q --seed 1 -o " + tmp / "fabric");
+  ASSERT_EQ(synth.exitCode, 0) << synth.output;
+  const std::string file = tmp / "fabric.nbtf";
+  ASSERT_EQ(test::runNbtf("compress " + tmp / "fabric" + " -o " + file + " --method pca --components 2 -q").exitCode, 0);
+  const auto r = test::runNbtf("view " + file + " -o " + tmp / "page.html --reference " + tmp / "fabric");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("reference: 40 of 81 lights x 40 of 81 views embedded"), std::string::npos) << r.output;
+  const std::string page = readText(tmp / "page.html");
+  EXPECT_NE(page.find("\"measured_lights\":81"), std::string::npos);
+  EXPECT_LT(page.size(), std::size_t(70) << 20);  // 48 MiB of images as base64, and the page
 }
 
 TEST(ViewerPage, CommandEmbedsTheReferenceStackAtTheFilesCrop) {

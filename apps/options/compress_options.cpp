@@ -67,7 +67,7 @@ TrainConfig buildTrainConfig(TrainConfig c, const cxxopts::ParseResult& args, co
 void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
   const std::string method = args["method"].as<std::string>();
   if (method == "pca") {
-    for (const char* neural : {"clusters", "config", "epochs", "time-budget", "resume", "save-encoder"})
+    for (const char* neural : {"clusters", "config", "epochs", "time-budget", "resume", "restart", "save-encoder"})
       if (args.count(neural))
         throw Error(std::string("--") + neural + " applies to the neural methods only, not to --method pca");
     if (!args.count("components"))
@@ -112,9 +112,7 @@ void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, Compress
     if (a.maxClusters < 1) throw Error("--max-clusters must be >= 1, got " + std::to_string(a.maxClusters));
   }
   if (args.count("size-budget")) {
-    const long long bytes = args["size-budget"].as<long long>();
-    if (bytes < 1) throw Error("--size-budget must be a positive number of bytes, got " + std::to_string(bytes));
-    a.sizeBudget = static_cast<std::uint64_t>(bytes);
+    a.sizeBudget = parseByteSize(args["size-budget"].as<std::string>(), "--size-budget");
   }
   if (args.count("stages")) a.stages = args["stages"].as<int>();
   if (args.count("initial-clusters")) {
@@ -150,6 +148,8 @@ void addCompressOptions(cxxopts::Options& options) {
       "stats-json", "Also write the summary as JSON to this file", cxxopts::value<std::string>())(
       "save-encoder", "Also write this .nbtf file with the encoder inside (for fine-tuning)",
       cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
+      "restart", "Delete an interrupted run's checkpoint and start over (without --resume or --restart a run "
+                 "whose checkpoint exists is refused)")(
       "components",
       "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
       cxxopts::value<int>()->default_value("0"))(
@@ -174,7 +174,8 @@ void addCompressOptions(cxxopts::Options& options) {
       "merging near-duplicates between stages (training steps as for fixed k = --clusters)")(
       "target-rmse", "--adaptive: stop adding clusters once a stage's training RMSE is at most R",
       cxxopts::value<double>())("max-clusters", "--adaptive: at most K clusters", cxxopts::value<int>())(
-      "size-budget", "--adaptive: the written file is at most BYTES bytes", cxxopts::value<long long>())(
+      "size-budget", "--adaptive: the written file is at most this size (36K, 1.5M, 40000; K = 1024 bytes)",
+      cxxopts::value<std::string>())(
       "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
       "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
       cxxopts::value<int>());
@@ -222,6 +223,9 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   if (auto layout = layoutOption(args)) o.load.layout = *layout;
   if (auto crop = cropOption(args)) o.load.crop = *crop;
   if (args.count("save-encoder")) o.saveEncoderPath = args["save-encoder"].as<std::string>();
+  o.restart = args.count("restart") > 0;
+  if (o.restart && o.train.resume)
+    throw Error("--resume continues the checkpoint and --restart deletes it: give one of them");
   const MemoryOptions memory = memoryOptions(args);
   o.memoryLimit = memory.limit;
   o.memoryLimitText = memory.limitText;

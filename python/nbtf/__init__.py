@@ -15,8 +15,10 @@ be reached, read or written; ValueError for arguments and data, with the message
 `nbtf` command line. The reference is docs/python.md.
 """
 
+import difflib as _difflib
 import json as _json
 import os as _os
+import re as _re
 
 import numpy as _np
 
@@ -149,6 +151,17 @@ class Material:
     isa = property(lambda self: self._m.isa, doc="The decoder's kernels: portable, avx2+fma or avx512")
 
     # ---- Decoding
+    def _check_texels(self, xy):
+        """The decoder's own message for a texel outside the material, with the value given (one
+        beyond the 32-bit range the decoder takes is named as given, not as clipped)."""
+        w, h = self.width, self.height
+        outside = (xy[:, 0] < 0) | (xy[:, 0] >= w) | (xy[:, 1] < 0) | (xy[:, 1] >= h)
+        if outside.any():
+            i = int(_np.argmax(outside))
+            x, y = (int(v) for v in xy[i])
+            prefix = f"query {i}: " if len(xy) > 1 else ""
+            raise ValueError(f"{prefix}texel ({x}, {y}) is outside the {w} x {h} material (0 <= x < {w}, 0 <= y < {h})")
+
     def query(self, texel=None, uv=None, *, light, view, normalized=False):
         """Decoded RGB at texels and directions; float32 (..., 3), linear RGB (sRGB primaries),
         or the decoder's own output (linear / alpha) with normalized=True (`nbtf query
@@ -189,7 +202,7 @@ class Material:
                 f"{light.shape[:-1]}, {view.shape[:-1]}"
             ) from None
         if what == "texel":
-            pos = _np.clip(pos, -(2**31), 2**31 - 1)
+            self._check_texels(_np.broadcast_to(pos, shape + (2,)).reshape(-1, 2))
             t, u = _flat(pos, shape, _np.int32), None
         else:
             t, u = None, _flat(pos, shape, _np.float32)
@@ -298,6 +311,20 @@ def load_stack(path, crop=None, layout=None, linear=True, memory_limit=None, pro
 _NOT_OPTIONS = {"input", "output", "o", "help", "h", "q"}
 
 
+def _compress_keywords():
+    """compress's keywords: the long options of `nbtf compress`, '-' written '_'."""
+    return {name.replace("-", "_") for name in _train().compress_options()} - _NOT_OPTIONS
+
+
+def _python_names(message, keywords):
+    """A message of the command line's option set with its options named as compress's
+    keywords ("--time-budget" -> "time_budget=")."""
+    def name(m):
+        keyword = m.group(1).replace("-", "_")
+        return keyword + "=" if keyword in keywords else m.group(0)
+    return _re.sub(r"--([a-z][a-z0-9-]*)", name, message)
+
+
 def compress(source, out, *, progress=None, **options):
     """Compresses a stack (folder or UBO2014 .btf) into the .nbtf file `out`; returns the
     summary `nbtf compress --stats-json` writes, as a dict.
@@ -306,18 +333,24 @@ def compress(source, out, *, progress=None, **options):
     config="compact", seed=1, holdout=0.1, epochs=..., method="pca", components=..., crop=(x, y,
     w, h), layout=..., adaptive=True, target_rmse=..., memory_limit="8G", resume=True,
     stats_json=..., save_encoder=..., threads=..., quiet=True, ... They are parsed by the very
-    option set of `nbtf compress`, so every name, default and message is the command line's
-    (messages name them as --time-budget etc.). True turns a flag on; None or False leaves an
-    option out.
+    option set of `nbtf compress`, so every name, default and check is the command line's;
+    messages name them as keywords (time_budget=), and an unknown keyword raises TypeError, as
+    for any Python function. True turns a flag on; None or False leaves an option out.
 
     progress: None (the command line's text bars on the terminal; quiet=True: none) or a
     callable taking a dict (label, done, total, seconds, status, final). An exception in the
     callback, or Ctrl-C, stops training after a checkpoint and raises (KeyboardInterrupt names
     the checkpoint: resume=True continues from it)."""
     args = [_path(source, "source"), "-o", _path(out, "out")]
+    keywords = _compress_keywords()
     for name, value in options.items():
         if name in _NOT_OPTIONS:
-            raise ValueError(f"{name}= is not an option of compress (the source and the output are its first two arguments)")
+            raise TypeError(f"compress() got an unexpected keyword argument '{name}' (the source and the output are "
+                            "its first two arguments)")
+        if name not in keywords:
+            close = _difflib.get_close_matches(name, sorted(keywords), n=1)
+            raise TypeError(f"compress() got an unexpected keyword argument '{name}'" +
+                            (f"; did you mean '{close[0]}'?" if close else ""))
         flag = "--" + name.replace("_", "-")
         if value is None or value is False:
             continue
@@ -333,7 +366,10 @@ def compress(source, out, *, progress=None, **options):
         args.append(f"--threads={_threads}")
     if progress is not None and not callable(progress):
         raise ValueError(f"progress: expected a callable or None, got {progress!r}")
-    text = _train().compress(args, progress)
+    try:
+        text = _train().compress(args, progress)
+    except ValueError as e:
+        raise ValueError(_python_names(str(e), keywords)) from None
     return None if text is None else _json.loads(text)
 
 

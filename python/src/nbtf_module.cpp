@@ -7,6 +7,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -87,34 +89,8 @@ class Material {
   const std::string& path() const { return path_; }
   const std::string& infoJson() const { return infoJson_; }
 
-  py::dict sizes() const {
-    const NbtfSizes& s = sizes_;
-    py::dict d;
-    if (s.pca) {
-      d["pca_mean"] = s.pcaMean;
-      d["pca_basis"] = s.pcaBasis;
-      d["pca_coefficients"] = s.pcaCoefficients;
-      d["pca_components"] = s.pcaComponents;
-    } else {
-      d["decoder"] = s.decoder;
-      d["latents"] = s.latents;
-      d["ids"] = s.ids;
-      d["modulation"] = s.modulation;
-      d["planes"] = s.planes;
-      d["cluster_planes"] = s.clusterPlanes;
-      d["decoder_parameters"] = s.decoderParameters;
-      d["latent_rows"] = s.latentRows;
-      d["latent_dim"] = s.latentDim;
-      d["ids_paper"] = s.idsPaper;
-      d["total_paper"] = s.totalPaper;
-      d["ratio_paper"] = s.ratioPaper;
-    }
-    d["total"] = s.total;
-    d["raw_float32"] = s.rawFloat32;
-    d["file"] = s.fileBytes;
-    d["ratio"] = s.ratio;
-    return d;
-  }
+  // nbtfPartBytes (codec/nbtf_info.h): the parts `nbtf info --json` lists under "bytes".
+  py::dict sizes() const { return py::module_::import("json").attr("loads")(nbtfPartBytes(sizes_).dump()); }
 
   // Runs f(i) for every query; an error names the query when there are several.
   template <typename F>

@@ -130,15 +130,15 @@ std::string evaluate(const std::string& file, const std::string& reference, cons
   EvaluateFileOptions o;
   o.eval.blurSampleImages = blurImages;
   if (blurImages < 0) throw Error("--blur-images must be >= 0");
-  o.eval.progress = !quiet;
+  o.eval.progress = !quiet || !progress.is_none();  // quiet silences the text bars, not a callback
   if (!crop.empty()) o.crop = parseCrop(crop);
   if (!layout.empty()) o.layout = parseLayout(layout);
   o.force = force;
   o.renderCompare = renderCompare;
   if (!output.empty()) {
     refuseOverlappingPaths({{"<file.nbtf>", file},
-                            {"--reference", reference, cli::isFolder(reference)},
-                            {"--render-compare", renderCompare, true}},
+                            {"--reference", reference},
+                            {"--render-compare", renderCompare}},
                            {{"-o", output, true}});
     cli::checkFolderCreatable(output);
   }
@@ -161,6 +161,17 @@ PYBIND11_MODULE(_nbtf_train, m) {
   m.doc() = "nbtf's compressor and evaluation (libtorch); use nbtf.compress and nbtf.evaluate";
   registerErrors();
   m.def("compress", &compress, py::arg("args"), py::arg("progress"));
+  // The long names of `nbtf compress`'s options, for nbtf.compress's keyword check.
+  m.def("compress_options", [] {
+    cxxopts::Options options("nbtf compress");
+    nbtf::cli::addCompressOptions(options);
+    nbtf::cli::addCommonOptions(options);
+    std::vector<std::string> names;
+    for (const std::string& group : options.groups())
+      for (const auto& o : options.group_help(group).options)
+        for (const std::string& name : o.l) names.push_back(name);
+    return names;
+  });
   m.def("evaluate", &evaluate, py::arg("file"), py::arg("reference"), py::arg("output"), py::arg("crop"),
         py::arg("layout"), py::arg("blur_images"), py::arg("force"), py::arg("render_compare"), py::arg("progress"),
         py::arg("quiet"), py::arg("threads"));

@@ -7,6 +7,34 @@
 
 namespace nbtf {
 
+nlohmann::json nbtfPartBytes(const NbtfSizes& s) {
+  nlohmann::json j;
+  if (s.pca) {
+    j = {{"pca_mean", s.pcaMean},
+         {"pca_basis", s.pcaBasis},
+         {"pca_coefficients", s.pcaCoefficients},
+         {"pca_components", s.pcaComponents}};
+  } else {
+    j = {{"decoder", s.decoder},
+         {"latents", s.latents},
+         {"ids", s.ids},
+         {"modulation", s.modulation},
+         {"planes", s.planes},
+         {"cluster_planes", s.clusterPlanes},
+         {"decoder_parameters", s.decoderParameters},
+         {"latent_rows", s.latentRows},
+         {"latent_dim", s.latentDim},
+         {"ids_paper", s.idsPaper},
+         {"total_paper", s.totalPaper},
+         {"ratio_paper", s.ratioPaper}};
+  }
+  j["total"] = s.total;
+  j["raw_float32"] = s.rawFloat32;
+  j["file"] = s.fileBytes;
+  j["ratio"] = s.ratio;
+  return j;
+}
+
 std::string nbtfInfoJson(const CompressedBtf& btf, const std::string& path, std::uint64_t fileBytes) {
   const NbtfSizes sizes = computeSizes(btf, fileBytes);
   nlohmann::json j;
@@ -30,8 +58,7 @@ std::string nbtfInfoJson(const CompressedBtf& btf, const std::string& path, std:
   j["pca_components"] = btf.pcaComponents();
   j["alpha"] = btf.alpha;
   j["holdout_images"] = btf.holdoutImages.size();
-  j["bytes"] = {{"decoder", sizes.decoder}, {"latents", sizes.latents}, {"ids", sizes.ids},
-                {"total", sizes.total},     {"raw_float32", sizes.rawFloat32}, {"file", sizes.fileBytes}};
+  j["bytes"] = nbtfPartBytes(sizes);
   j["ratio"] = sizes.ratio;
   nlohmann::json meta = nlohmann::json::parse(btf.metadataJson, nullptr, /*allow_exceptions=*/false);
   j["metadata"] = meta.is_discarded() ? nlohmann::json(nullptr) : meta;

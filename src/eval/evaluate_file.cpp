@@ -19,16 +19,16 @@ std::string rgbText(const std::array<double, 3>& m) {
   return buf;
 }
 
-// The reference must be the material the file was made from: its per-image means are
-// compared with the file's source fingerprint. Returns the line the report states.
-std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
-                             const std::string& referencePath, bool force) {
+}  // namespace
+
+std::string checkReferenceFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
+                                      const std::string& referencePath, bool force, const std::string& program) {
   std::optional<SourceFingerprint> stored = sourceFingerprintOf(btf.metadataJson, file);
   if (!stored) {
     std::fprintf(stderr,
-                 "nbtf eval: warning: %s has no source fingerprint (made by an older nbtf): cannot check that '%s' "
+                 "%s: warning: %s has no source fingerprint (made by an older nbtf): cannot check that '%s' "
                  "is the material it was made from\n",
-                 file.c_str(), referencePath.c_str());
+                 program.c_str(), file.c_str(), referencePath.c_str());
     return "not checked: the file has no source fingerprint (made by an older nbtf)";
   }
   FingerprintCheck c = checkSourceFingerprint(*stored, reference);
@@ -56,12 +56,10 @@ std::string checkFingerprint(const CompressedBtf& btf, const BtfStack& reference
             " sampled texels, over the source's spread (another capture of the same kind of material?)";
     summary = std::string(pattern);
   }
-  if (!force) throw Error(what + " (--force evaluates anyway)");
-  std::fprintf(stderr, "nbtf eval: warning: %s; evaluating anyway (--force)\n", what.c_str());
-  return "MISMATCH, evaluated anyway (--force): " + summary + " from the file's source";
+  if (!force) throw Error(what + " (--force uses it anyway)");
+  std::fprintf(stderr, "%s: warning: %s; using it anyway (--force)\n", program.c_str(), what.c_str());
+  return "MISMATCH, used anyway (--force): " + summary + " from the file's source";
 }
-
-}  // namespace
 
 EvaluateFileResult evaluateFile(const std::string& file, const std::string& referencePath,
                                 const EvaluateFileOptions& options) {
@@ -75,10 +73,13 @@ EvaluateFileResult evaluateFile(const std::string& file, const std::string& refe
   LoadOptions load;
   load.progress = options.eval.progress;
   load.crop = options.crop.value_or(btf.crop);
-  load.layout = options.layout.value_or(btf.layout);
+  // The file's layout names a folder's files; a UBO2014 file's reference may be its .btf or a
+  // folder it was decoded to, whose layout is found from its names.
+  load.layout = options.layout.value_or(btf.layout == Layout::Ubo2014 ? Layout::Unknown : btf.layout);
   BtfStack reference = loadBtfStack(referencePath, load);
   checkReferenceMatches(btf, reference, file, referencePath);
-  const std::string referenceCheck = checkFingerprint(btf, reference, file, referencePath, options.force);
+  const std::string referenceCheck =
+      checkReferenceFingerprint(btf, reference, file, referencePath, options.force, "nbtf eval");
 
   CompressedReconstruction reconstruction(btf, file);
   EvalInputs inputs = compressedEvalInputs(btf, reference, reconstruction, file, referencePath, fileBytes);

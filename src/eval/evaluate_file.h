@@ -6,7 +6,9 @@
 #include <optional>
 #include <string>
 
+#include "codec/nbtf_file.h"
 #include "eval/evaluate.h"
+#include "io/btf_stack.h"
 #include "util/layout.h"
 
 namespace nbtf {
@@ -24,6 +26,14 @@ struct EvaluateFileResult {
   EvalResult result;
   int evaluationsPerImage = 0;  // decoder evaluations per image: k (clustered) or texels
 };
+
+// The reference must be the material the file was made from: its per-image means and texel
+// pattern are compared with the file's source fingerprint (io/source_fingerprint.h). Throws
+// nbtf::Error naming both when they differ, unless `force` (then a warning on stderr, prefixed
+// with `program`). Returns the line a report states ("matches ...", "MISMATCH, used anyway ...",
+// "not checked: ...").
+std::string checkReferenceFingerprint(const CompressedBtf& btf, const BtfStack& reference, const std::string& file,
+                                      const std::string& referencePath, bool force, const std::string& program);
 
 // Throws nbtf::Error naming the file or the reference and what is wrong: an unreadable file,
 // a reference of another size or other directions, or one that is not the material the file

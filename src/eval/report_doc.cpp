@@ -129,8 +129,9 @@ h3 { font-size: 16px; margin-top: 22px; }
 table { border-collapse: collapse; margin: 8px 0 18px; font-size: 14px; }
 th, td { border: 1px solid #d0d7de; padding: 4px 10px; }
 th { background: #eef3f7; text-align: left; }
-td { white-space: nowrap; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
+td { overflow-wrap: anywhere; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+div.table { max-width: 100%; overflow-x: auto; }
 tr:nth-child(even) td { background: #fafbfc; }
 p.caption { font-style: italic; color: #444; margin: 14px 0 2px; font-size: 14px; }
 figure { margin: 12px 0 22px; }
@@ -176,7 +177,9 @@ std::string renderHtml(const Doc& doc, const std::map<std::string, std::vector<s
       }
       case DocBlock::Kind::Table: {
         if (!b.text.empty()) h << "<p class=\"caption\">" << inlineHtml(b.text) << "</p>\n";
-        h << "<table>";
+        // Text cells wrap (a long path or note no longer widens the page); a table of many
+        // numeric columns scrolls inside its box instead of overflowing it.
+        h << "<div class=\"table\"><table>";
         h << "<thead><tr>";
         for (const auto& c : b.header) h << "<th>" << inlineHtml(c) << "</th>";
         h << "</tr></thead><tbody>\n";
@@ -186,7 +189,7 @@ std::string renderHtml(const Doc& doc, const std::map<std::string, std::vector<s
             h << (c < b.numeric.size() && b.numeric[c] ? "<td class=\"num\">" : "<td>") << inlineHtml(row[c]) << "</td>";
           h << "</tr>\n";
         }
-        h << "</tbody></table>\n";
+        h << "</tbody></table></div>\n";
         break;
       }
     }

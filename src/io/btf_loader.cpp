@@ -74,7 +74,9 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
   }
   if (!fs::is_directory(path, ec))
     throw fileAccessError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)", ENOTDIR);
-  if (forced == Layout::Ubo2014) forced = Layout::Unknown;  // a folder's layout is detected from its names
+  if (forced == Layout::Ubo2014)
+    throw fileError(path, "is a folder of images: --layout ubo2014 applies to UBO2014 .btf files only (leave it "
+                          "out, or give ubo2003 or utia)");
   refuseInterruptedOutput(path);
 
   // Collect candidate image files: the folder itself and its view folders.

@@ -41,7 +41,7 @@ void writeArchive(const std::string& path, torch::serialize::OutputArchive& arch
 // foreign file is refused here, by name, before any of it is used.
 void readArchive(const std::string& path, torch::serialize::InputArchive& archive) {
   const std::vector<std::uint8_t> bytes = readFileBytes(path);
-  const std::string advice = "; remove it, or run without --resume to start over";
+  const std::string advice = "; --restart deletes it and starts over";
   if (bytes.size() < kHeaderBytes || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
     throw fileError(path, "is not an nbtf checkpoint (no NBTFCKPT header; an older nbtf wrote checkpoints without "
                           "checksums)" + advice);
@@ -129,35 +129,60 @@ void saveCheckpoint(const std::string& path, const CheckpointMeta& meta, torch::
   writeArchive(path, archive);
 }
 
+namespace {
+
+// The run's position (version checked, step, time, loss, planned steps, fingerprint) from an
+// archive readArchive accepted. A fresh tensor per value: read() into a defined tensor calls
+// set_(), which keeps that tensor's dtype and reinterprets the stored bytes (the double
+// elapsed_seconds read into the int64 tensor of the step came back as 4.6e18 s, so a resumed
+// --time-budget run found its budget spent and did no training).
+CheckpointMeta readMeta(torch::serialize::InputArchive& archive, const std::string& path) {
+  auto value = [&](const char* key) {
+    torch::Tensor t;
+    archive.read(key, t);
+    return t;
+  };
+  const std::int64_t version = value("version").item<std::int64_t>();
+  if (version != kCheckpointVersion)
+    throw fileError(path, "checkpoint version " + std::to_string(version) + ", this nbtf reads " +
+                              std::to_string(kCheckpointVersion) + "; --restart deletes it and starts over");
+  CheckpointMeta meta;
+  meta.fingerprint = static_cast<std::uint64_t>(value("fingerprint").item<std::int64_t>());
+  meta.step = value("step").item<std::int64_t>();
+  meta.elapsedSeconds = value("elapsed_seconds").item<double>();
+  meta.emaLoss = value("ema_loss").item<double>();
+  meta.totalSteps = value("total_steps").item<std::int64_t>();
+  return meta;
+}
+
+// Runs `read`; torch reports corrupt or foreign files as c10::Error with a long backtrace:
+// keep its first line, under the file's name.
+template <class Read>
+auto readingCheckpoint(const std::string& path, Read read) {
+  try {
+    return read();
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')) +
+                              "; --restart deletes it and starts over");
+  }
+}
+
+}  // namespace
+
 CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFingerprint, torch::nn::Module& encoder,
                               torch::nn::Module& decoder, torch::optim::Optimizer& optimizer, PolishLatents& polish,
                               double latentLearningRate, bool checkFingerprint) {
-  CheckpointMeta meta;
-  try {
+  return readingCheckpoint(path, [&] {
     torch::serialize::InputArchive archive, enc, dec, opt;
     readArchive(path, archive);
-    // A fresh tensor per value: read() into a defined tensor calls set_(), which keeps that
-    // tensor's dtype and reinterprets the stored bytes (the double elapsed_seconds read into
-    // the int64 tensor of the step came back as 4.6e18 s, so a resumed --time-budget run
-    // found its budget spent and did no training).
-    auto value = [&](const char* key) {
-      torch::Tensor t;
-      archive.read(key, t);
-      return t;
-    };
-    const std::int64_t version = value("version").item<std::int64_t>();
-    if (version != kCheckpointVersion)
-      throw fileError(path, "checkpoint version " + std::to_string(version) + ", this nbtf reads " +
-                                std::to_string(kCheckpointVersion));
-    meta.fingerprint = static_cast<std::uint64_t>(value("fingerprint").item<std::int64_t>());
+    const CheckpointMeta meta = readMeta(archive, path);
     if (checkFingerprint && meta.fingerprint != expectedFingerprint)
       throw fileError(path,
                       "checkpoint is from a different setup (data, clusters, hold-out, model, optimizer or batch "
                       "geometry differ); remove it or rerun with the same inputs and config");
-    meta.step = value("step").item<std::int64_t>();
-    meta.elapsedSeconds = value("elapsed_seconds").item<double>();
-    meta.emaLoss = value("ema_loss").item<double>();
-    meta.totalSteps = value("total_steps").item<std::int64_t>();
     archive.read("encoder", enc);
     archive.read("decoder", dec);
     archive.read("optimizer", opt);
@@ -170,14 +195,21 @@ CheckpointMeta loadCheckpoint(const std::string& path, std::uint64_t expectedFin
       torch::serialize::InputArchive latentOpt;
       if (polish.free() && archive.try_read("polish_optimizer", latentOpt)) polish.optimizer->load(latentOpt);
     }
-  } catch (const Error&) {
-    throw;
-  } catch (const std::exception& e) {
-    // torch reports corrupt or foreign files as c10::Error with a long backtrace: keep its first line.
-    std::string what = e.what();
-    throw fileError(path, "cannot read checkpoint: " + what.substr(0, what.find('\n')));
-  }
-  return meta;
+    return meta;
+  });
+}
+
+CheckpointSummary readCheckpointSummary(const std::string& path) {
+  return readingCheckpoint(path, [&] {
+    torch::serialize::InputArchive archive;
+    readArchive(path, archive);
+    const CheckpointMeta meta = readMeta(archive, path);
+    CheckpointSummary summary;
+    summary.step = meta.step;
+    summary.totalSteps = meta.totalSteps;
+    summary.elapsedSeconds = meta.elapsedSeconds;
+    return summary;
+  });
 }
 
 namespace {

@@ -291,4 +291,14 @@ struct CheckpointState {
 };
 CheckpointState readCheckpointState(const std::string& path);
 
+// How far the run that wrote a checkpoint got, read without loading the model: the header,
+// checksum and version are checked, so a damaged or foreign file is refused (nbtf::Error naming
+// it) before the stack it belongs to is loaded.
+struct CheckpointSummary {
+  std::int64_t step = 0;
+  std::int64_t totalSteps = 0;  // the run's planned steps (0: a time budget only)
+  double elapsedSeconds = 0;    // training time so far
+};
+CheckpointSummary readCheckpointSummary(const std::string& path);
+
 }  // namespace nbtf

@@ -304,12 +304,15 @@ void flattenJson(const json& j, const std::string& path, std::vector<std::pair<s
 // What every rank of a data-parallel run must share (DistributedConfig::mustAgree), named as
 // the user knows it, the options first: ranks started with different commands get the option
 // named, not a checksum.
-std::vector<std::pair<std::string, std::string>> distributedSettings(const BtfStack& stack, const CompressOptions& o,
+std::vector<std::pair<std::string, std::string>> distributedSettings(const BtfStack& stack, const std::string& output,
+                                                                     const CompressOptions& o,
                                                                      const TrainConfig& config,
                                                                      const std::vector<std::int32_t>& ids,
                                                                      int pcaComponents) {
   std::vector<std::pair<std::string, std::string>> s;
   s.push_back({"nbtf version", NBTF_VERSION});
+  // Rank 0 writes the file: a rank told to write elsewhere would believe its path written.
+  s.push_back({"-o", output});
   s.push_back({"--clusters", std::to_string(o.clusters)});
   s.push_back({"--seed", std::to_string(config.seed)});
   s.push_back({"--epochs", std::to_string(config.epochs)});
@@ -468,7 +471,7 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
   config.finalEvaluation = !detail::assemblyMeasures(config, o.clusters);  // its figures would be replaced
   stats.checkpointPath = config.checkpointPath;
   if (config.distributed.enabled())
-    config.distributed.mustAgree = distributedSettings(stack, o, config, inputs.ids, pcaComponents);
+    config.distributed.mustAgree = distributedSettings(stack, stats.output, o, config, inputs.ids, pcaComponents);
   t = Clock::now();
   TrainResult train = trainModel(inputs, config);
   stats.seconds.train = secondsSince(t);
@@ -513,10 +516,66 @@ CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& option
   return b;
 }
 
+namespace {
+
+// The neural methods estimate their standardization, PCA, clusters and per-texel code ranges
+// over the texels: with a handful of them these are degenerate (one texel: every standardized
+// value is 0, so the encoder sees nothing, and the run trains for minutes to a poor fit).
+constexpr std::int64_t kMinNeuralTexels = 16;
+
+void refuseTooFewTexels(const StackShape& shape, const std::string& input) {
+  if (shape.texels() >= kMinNeuralTexels) return;
+  throw fileError(input, std::to_string(shape.width) + " x " + std::to_string(shape.height) + " texels are too few for " +
+                             "the neural methods (at least " + std::to_string(kMinNeuralTexels) +
+                             ", e.g. 4 x 4): they estimate their standardization, PCA, clusters and per-texel code "
+                             "ranges over the texels, which a handful of texels leaves degenerate; give a larger "
+                             "--crop, or use --method pca");
+}
+
+std::string describeCheckpoint(const CheckpointSummary& c) {
+  char buf[160];
+  if (c.totalSteps > 0)
+    std::snprintf(buf, sizeof buf, "step %lld of %lld, %.0f s of training%s", static_cast<long long>(c.step),
+                  static_cast<long long>(c.totalSteps), c.elapsedSeconds,
+                  c.step >= c.totalSteps ? ": its training had finished" : "");
+  else
+    std::snprintf(buf, sizeof buf, "step %lld, %.0f s of training", static_cast<long long>(c.step), c.elapsedSeconds);
+  return buf;
+}
+
+// An interrupted run's checkpoint (and an adaptive run's stage state beside it) is the user's
+// work: read now, before the stack is loaded, so a damaged one is refused at once; kept for
+// --resume; deleted only with --restart; otherwise the run is refused, saying how far it got.
+void refuseOrRestartCheckpoint(const CompressOptions& o) {
+  const std::string& checkpoint = o.checkpointPath;
+  const std::string state = adaptiveStatePath(checkpoint);
+  std::error_code ec;
+  const bool hasCheckpoint = std::filesystem::exists(checkpoint, ec), hasState = std::filesystem::exists(state, ec);
+  if (!hasCheckpoint && !hasState) return;
+  if (o.restart) {
+    for (const std::string& path : {checkpoint, state}) {
+      if (!std::filesystem::exists(path, ec)) continue;
+      if (!std::filesystem::remove(path, ec) || ec)
+        throw fileError(path, "--restart: cannot delete it: " + ec.message());
+      std::fprintf(stderr, "nbtf compress: --restart: deleted %s\n", path.c_str());
+    }
+    return;
+  }
+  const std::string progress = hasCheckpoint ? describeCheckpoint(readCheckpointSummary(checkpoint)) : "";
+  if (o.train.resume) return;
+  if (hasCheckpoint)
+    throw fileError(checkpoint, "an earlier run's training checkpoint (" + progress +
+                                    ") is here and would be replaced; --resume continues that run, --restart "
+                                    "deletes it and starts over");
+  throw fileError(state, "an earlier adaptive run's stage state is here and would be replaced; --resume continues "
+                         "that run, --restart deletes it and starts over");
+}
+
+}  // namespace
+
 void refuseOverlappingCompressPaths(const std::string& input, const std::string& output, const CompressOptions& options,
                                     const std::string& configPath, const std::vector<PathUse>& extraOutputs) {
-  std::error_code ec;
-  std::vector<PathUse> inputs{{"<input>", input, std::filesystem::is_directory(input, ec)}, {"--config", configPath}};
+  std::vector<PathUse> inputs{{"<input>", input}, {"--config", configPath}};
   std::vector<PathUse> outputs{{"-o", output}, {"--save-encoder", options.saveEncoderPath}};
   if (!options.pcaBaseline) {
     const std::string checkpoint = checkpointPathFor(output, options);
@@ -543,10 +602,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   } else {
     o.checkpointPath = checkpointPathFor(output, options);
     checkWritable(o.checkpointPath);
-    // A fixed-k run rewrites the checkpoint: an adaptive run's saved clusters would no longer
-    // belong to it.
-    std::error_code ec;
-    if (!o.adaptive.enabled) std::filesystem::remove(adaptiveStatePath(o.checkpointPath), ec);
+    refuseOrRestartCheckpoint(o);
   }
   CompressStats stats;
   stats.output = output;
@@ -558,6 +614,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
     stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
     o.load.expandUpTo = expandBudget(stats.memoryLimit);
     const StackShape shape = stackShape(input, o.load);  // the crop's texels when cropped
+    if (!o.pcaBaseline) refuseTooFewTexels(shape, input);
     resolveDefaultClusters(o, shape.texels(), stats);
     if (cropped) checkClusterCounts(o, shape.texels(), "the crop");
     const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";

@@ -73,6 +73,9 @@ struct CompressOptions {
   // Where training checkpoints go; "" = the config's training.checkpoint_path, else
   // defaultCheckpointPath(output), which is removed once the output is written.
   std::string checkpointPath;
+  // An existing checkpoint (or adaptive state) beside it is an interrupted run's work:
+  // compressBtf refuses to start over it unless train.resume continues it or `restart` deletes it.
+  bool restart = false;
   bool progress = true;
   std::atomic<bool>* stopFlag = nullptr;  // set (SIGINT) -> checkpoint, stop, write nothing
   AdaptiveOptions adaptive;     // clustered only

@@ -74,22 +74,33 @@ bool describedNotYet(const fs::path& folder) {
   return !ec;
 }
 
-// Removes one of our decode folders with its description last, so that a kill during the
-// removal leaves a folder the next decode still recognises as its own.
-void removeDecodeFolder(const fs::path& folder, std::error_code& ec) {
-  std::vector<fs::path> entries;
-  for (const auto& e : fs::directory_iterator(folder, ec))
-    if (e.path().filename() != kDecodeDescriptionName) entries.push_back(e.path());
-  for (const fs::path& e : entries) fs::remove_all(e, ec);
-  fs::remove_all(folder, ec);
-}
-
 void writeDescription(const std::string& folder, nlohmann::json description, bool complete) {
   description["complete"] = complete;
   writeFileAtomic((fs::path(folder) / kDecodeDescriptionName).string(), description.dump(2) + "\n");
 }
 
 }  // namespace
+
+void removeDecodeFolder(const std::string& folderText, std::error_code& ec) {
+  const fs::path folder(folderText);
+  if (hasDescription(folder)) {
+    try {
+      std::ifstream in(folder / kDecodeDescriptionName);
+      nlohmann::json d = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+      if (d.is_object() && d.value("complete", false)) writeDescription(folder.string(), d, false);
+    } catch (const std::exception&) {
+      // An unwritable description is removed with the rest all the same.
+    }
+  }
+  std::vector<fs::path> entries;
+  for (const auto& e : fs::directory_iterator(folder, ec))
+    if (e.path().filename() != kDecodeDescriptionName) entries.push_back(e.path());
+  for (const fs::path& e : entries) {
+    fs::remove_all(e, ec);
+    if (ec) return;  // the description stays (incomplete) while anything else does
+  }
+  fs::remove_all(folder, ec);
+}
 
 void checkReplaceableDecodeFolder(const std::string& folder) {
   const std::string why = foreignEntry(folder);

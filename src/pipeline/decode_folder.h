@@ -8,6 +8,7 @@
 // stack or anything else nbtf did not write is refused before any work.
 #pragma once
 #include <string>
+#include <system_error>
 
 namespace nbtf {
 
@@ -36,5 +37,11 @@ class DecodeFolder {
 // holding a measured stack or any file nbtf decode did not write. Named in the error: the first
 // such entry.
 void checkReplaceableDecodeFolder(const std::string& folder);
+
+// Removes a folder nbtf decode wrote (a staging folder, an earlier decode): its description is
+// first marked `"complete": false`, then the images go, then the description, so a removal
+// killed half-way leaves a folder that the next decode still recognises as its own and that
+// no loader takes for a complete decode. An error lands in `ec` and stops the removal there.
+void removeDecodeFolder(const std::string& folder, std::error_code& ec);
 
 }  // namespace nbtf

@@ -422,7 +422,11 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   const std::size_t values = 3 * static_cast<std::size_t>(r.width) * r.height;
   const std::size_t imageBytes = values * (exr ? sizeof(float) : 1);
   WriterPool writers(kWriterThreads, kQueuedBytes / std::max<std::size_t>(1, imageBytes));
+  const auto stopped = [&] { return options.stopFlag && options.stopFlag->load(); };
+  std::atomic<int> started{0};
   parallelForDynamic(static_cast<std::size_t>(r.images), [&](std::size_t i, int) {
+    if (stopped()) return;
+    ++started;
     const DirectionChoice& l = lights[i / r.views];
     const DirectionChoice& v = views[i % r.views];
     std::vector<float> rows;
@@ -473,6 +477,11 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
     }
   });
   writers.finish();
+  if (stopped()) {  // the DecodeFolder removes the staging folder on its way out
+    r.interrupted = true;
+    r.written = started.load();
+    return r;
+  }
   output.commit();
   progress.finish();
   r.seconds = progress.elapsedSeconds();

@@ -12,6 +12,7 @@
 // converts both back). Negative network outputs are clamped to 0 in every file format (the
 // loaders reject negative EXR values); the count is reported.
 #pragma once
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <optional>
@@ -57,6 +58,9 @@ struct DecodeStackOptions {
   int width = 0, height = 0;  // output image size; 0 = the material's (larger sizes tile it)
   int jpegQuality = 95;
   bool progress = true;
+  // Set (Ctrl-C): no further image is started; the staging folder is removed, nothing is
+  // written to the destination and the result says `interrupted`.
+  const std::atomic<bool>* stopFlag = nullptr;
 };
 
 struct DecodeStackResult {
@@ -68,6 +72,8 @@ struct DecodeStackResult {
   std::uint64_t evaluations = 0;      // decoder evaluations (latentRows per image)
   std::uint64_t clampedNegative = 0;  // linear values < 0 written as 0
   double seconds = 0;
+  bool interrupted = false;  // stopFlag was set: `written` of `images` were written, then removed
+  int written = 0;
 };
 
 // The layout and format the options resolve to for this material.

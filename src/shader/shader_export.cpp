@@ -1,5 +1,7 @@
 #include "shader/shader_export.h"
 
+#include <sys/stat.h>
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -692,6 +694,11 @@ std::filesystem::path makeTempFolder(const std::filesystem::path& dir, const cha
   std::string tmpl = (parent / ("." + dir.filename().string() + tag + "XXXXXX")).string();
   if (!mkdtemp(tmpl.data()))
     throw Error(dir.string() + ": cannot create a temporary folder beside it (" + std::strerror(errno) + ")");
+  // mkdtemp makes it 0700; the export becomes this folder, so give it the mode every other
+  // output folder gets (0777 less the umask).
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  ::chmod(tmpl.c_str(), 0777 & ~mask);
   return tmpl;
 }
 }  // namespace

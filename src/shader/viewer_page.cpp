@@ -1,5 +1,7 @@
 #include "shader/viewer_page.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -27,6 +29,7 @@ const char* kPage = R"nbtfpage(<!DOCTYPE html>
   .note { color: #9aa0a6; font-size: 12px; }
   #stats { font-family: ui-monospace, monospace; margin: 10px 0; max-width: 330px; white-space: pre-wrap; }
   figure { margin: 0; } figcaption { font-size: 12px; color: #9aa0a6; }
+  #nbtf-result { display: none; } body.results #nbtf-result { display: block; }
 </style>
 </head>
 <body>
@@ -61,7 +64,9 @@ const result = document.getElementById('nbtf-result');
 const stats = document.getElementById('stats');
 const hash = location.hash || '';
 
-function report(obj) { result.textContent = JSON.stringify(obj); }
+// The result line is for the test and bench modes (and the browser tests that read it); in
+// the interactive page it is written but not shown.
+function report(obj) { result.textContent = JSON.stringify(obj); if (obj.mode !== 'view') document.body.classList.add('results'); }
 function fail(message) {
   report({status: 'error', message: message});
   stats.textContent = 'error: ' + message;
@@ -101,6 +106,10 @@ function unitOf(thetaDeg, phiDeg) {
   return [Math.sin(t) * Math.cos(p), Math.sin(t) * Math.sin(p), Math.cos(t)];
 }
 // World direction of a light at theta from +y, phi from +x towards +z (as nbtf render).
+// The azimuth, in the material's (the BTF's) frame, of the world direction at azimuth phiDeg:
+// the plane's local frame is n = +y, u = +x, v = -z (drawReference's toLocal), so phi turns
+// the other way round.
+function materialPhi(phiDeg) { return (360 - phiDeg) % 360; }
 function worldDir(thetaDeg, phiDeg) {
   const t = thetaDeg * Math.PI / 180, p = phiDeg * Math.PI / 180;
   return [Math.sin(t) * Math.cos(p), Math.cos(t), Math.sin(t) * Math.sin(p)];
@@ -364,7 +373,12 @@ function drawReference() {
   c.imageSmoothingEnabled = false;
   c.drawImage(tmp, 0, 0, refCanvas.width, refCanvas.height);
   const f = (d) => '(' + d[0] + '\u00b0, ' + d[1] + '\u00b0)';
-  document.getElementById('refcaption').textContent = 'measured, nearest pair to the plane centre: light ' + f(R.lights[li]) + ', view ' + f(R.views[vi]);
+  const subset = R.lights.length < R.measured_lights || R.views.length < R.measured_views;
+  document.getElementById('refcaption').textContent = 'measured, nearest ' + (subset ? 'embedded ' : '') +
+      'pair to the plane centre: light ' + f(R.lights[li]) + ', view ' + f(R.views[vi]) + ' (the material\'s frame)' +
+      (subset ? '; ' + R.lights.length + ' of ' + R.measured_lights + ' lights x ' + R.views.length + ' of ' +
+                R.measured_views + ' views embedded' : '') +
+      (R.fingerprint.startsWith('MISMATCH') ? '; NOT the material this file was made from (--force)' : '');
 }
 
 // ---- Interactive mode
@@ -384,7 +398,8 @@ function interactive() {
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, onePixel);  // waits for the frame
     lastMs = performance.now() - t0;
     stats.textContent = 'frame ' + lastMs.toFixed(1) + ' ms (draw until its pixels are read back, ' + canvas.width + ' x ' + canvas.height +
-        ')\nlight (' + state.lightTheta.toFixed(0) + '\u00b0, ' + state.lightPhi.toFixed(0) + '\u00b0) from the up axis' +
+        ')\nlight (' + state.lightTheta.toFixed(0) + '\u00b0, ' + materialPhi(state.lightPhi).toFixed(0) +
+        '\u00b0) in the material\'s frame (theta from the normal, phi from the texture\'s u axis)' +
         '\n' + D.cost.operations.toFixed(0) + ' operations, ' + D.cost.uniform_loads.toFixed(0) + ' uniform loads, ' +
         D.cost.texture_fetches.toFixed(0) + ' texture fetches per decode';
     drawReference();
@@ -483,6 +498,57 @@ std::string base64Encode(const void* data, std::size_t size) {
   return out;
 }
 
+namespace {
+
+// `count` of the directions, each the farthest (largest angle) from those already taken,
+// starting from the one nearest the normal: an even spread over the hemisphere, in index order.
+std::vector<int> spreadDirections(const std::vector<Direction>& dirs, std::size_t count) {
+  const std::size_t n = dirs.size();
+  if (count >= n) {
+    std::vector<int> all(n);
+    for (std::size_t i = 0; i < n; ++i) all[i] = static_cast<int>(i);
+    return all;
+  }
+  std::vector<std::array<double, 3>> unit(n);
+  for (std::size_t i = 0; i < n; ++i) unit[i] = dirs[i].unitVector();
+  std::vector<double> nearest(n, 2.0);  // 1 - cos of the angle to the nearest taken direction
+  std::vector<int> taken;
+  std::size_t next = 0;
+  for (std::size_t i = 1; i < n; ++i)
+    if (dirs[i].thetaDeg < dirs[next].thetaDeg) next = i;
+  while (taken.size() < count) {
+    taken.push_back(static_cast<int>(next));
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& a = unit[i];
+      const auto& b = unit[next];
+      nearest[i] = std::min(nearest[i], 1.0 - (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]));
+    }
+    for (std::size_t i = 0; i < n; ++i)
+      if (nearest[i] > nearest[next]) next = i;
+  }
+  std::sort(taken.begin(), taken.end());
+  return taken;
+}
+
+}  // namespace
+
+ViewerReferenceSelection viewerReferenceDirections(const std::vector<Direction>& lights,
+                                                   const std::vector<Direction>& views, std::size_t texels) {
+  const std::size_t imageBytes = texels * 3, fit = kMaxViewerReferenceBytes / std::max<std::size_t>(imageBytes, 1);
+  if (fit < 1)
+    throw Error("one image of " + std::to_string(texels) + " texels is " + std::to_string(imageBytes >> 20) +
+                " MiB as 8-bit RGB, more than the " + std::to_string(kMaxViewerReferenceBytes >> 20) +
+                " MiB a page embeds; crop it (--crop)");
+  std::size_t nl = lights.size(), nv = views.size();
+  if (nl * nv > fit) {
+    const double f = std::sqrt(static_cast<double>(fit) / static_cast<double>(nl * nv));
+    nl = std::max<std::size_t>(1, static_cast<std::size_t>(std::floor(f * lights.size())));
+    nv = std::max<std::size_t>(1, static_cast<std::size_t>(std::floor(f * views.size())));
+    while (nl * nv > fit) (nl >= nv ? nl : nv) -= 1;
+  }
+  return {spreadDirections(lights, nl), spreadDirections(views, nv)};
+}
+
 std::vector<std::pair<Direction, Direction>> viewerTestPairs(const CompressedBtf& m) {
   std::vector<std::pair<Direction, Direction>> pairs;
   if (!m.lights.empty() && !m.views.empty()) {
@@ -540,6 +606,9 @@ std::string buildViewerPage(const ShaderDecoder& shader, const CompressedBtf& ma
     for (const Direction& x : r->lights) lights.push_back({x.thetaDeg, x.phiDeg});
     for (const Direction& x : r->views) views.push_back({x.thetaDeg, x.phiDeg});
     d["reference"] = {{"width", r->width}, {"height", r->height}, {"lights", lights}, {"views", views},
+                      {"measured_lights", r->measuredLights ? r->measuredLights : int(r->lights.size())},
+                      {"measured_views", r->measuredViews ? r->measuredViews : int(r->views.size())},
+                      {"fingerprint", r->fingerprintCheck},
                       {"data", base64Encode(r->srgb.data(), r->srgb.size())}};
   }
   std::string data = d.dump();

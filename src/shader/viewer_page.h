@@ -26,15 +26,30 @@
 namespace nbtf {
 
 // The measured images embedded with --reference: sRGB 8-bit RGB, image-major (image =
-// light x views + view), each height x width x 3, top row first.
+// light x views + view), each height x width x 3, top row first. `lights` and `views` are the
+// embedded directions, a subset of the stack's `measuredLights` x `measuredViews` when all of
+// them would not fit (viewerReferenceDirections).
 struct ViewerReference {
   std::string name;
   int width = 0, height = 0;
   std::vector<Direction> lights, views;
+  int measuredLights = 0, measuredViews = 0;  // the stack's (0: the same as embedded)
+  std::string fingerprintCheck;               // the source fingerprint's verdict, shown in the page
   std::vector<std::uint8_t> srgb;
 };
 // The most reference bytes a page embeds (8-bit RGB before base64).
 constexpr std::size_t kMaxViewerReferenceBytes = std::size_t(48) << 20;
+
+// The lights and views (indices into `lights` and `views`) whose images a page embeds for a
+// reference of `texels` texels: all of them when their 8-bit RGB fits kMaxViewerReferenceBytes,
+// else the same fraction of each, spread evenly over the hemisphere (farthest-point order from
+// the direction nearest the normal), the most that fit. Throws nbtf::Error when not even one
+// image fits.
+struct ViewerReferenceSelection {
+  std::vector<int> lights, views;
+};
+ViewerReferenceSelection viewerReferenceDirections(const std::vector<Direction>& lights,
+                                                   const std::vector<Direction>& views, std::size_t texels);
 
 // The (light, view) pairs of the #test mode: the first and the last measured pair, and
 // unmeasured pairs across the hemisphere (straight down, grazing, in between).

@@ -46,7 +46,7 @@ bool Progress::notify(bool final) {
 Progress::Progress(std::string label, std::size_t total, bool enabled)
     : label_(std::move(label)),
       total_(total),
-      enabled_(enabled && !g_quiet),
+      enabled_(enabled && (!g_quiet || g_hasListener)),  // quiet silences the bars, not a listener
       tty_(isatty(fileno(stderr)) != 0),
       start_(std::chrono::steady_clock::now()),
       lastDraw_(start_) {}
@@ -67,7 +67,7 @@ void Progress::advance(std::size_t count) {
     lastDraw_ = now;
     return;
   }
-  if (!tty_) return;
+  if (!tty_ || g_quiet) return;
   lastDraw_ = now;
   draw(false);
 }
@@ -83,7 +83,7 @@ void Progress::finish() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (finished_) return;
   finished_ = true;
-  if (enabled_ && !notify(true)) draw(true);
+  if (enabled_ && !notify(true) && !g_quiet) draw(true);
 }
 
 void Progress::draw(bool final) {

@@ -25,7 +25,8 @@ class Progress {
   void finish();
   double elapsedSeconds() const;
 
-  // Globally silence progress output (tests, --quiet).
+  // Globally silence the text bars (tests, --quiet); a listener (setListener) still gets every
+  // update.
   static void setQuiet(bool quiet);
   static bool quiet();
 

@@ -52,6 +52,10 @@ def test_progress_callback(synth_stack, tmp_path):
     labels = {u["label"] for u in seen}
     assert seen and any(u["final"] for u in seen), seen
     assert len(labels) >= 2, labels  # loading, clustering, training...
+    # quiet silences the text bars, not the callback.
+    quiet = []
+    nbtf.compress(synth_stack, tmp_path / "q.nbtf", progress=quiet.append, **QUICK)
+    assert quiet and {u["label"] for u in quiet} == labels, quiet
 
     def fail(update):
         raise KeyError("from the callback")
@@ -73,14 +77,25 @@ def test_compress_errors_have_the_cli_messages(synth_stack, tmp_path):
         (dict(memory_limit="12X"), ["--memory-limit", "12X"]),
     ]
     wants = cli_errors(*[["compress", synth_stack, "-o", out, *args, "-q"] for _, args in cases])
+    keywords = nbtf._compress_keywords()
     for (kwargs, _), want in zip(cases, wants):
         with pytest.raises(ValueError) as e:
             nbtf.compress(synth_stack, out, quiet=True, **kwargs)
-        assert str(e.value) == want, kwargs
-    with pytest.raises(ValueError, match="Option .no-such-option. does not exist"):
+        # The command line's message, its options named as the keywords given.
+        assert str(e.value) == nbtf._python_names(want, keywords), kwargs
+        keyword = next(iter(kwargs))
+        assert "--" + keyword.replace("_", "-") not in str(e.value), str(e.value)
+        if want.find("--" + keyword.replace("_", "-")) >= 0:
+            assert keyword + "=" in str(e.value), str(e.value)
+    # An unknown keyword is a TypeError, as for any Python function (and for open and evaluate).
+    with pytest.raises(TypeError, match=r"compress\(\) got an unexpected keyword argument 'cropp'; did you mean 'crop'\?"):
+        nbtf.compress(synth_stack, out, cropp=(0, 0, 4, 4))
+    with pytest.raises(TypeError, match="unexpected keyword argument 'no_such_option'"):
         nbtf.compress(synth_stack, out, no_such_option=1)
-    with pytest.raises(ValueError, match="output= is not an option of compress"):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'output'"):
         nbtf.compress(synth_stack, out, output="y.nbtf")
+    with pytest.raises(TypeError, match="unexpected keyword argument 'cropp'"):
+        nbtf.evaluate(out, synth_stack, cropp=(0, 0, 4, 4))
     missing = str(tmp_path / "missing")
     with pytest.raises(FileNotFoundError) as e:
         nbtf.compress(missing, out, quiet=True)
@@ -171,3 +186,41 @@ except KeyboardInterrupt as e:
     assert p.returncode == 3, stderr
     assert f"nothing written to {out}. Training state is in {checkpoint}: call compress again with resume=True" in stdout
     assert not out.exists() and checkpoint.exists()
+
+
+def _tree(root):
+    """Every file under root with its bytes, every folder, links not followed."""
+    out = {}
+    for folder, dirs, files in os.walk(root):
+        out[folder] = "folder"
+        for name in files:
+            path = os.path.join(folder, name)
+            with open(path, "rb") as f:
+                out[path] = f.read()
+    return out
+
+
+def test_no_output_lands_on_an_input(synth_stack, synth_nbtf, tmp_path):
+    # The command line's guard (util/path_guard.h), for every output of the module's functions:
+    # inside the stack, through a link to it or to one of its images, onto the file read.
+    image = next(os.path.join(d, f) for d, _, fs in sorted(os.walk(synth_stack)) for f in sorted(fs) if f.endswith(".png"))
+    linked = tmp_path / "linked"
+    linked.symlink_to(synth_stack)
+    image_link = tmp_path / "image.png"
+    image_link.symlink_to(image)
+    before = _tree(synth_stack)
+    nbtf_before = open(synth_nbtf, "rb").read()
+    inside = [image, os.path.join(synth_stack, "new.nbtf"), linked / os.path.relpath(image, synth_stack), image_link]
+    cases = [(lambda out: nbtf.compress(synth_stack, out, **QUICK), out) for out in inside]
+    cases += [(lambda out: nbtf.compress(synth_stack, tmp_path / "ok.nbtf", stats_json=out, **QUICK), out) for out in inside]
+    cases += [(lambda out: nbtf.compress(synth_stack, tmp_path / "ok.nbtf", save_encoder=out, **QUICK), out) for out in inside]
+    folders = [os.path.join(synth_stack, "report"), linked / "report", synth_stack]
+    cases += [(lambda out: nbtf.evaluate(synth_nbtf, synth_stack, output=out, quiet=True), out) for out in folders]
+    cases += [(lambda out: nbtf.evaluate(synth_nbtf, synth_stack, output=out, quiet=True), out)
+              for out in (synth_nbtf, os.path.dirname(synth_nbtf))]
+    for call, out in cases:
+        with pytest.raises(ValueError, match="nothing was written"):
+            call(out)
+    assert _tree(synth_stack) == before
+    assert open(synth_nbtf, "rb").read() == nbtf_before
+    assert not (tmp_path / "ok.nbtf").exists()

@@ -87,8 +87,10 @@ def test_batches_name_the_bad_query(m):
     with pytest.raises(ValueError, match=r"points below the horizon \(z < 0; z is the surface normal\)"):
         m.query(uv=(0, 0), light=(0, 0, 1), view=(0, 1, -1))
     # A texel far outside the int32 range is still outside the material, not wrapped into it.
-    with pytest.raises(ValueError, match=r"is outside the 16 x 16 material"):
+    with pytest.raises(ValueError, match=r"^texel \(4294967297, 0\) is outside the 16 x 16 material"):
         m.query(texel=(2**32 + 1, 0), light=(30, 60), view=(45, 180))
+    with pytest.raises(ValueError, match=r"^query 1: texel \(1099511627776, 0\) is outside the 16 x 16 material"):
+        m.query(texel=[(0, 0), (2**40, 0)], light=(30, 60), view=(45, 180))
 
 
 def test_wrong_dtypes_and_shapes(m):

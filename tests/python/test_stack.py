@@ -110,6 +110,12 @@ def test_load_errors_have_the_cli_messages(png_stack, tmp_path):
     with pytest.raises(ValueError) as e:
         nbtf.load_stack(empty)
     assert str(e.value) == wants[4]
+    # A folder is not a UBO2014 file: --layout ubo2014 is refused, as on the command line.
+    want = cli_error("info", path, "--json", "--layout", "ubo2014")
+    assert "--layout ubo2014 applies to UBO2014 .btf files only" in want
+    with pytest.raises(ValueError) as e:
+        nbtf.load_stack(path, layout="ubo2014")
+    assert str(e.value) == want
     with pytest.raises(ValueError, match=r"crop: expected \(x, y, width, height\)"):
         nbtf.load_stack(path, crop=(1, 2))
     with pytest.raises(ValueError, match="progress: expected a callable"):
