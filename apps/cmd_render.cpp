@@ -1,5 +1,5 @@
 // nbtf render <material>: the material on an object, ray traced on the CPU, anti-aliased
-// adaptively with automatic differentiation (seed 003) or uniformly; --compare renders an
+// adaptively with automatic differentiation (adaptive oversampling) or uniformly; --compare renders an
 // original stack and its .nbtf with the same scene and reports the difference.
 #include <cmath>
 #include <filesystem>

@@ -1,4 +1,4 @@
-// Decoding benchmark (issue 5), driven by scripts/bench_decode.sh.
+// Decoding benchmark, driven by scripts/bench_decode.sh.
 //
 // Two materials of the paper's setup, 100 x 100 texels, 81 x 81 directions, decoder
 // 12 -> 106 -> 106 -> 106 -> 3 (ReLU): clustered with k = 500 latents + id list, and

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# bench_adaptive: adaptive clusters (issue 18) against fixed k at matched file sizes.
+# bench_adaptive: adaptive clusters against fixed k at matched file sizes.
 # For each synthetic preset (100 x 100 texels, UTIA layout) it compresses with fixed
 # k = 250, 500, 1000, 2000 (default options), then with --adaptive --clusters k
 # --size-budget <that fixed-k file's size>: the same schedule of optimizer steps (the plan
 # of fixed k, so the same training time up to the per-stage overhead), at most the same bytes.
 # Every file is evaluated (`nbtf eval`, reports with the cluster map) and the curves are
 # plotted by `nbtf eval --summarize` (rd_*.png).
-# Target (issue 18): at equal file size at least 10% lower RMSE than fixed k, or the same
+# Target: at equal file size at least 10% lower RMSE than fixed k, or the same
 # RMSE at 25% fewer bytes (log-log interpolation on the adaptive curve).
 #
 # Usage: scripts/bench_adaptive.sh [WORK_DIR]   (default build/bench_adaptive)

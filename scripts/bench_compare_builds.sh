@@ -2,7 +2,7 @@
 # Two builds side by side, in one run: the quick decode benchmark (bench_decode --quick) and
 # the training throughput (nbtf-bench-train --throughput, the built-in default recipe, in-memory 100 x 100
 # material, k = 500), alternating A, B, A, B... for ROUNDS rounds, so that a busy or drifting
-# host affects both alike. For refactors that must not change speed (issue 16).
+# host affects both alike. For refactors that must not change speed.
 #   scripts/bench_compare_builds.sh A_BIN_DIR B_BIN_DIR [ROUNDS=3] [TRAIN_SECONDS=20]
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of decoding (issue 5): a 100 x 100-texel material (81 x 81 images) compressed
+# Benchmark of decoding: a 100 x 100-texel material (81 x 81 images) compressed
 # with the defaults (decoder 28-106-106-106-3: latent 8 + stereographic and Fourier direction
 # inputs) with k = 500 and the same material per-texel, measured in one run: seconds to
 # reconstruct all 6561 images (in memory as an 8-bit sRGB stack, and written as PNG files),

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# bench_defaults: is the default amount of training enough on any material (issue 15)?
+# bench_defaults: is the default amount of training enough on any material?
 # For each grid point (direction subset, texel count, k) it compresses with the default
 # options and with configs/converged.json (the same recipe, 4x the steps: 80 epochs,
 # 8000..48000 steps, 96 steps per encoder input), and compares the training RMSE (eq. 10,

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Data-parallel training (issue 19, part 3) on this machine, in one run: the same compress run
+# Data-parallel training on this machine, in one run: the same compress run
 # (100 x 100 fabric, 6561 images, k = 500, --epochs E) as one process on all cores and as two
 # processes (one core each) on the loopback interface. Prints training seconds, the gradient
 # all-reduce per step (bytes and seconds, from each run's summary) and what N machines would

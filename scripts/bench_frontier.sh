@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The rate-distortion frontier (issue 33): on each synthetic preset (100 x 100 texels, UBO2003
+# The rate-distortion frontier: on each synthetic preset (100 x 100 texels, UBO2003
 # layout, 6561 images, 10% held out), every neural row gets the same wall-clock training budget
 # (--time-budget S) and is compared side by side with the PCA curve (C = 1 .. 64):
 #   per_texel      the per-texel neural BTF (one latent per texel), the default recipe;

@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# Full-size materials through the streaming clustered pipeline (issues 19 and 36): the ABRDF
+# Full-size materials through the streaming clustered pipeline: the ABRDF
 # matrix is never built; PCA, the standardization statistics and the medians read the 8-bit
 # stack in slices. Compresses with the default recipe under /usr/bin/time -v (its k = 1000 at
 # 256 x 256; k = 500 at 800 x 800 and on the UBO2014 file, the k those targets name) and checks:
 #   256: a full 256 x 256 UBO2003-layout material: peak resident memory <= the 8-bit stack
-#        + 1 GiB, wall time < 3 minutes (issue 36); RMSE reported. Also `nbtf cluster` alone.
+#        + 1 GiB, wall time < 3 minutes; RMSE reported. Also `nbtf cluster` alone.
 #   800: an 800 x 800 UTIA-layout material (nbtf-synth; ~12.6 GB as 8-bit, several GB of PNGs
 #        on disk, synthesis alone 10+ minutes), run with --memory-limit 12G (the stack goes to a
-#        scratch file): peak <= 12 GiB, wall time < 10 minutes (issue 36).
+#        scratch file): peak <= 12 GiB, wall time < 10 minutes.
 #   ubo2014: a 400 x 400 UBO2014 .btf file (22,801 images; nbtf-synth --layout ubo2014 streams
 #        its factorization, 20+ minutes, peak reported), read factorized: peak <= 16 GiB, wall
-#        time < 20 minutes (issue 36).
+#        time < 20 minutes.
 # Each compression's log ends with its stage times (docs/model.md, *What a compression costs*).
 # Usage: scripts/bench_full.sh [256|800|ubo2014|all]   (default 256)
 # Data: $NBTF_BENCH_DATA (default build/bench_data) for 256 (shared with bench_load.sh);

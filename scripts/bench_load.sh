@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of the stack loader (issue 2): load a 100 x 100 crop of a 256 x 256 UBO2003
+# Benchmark of the stack loader: load a 100 x 100 crop of a 256 x 256 UBO2003
 # stack (6561 JPEGs), nbtf vs a plain sequential cv::imread loop, same files, same run.
 # Targets: >= 1.6x faster than the loop on 2 cores; peak memory <= 1.3 x the 8-bit size of
 # the cropped data + 150 MB.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Quality per byte (issue 14): on each synthetic preset (100 x 100 texels, UBO2003 layout), side
+# Quality per byte: on each synthetic preset (100 x 100 texels, UBO2003 layout), side
 # by side with the same training recipe and work: the per-texel neural BTF, the paper-style clustered model
 # (k = 500, float32 parts, configs/paper-clustered.json), nbtf's default (k = 1000, per-texel modulation,
 # 8-bit decoder, half latents, zstd ids and metadata; configs/default.json) and the PCA baseline at its smallest

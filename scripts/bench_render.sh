@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of `nbtf render` (issue 17, seed 003): adaptive oversampling by automatic
+# Benchmark of `nbtf render`: adaptive oversampling by automatic
 # differentiation against uniform supersampling. On the sphere and cloth scenes with a
 # compressed 100 x 100 material (synthetic fabric, k = 500, a 60 s training budget; cached),
 # every method is compared with a 16 x 16-supersampled reference of the same scene: RMSE

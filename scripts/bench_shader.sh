@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of the decoder as a fragment shader (issue 34): `nbtf view`'s page in headless
+# Benchmark of the decoder as a fragment shader: `nbtf view`'s page in headless
 # Chromium (WebGL2 on SwiftShader, the software rasterizer) renders the plane's default view at
 # SIZE x SIZE (default 1024) a few times; the page reports the median frame time and the pixels
 # the material covers. Beside it: the shader's work per pixel, counted from the decoder's

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of the synthetic material generator (issue 2): the demo's default material,
+# Benchmark of the synthetic material generator: the demo's default material,
 # fabric 100 x 100 in the UBO2003 layout with its float ground truth (6561 JPEGs + 81 EXRs),
 # on 2 worker threads. Target: well under a minute (<= 30 s wall). The machine is shared, so
 # the CPU time is reported too (load-independent): <= 60 CPU s is <= 30 s on 2 idle cores.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmark of training (issue 4), all in one run on this machine:
+# Benchmark of training, all in one run on this machine:
 #   1+2. three rounds of: the machine's float32 matrix-multiply rate (libtorch mm, 2048 x 2048,
 #      all threads), nbtf's training throughput with configs/default.json (decoder samples/s
 #      and decoder GFLOP/s, forward + backward; 30 s), the matmul rate again. Each round's
@@ -35,7 +35,7 @@ done
 echo "== 2. the decoder's training pass alone"
 "$bin/nbtf-bench-train" --decoder-only --config "$config" | tee -a "$log"
 echo "== 3. convergence on $data (k = 500, $converged, then ${factor}x as long)"
-# --epochs 80: exactly 80 epochs (16,080 steps) and 4x that, as measured since issue 4; the
+# --epochs 80: exactly 80 epochs (16,080 steps) and 4x that, as measured since the first training benchmark; the
 # config's step minimum (64 steps per encoder input: 32,000 at k = 500) would double both.
 "$bin/nbtf-bench-train" --converge "$data" --config "$converged" --epochs 80 --clusters 500 --long-factor "$factor" \
   --trace 30 | tee -a "$log"

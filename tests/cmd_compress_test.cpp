@@ -318,7 +318,7 @@ TEST_F(CmdCompress, BuiltInConfigsAreNamedAndRecorded) {
   EXPECT_FALSE(fs::exists(path("e.nbtf")));
 }
 
-// Issue 15's command-line rough edges, each as a new user met it.
+// Command-line rough edges, each as a new user met it.
 TEST_F(CmdCompress, CommandLineRoughEdges) {
   std::string stack = writeStack();  // 8 x 8 texels, 9 x 9 directions
   // Extra positional arguments were silently ignored.

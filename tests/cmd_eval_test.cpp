@@ -217,6 +217,16 @@ TEST_F(CmdEval, CreatesMissingParentFoldersOfTheReport) {
   EXPECT_TRUE(std::filesystem::exists(tmp / "a/b/c/report.json"));
 }
 
+// A file name with commas is one file (cxxopts would split a list option's value at them).
+TEST_F(CmdEval, AFileNameWithCommasIsOneFile) {
+  const std::string commas = tmp / "a,b,c.nbtf";
+  std::filesystem::copy_file(file, commas);
+  CommandRun r = runNbtf("eval '" + commas + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / "r") + "' -q",
+                         tmp / "log");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(tmp / "r/report.json"));
+}
+
 TEST_F(CmdEval, MissingOptionsAreNamed) {
   CommandRun r = runNbtf("eval '" + file + "' -o '" + (tmp / "out") + "'", tmp / "log");
   EXPECT_EQ(r.code, 1);

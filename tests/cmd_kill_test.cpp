@@ -1,4 +1,4 @@
-// Faults (issue 7): `nbtf compress` and `nbtf decode` killed with SIGKILL at random,
+// Faults: `nbtf compress` and `nbtf decode` killed with SIGKILL at random,
 // seeded moments, again and again. Whatever the moment, no partial file may appear under
 // a final name: the output .nbtf is absent, the previous file, or the complete new one;
 // every decoded image under its final name is complete. `--resume` / a re-run then

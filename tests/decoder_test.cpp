@@ -287,7 +287,7 @@ void expectCommittedAnswers(const std::string& name, int formatMinor, int expect
 TEST(Decoder, CommittedFormat10FileDecodesAsBefore) { expectCommittedAnswers("legacy_v1_0", 0, 4); }
 
 // Format 1.2 with every compact part (half decoder and latents, zstd ids, per-texel
-// modulation), written by commit 12d31f5 before the library split of issue 16.
+// modulation), written by commit 12d31f5, before the libraries were split by stage.
 TEST(Decoder, CommittedFormat12FileDecodesAsBefore) { expectCommittedAnswers("compact_v1_2", 2, 6); }
 
 // Format 1.4 (8-bit decoder, zstd-coded directions, metadata and hold-out list; half latents,

@@ -35,7 +35,7 @@ TEST(MemoryEstimate, EightHundredSquareFitsSixteenGiB) {
   EXPECT_FALSE(e.stage.empty());
 }
 
-// With the 8-bit stack in a scratch file (--stack-storage, issue 36's 12 GiB target) the stack
+// With the 8-bit stack in a scratch file (--stack-storage, the 800 x 800 benchmark's 12 GiB target) the stack
 // counts as the pages touched between two trims; a small stack counts whole.
 TEST(MemoryEstimate, AStackInAScratchFileCountsItsResidentWindow) {
   const MemoryEstimate e = estimateCompressMemory(shape(800, 800, 81, 81, SampleType::Srgb8), 500, false, 32, 48, 1, 2);

@@ -126,7 +126,7 @@ TEST_F(RenderCli, ClearErrors) {
 namespace nbtf {
 namespace {
 
-// Issue 38: --compare refuses a stack measured at other directions (eval's check), and every
+// --compare refuses a stack measured at other directions (eval's check), and every
 // output's missing folders are made, with a clear error where a file is in the way.
 TEST(RenderCliChecks, CompareNeedsTheSameDirectionsAndOutputsGetTheirFolders) {
   test::TempDir dir;

@@ -36,7 +36,7 @@ constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0
 enum class CodecMethod : std::uint8_t {
   ClusteredNeural = 1,  // one latent per cluster + id list (the paper's method)
   PerTexelNeural = 2,   // one latent per texel (the earlier neural BTF; our baseline)
-  Pca = 3,              // classic PCA baseline (issue 6): mean + coefficients x basis (format 1.1)
+  Pca = 3,              // classic PCA baseline: mean + coefficients x basis (format 1.1)
 };
 std::string codecMethodName(CodecMethod m);  // "clustered-neural", "per-texel-neural", "pca"
 

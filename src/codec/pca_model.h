@@ -1,4 +1,4 @@
-// The PCA baseline's representation (issue 6), shared by its compressor and the decoder:
+// The PCA baseline's representation, shared by its compressor and the decoder:
 //
 //   value(texel t, image i, channel c) = mean[3 i + c] + coefficients(t) . basis(3 i + c)
 //

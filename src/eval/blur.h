@@ -2,7 +2,7 @@
 // reference image, best matches the reconstruction in the MSE sense. Neural BTF
 // reconstructions look blurred; sigma puts a number on "how blurred".
 //
-// The estimate follows the differentiable Gaussian filter of seed 000: sigma is learned
+// The estimate follows the differentiable Gaussian filter of the modular differentiable renderer's paper: sigma is learned
 // by gradient descent (Adam, learning rate 1e-2 as in the source) on
 //   Loss(s) = mean over texels and channels of (blur_s(ref) / alpha - rec / alpha)^2,
 // with dLoss/ds = sum_ij dLoss/dc^_ij * sum_xy c_{i+x,j+y} dK(s,x,y)/ds  (eq. 4).
@@ -51,7 +51,7 @@ double blurLoss(const float* reference, const float* reconstruction, int width, 
 
 struct BlurOptions {
   BlurBorder border = BlurBorder::Clamp;
-  double learningRate = 1e-2;  // Adam, as in seed 000
+  double learningRate = 1e-2;  // Adam, as in the differentiable Gaussian filter's paper
   int maxIterations = 800;
   double minSigma = 1e-3;
   double maxSigma = 16;  // also capped at a quarter of the image's larger side

@@ -1,4 +1,4 @@
-// The classic PCA baseline of BTF compression (issue 6), behind `nbtf compress --method pca`:
+// The classic PCA baseline of BTF compression, behind `nbtf compress --method pca`:
 // every texel's ABRDF (N images x RGB, linear values / alpha, the same alpha as the neural
 // methods, so its RMSE is eq. (10) too) is approximated by the mean ABRDF plus C principal
 // components: the file stores the mean (3N floats), the basis (3N x C) and per-texel

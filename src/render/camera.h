@@ -1,6 +1,6 @@
 // A pinhole camera. Rays are generated as functions of the continuous image-plane
 // position (px, py) in pixel units (pixel (i, j) covers [i, i+1) x [j, j+1), row 0 on
-// top), so a ray over `Dual` carries d/dpx and d/dpy (seed 003, eq. 9-11).
+// top), so a ray over `Dual` carries d/dpx and d/dpy (the adaptive-oversampling paper, eq. 9-11).
 #pragma once
 #include <string>
 

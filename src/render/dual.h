@@ -1,6 +1,6 @@
 // Forward-mode automatic differentiation with two tangents: a value and its partial
 // derivatives with respect to the image-plane position (x, y) of the pixel a ray goes
-// through (seed 003, eq. 5-6). Every operation applies the chain rule once, so any
+// through (the adaptive-oversampling paper, eq. 5-6). Every operation applies the chain rule once, so any
 // computation written over `Dual` carries d/dx and d/dy along with its value.
 //
 // The renderer's geometry is written once as templates over the scalar type: `double`
@@ -79,9 +79,9 @@ inline double dy(const Dual& a) { return a.dy; }
 // First-order range of `a` over a pixel footprint of half-width `half` (pixel units): the
 // extremes of a + sx dx + sy dy for |sx|, |sy| <= half, reached at the footprint's corners.
 inline double spread(const Dual& a, double half) { return half * (std::fabs(a.dx) + std::fabs(a.dy)); }
-// Whether `a`, extrapolated to the footprint's corners and edge midpoints (the seed's 8
-// points), may reach `level` from the side its centre value is on: the centre's test
-// (a < level or a >= level) may change inside the footprint.
+// Whether `a`, extrapolated to the footprint's corners and edge midpoints (the 8 points of the
+// adaptive-oversampling paper), may reach `level` from the side its centre value is on: the
+// centre's test (a < level or a >= level) may change inside the footprint.
 inline bool mayCross(const Dual& a, double level, double half) {
   const double s = spread(a, half);
   return a.v - s <= level && a.v + s >= level;

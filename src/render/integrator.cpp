@@ -90,7 +90,7 @@ class SampleTracer {
     }
     if (tests) {
       for (int i = 0; i < count && i < 8; ++i) {
-        // An event hidden behind a surely hit nearer surface cannot show (seed 003, 3.5).
+        // An event hidden behind a surely hit nearer surface cannot show (the adaptive-oversampling paper, 3.5).
         if (probes[i].edge && (best < 0 || probes[i].depth <= bestT + bestSpread)) rec.reasons |= kRefineSilhouette;
         if (i != best && best >= 0 && hitAny[i] && hitT[i] - hitSpread[i] <= bestT + bestSpread)
           rec.reasons |= kRefineSilhouette;

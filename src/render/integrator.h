@@ -1,7 +1,7 @@
 // The renderer: one camera sample = a primary ray, a shadow ray towards the light and the
 // material's radiance (render/scene.h), batched per image tile into the material source.
 //
-// Sampling (seed 003):
+// Sampling (adaptive oversampling by forward-mode automatic differentiation):
 //   Uniform N:  N x N samples on a regular grid in every pixel, averaged.
 //   Adaptive:   every pixel's central ray is traced with derivatives (Dual) with respect
 //               to the image-plane position. The pixel is split into 3 x 3 sub-pixels when,

@@ -1,7 +1,7 @@
 // Analytic shapes and their ray intersections, written once over the scalar type (double
 // for plain rays, Dual for rays with derivatives; render/dual.h).
 //
-// With Dual rays every routine also applies the seed's test (seed 003, sections 3.1-3.2):
+// With Dual rays every routine also applies the adaptive-oversampling paper's test (sections 3.1-3.2):
 // each condition that decides hit or miss (a discriminant's sign, a coordinate inside its
 // bounds, a depth against t_min) is extrapolated to the corners of the pixel footprint
 // (EdgeProbe::half pixels around the ray); if its outcome may change there, the footprint
@@ -219,7 +219,7 @@ template <class T>
 bool intersectCloth(const Shape& s, const Ray<T>& ray, double tmin, double tmax, SurfaceHit<T>* hit, EdgeProbe* probe) {
   const Ray<double> r{val(ray.origin), val(ray.dir)};
   // March over a box a little wider than the sheet, so a tentative hit just outside its
-  // border is found too (seed 003, 3.5) and the border can be tested as an edge.
+  // border is found too (the adaptive-oversampling paper, 3.5) and the border can be tested as an edge.
   const double A = s.a1, margin = 0.25 * s.a1;
   double t0 = tmin, t1 = tmax;
   if (!clipToBox(r.origin, r.dir, {-A - margin, kClothMinY, -A - margin}, {A + margin, kClothMaxY, A + margin}, t0, t1))
