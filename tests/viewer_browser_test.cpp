@@ -45,12 +45,13 @@ std::string unescapeHtml(std::string s) {
   return s;
 }
 
-// Loads page#test in headless chromium and returns the JSON the page wrote.
-nlohmann::json runPage(const std::string& chromium, const std::string& page, const std::string& scratch) {
+// The DOM of `page` + `fragment` once headless chromium has loaded it.
+std::string dumpDom(const std::string& chromium, const std::string& page, const std::string& scratch,
+                    const std::string& fragment) {
   const std::string cmd = "timeout 120 " + chromium +
                           " --headless --no-sandbox --use-gl=angle --use-angle=swiftshader --enable-unsafe-swiftshader"
                           " --user-data-dir=" + scratch + " --dump-dom 'file://" +
-                          std::filesystem::absolute(page).string() + "#test' 2>/dev/null";
+                          std::filesystem::absolute(page).string() + fragment + "' 2>/dev/null";
   std::string dom;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return {};
@@ -58,6 +59,12 @@ nlohmann::json runPage(const std::string& chromium, const std::string& page, con
   std::size_t n;
   while ((n = fread(buf, 1, sizeof buf, p)) > 0) dom.append(buf, n);
   pclose(p);
+  return dom;
+}
+
+// Loads page#test in headless chromium and returns the JSON the page wrote.
+nlohmann::json runPage(const std::string& chromium, const std::string& page, const std::string& scratch) {
+  const std::string dom = dumpDom(chromium, page, scratch, "#test");
   const std::string open = "<pre id=\"nbtf-result\">";
   const auto begin = dom.find(open);
   if (begin == std::string::npos) return {{"status", "no result element in the DOM"}, {"dom", dom.substr(0, 2000)}};
@@ -146,6 +153,22 @@ TEST_F(ViewerBrowser, PerTexelPageMatchesTheDecoder) {
 
 TEST_F(ViewerBrowser, PcaPageMatchesTheDecoder) {
   checkInBrowser(chromium_, testing::makeShaderPcaMaterial(), "pca");
+}
+
+// The interactive page: its status line gives the light in the material's frame, labelled, and
+// the result line of the test modes is not shown (in #test it is).
+TEST_F(ViewerBrowser, TheInteractivePageSpeaksInTheMaterialsFrameAndHidesTheTestResult) {
+  test::TempDir tmp;
+  const std::string file = tmp / "pt.nbtf", page = tmp / "viewer.html";
+  writeNbtf(file, testing::makeShaderPerTexelMaterial());
+  ASSERT_EQ(test::runNbtf("view " + file + " -o " + page + " -q").exitCode, 0);
+  const std::string dom = dumpDom(chromium_, page, tmp / "profile", "");
+  EXPECT_NE(dom.find("light (45\u00b0, 60\u00b0) in the material's frame (theta from the normal, phi from the "
+                     "texture's u axis)"),
+            std::string::npos)
+      << dom.substr(0, 3000);
+  EXPECT_NE(dom.find("<body>"), std::string::npos) << "the result line is shown outside the test modes";
+  EXPECT_NE(dumpDom(chromium_, page, tmp / "profile", "#test").find("<body class=\"results\">"), std::string::npos);
 }
 
 }  // namespace
