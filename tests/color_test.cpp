@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
+
 namespace nbtf {
 
 TEST(Color, SrgbCurveKnownValues) {
@@ -29,6 +32,27 @@ TEST(Color, XyzRoundTripAndWhitePoint) {
   EXPECT_NEAR(c[0], 0.2f, 1e-5);
   EXPECT_NEAR(c[1], 0.5f, 1e-5);
   EXPECT_NEAR(c[2], 0.9f, 1e-5);
+}
+
+TEST(Color, FastSrgb8EncoderIsExact) {
+  Srgb8Encoder encode;
+  auto check = [&](float x) { ASSERT_EQ(int(encode(x)), int(linearToSrgb8(x))) << x; };
+  std::uint32_t one;
+  const float f1 = 1.0f;
+  std::memcpy(&one, &f1, 4);
+  for (std::uint32_t bits = 0; bits <= one; bits += 251) {  // every table bucket, many times
+    float x;
+    std::memcpy(&x, &bits, 4);
+    check(x);
+  }
+  // Around every rounding threshold.
+  for (int code = 0; code < 255; ++code) {
+    float t = srgb8ToLinear(static_cast<std::uint8_t>(code));
+    float mid = 0.5f * (t + srgb8ToLinear(static_cast<std::uint8_t>(code + 1)));
+    for (float x = mid, n = 0; n < 40; ++n) x = std::nextafter(x, 0.0f), check(x);
+    for (float x = mid, n = 0; n < 40; ++n) x = std::nextafter(x, 2.0f), check(x);
+  }
+  for (float x : {-1.0f, -0.0f, 1.5f, 1e30f, INFINITY, NAN}) check(x);
 }
 
 }  // namespace nbtf

@@ -1,7 +1,8 @@
 // Decoding to image stacks: the files load back with the stack loader and hold the
 // model's values (8-bit sRGB within quantization, EXR = output x alpha at half precision),
-// names and subsets, unmeasured angles, tiling, direction lists, and bad input.
+// names and subsets, unmeasured angles, tiling, and bad input.
 #include "pipeline/decoder_output.h"
+#include "pipeline/decoded_image_names.h"
 
 #include <gtest/gtest.h>
 
@@ -216,56 +217,6 @@ TEST_F(DecoderOutput, LargerSizesTileTheTexture) {
     for (int x = 0; x < 16; ++x)
       for (int c = 0; c < 3; ++c)
         EXPECT_EQ(big.rgb[3 * (y * 16 + x) + c], base.imageBytes(0)[3 * ((y % 5) * 7 + x % 7) + c]);
-}
-
-TEST_F(DecoderOutput, DirectionLists) {
-  const auto& dirs = hemisphere81();
-  auto idx = [](const std::vector<DirectionChoice>& c) {
-    std::vector<int> out;
-    for (const auto& d : c) out.push_back(d.index);
-    return out;
-  };
-  EXPECT_EQ(parseDirectionList("all", dirs, "--lights").size(), 81u);
-  EXPECT_EQ(idx(parseDirectionList("3-5,1,4", dirs, "--lights")), (std::vector<int>{3, 4, 5, 1}));
-  EXPECT_EQ(idx(parseDirectionList("t15p60", dirs, "--lights")), std::vector<int>{2});  // ring 15: 0, 60, ...
-  EXPECT_EQ(idx(parseDirectionList("t15p420", dirs, "--lights")), std::vector<int>{2});  // phi wraps
-  EXPECT_EQ(idx(parseDirectionList("t0p90", dirs, "--lights")), std::vector<int>{0});    // the pole
-  auto un = parseDirectionList("t37.5p-160", dirs, "--views");
-  ASSERT_EQ(un.size(), 1u);
-  EXPECT_FALSE(un[0].measured());
-  EXPECT_EQ(un[0].direction.phiDeg, 200);
-  test::expectErrorContaining([&] { parseDirectionList("81", dirs, "--lights"); },
-                              {"--lights: item '81'", "81 light directions (0..80)"});
-  test::expectErrorContaining([&] { parseDirectionList("5-2", dirs, "--views"); }, {"'5-2'", "empty range"});
-  test::expectErrorContaining([&] { parseDirectionList("1,,2", dirs, "--views"); }, {"is empty"});
-  test::expectErrorContaining([&] { parseDirectionList("t95p0", dirs, "--views"); },
-                              {"'t95p0'", "view direction theta = 95"});
-  test::expectErrorContaining([&] { parseDirectionList("tenp3", dirs, "--views"); }, {"not tTHETApPHI"});
-  test::expectErrorContaining([&] { parseDirectionList("front", dirs, "--views"); }, {"'front'", "N-M"});
-  EXPECT_EQ(parseImageSize("256x128", "--size"), (std::pair<int, int>{256, 128}));
-  test::expectErrorContaining([] { parseImageSize("256", "--size"); }, {"--size: expected WxH"});
-  test::expectErrorContaining([] { parseImageSize("0x5", "--size"); }, {"out of range"});
-}
-
-TEST_F(DecoderOutput, FastSrgbEncoderIsExact) {
-  Srgb8Encoder encode;
-  auto check = [&](float x) { ASSERT_EQ(int(encode(x)), int(linearToSrgb8(x))) << x; };
-  std::uint32_t one;
-  const float f1 = 1.0f;
-  std::memcpy(&one, &f1, 4);
-  for (std::uint32_t bits = 0; bits <= one; bits += 251) {  // every table bucket, many times
-    float x;
-    std::memcpy(&x, &bits, 4);
-    check(x);
-  }
-  // Around every rounding threshold.
-  for (int code = 0; code < 255; ++code) {
-    float t = srgb8ToLinear(static_cast<std::uint8_t>(code));
-    float mid = 0.5f * (t + srgb8ToLinear(static_cast<std::uint8_t>(code + 1)));
-    for (float x = mid, n = 0; n < 40; ++n) x = std::nextafter(x, 0.0f), check(x);
-    for (float x = mid, n = 0; n < 40; ++n) x = std::nextafter(x, 2.0f), check(x);
-  }
-  for (float x : {-1.0f, -0.0f, 1.5f, 1e30f, INFINITY, NAN}) check(x);
 }
 
 TEST_F(DecoderOutput, NonFiniteOrHugeOutputsAreErrors) {

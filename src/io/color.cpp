@@ -1,7 +1,11 @@
 #include "io/color.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+
+#include "util/error.h"
 
 namespace nbtf {
 namespace {
@@ -41,6 +45,51 @@ void linearSrgbToXyz(float* c) {
   c[0] = 0.4124564f * r + 0.3575761f * g + 0.1804375f * b;
   c[1] = 0.2126729f * r + 0.7151522f * g + 0.0721750f * b;
   c[2] = 0.0193339f * r + 0.1191920f * g + 0.9503041f * b;
+}
+
+namespace {
+float floatFromBits(std::uint32_t b) {
+  float f;
+  std::memcpy(&f, &b, sizeof f);
+  return f;
+}
+std::uint32_t bitsOf(float f) {
+  std::uint32_t b;
+  std::memcpy(&b, &f, sizeof b);
+  return b;
+}
+}  // namespace
+
+Srgb8Encoder::Srgb8Encoder() {
+  // Non-negative floats order like their bit patterns: bisect on the bits.
+  for (int i = 0; i < 255; ++i) {
+    std::uint32_t lo = 0, hi = bitsOf(1.0f);
+    while (lo < hi) {
+      std::uint32_t mid = lo + (hi - lo) / 2;
+      if (linearToSrgb8(floatFromBits(mid)) >= i + 1) hi = mid;
+      else lo = mid + 1;
+    }
+    thresholds_[i] = floatFromBits(lo);
+  }
+  thresholds_[255] = INFINITY;
+  auto codeOf = [this](float x) {  // the number of thresholds <= x
+    return static_cast<int>(std::upper_bound(thresholds_, thresholds_ + 255, x) - thresholds_);
+  };
+  firstBits_ = bitsOf(thresholds_[0]);
+  const std::uint32_t buckets = ((bitsOf(1.0f) - firstBits_) >> kBucketShift) + 1;
+  bucketCode_.resize(buckets);
+  for (std::uint32_t b = 0; b < buckets; ++b) {
+    const std::uint32_t first = firstBits_ + (b << kBucketShift), last = first + (1u << kBucketShift) - 1;
+    bucketCode_[b] = static_cast<std::uint8_t>(codeOf(floatFromBits(first)));
+    // One comparison finishes a value only if its bucket holds at most one threshold.
+    if (codeOf(floatFromBits(std::min(last, bitsOf(1.0f)))) > bucketCode_[b] + 1)
+      throw Error("Srgb8Encoder: two sRGB rounding thresholds in one table bucket");
+  }
+}
+
+const Srgb8Encoder& srgb8Encoder() {
+  static const Srgb8Encoder encoder;
+  return encoder;
 }
 
 }  // namespace nbtf

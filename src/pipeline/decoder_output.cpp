@@ -2,23 +2,17 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
 #include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <functional>
-#include <mutex>
-#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <set>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "io/btf_names.h"
+#include "pipeline/decoded_image_names.h"
 #include "pipeline/decode_folder.h"
 #include "io/color.h"
 #include "util/atomic_file.h"
@@ -27,168 +21,12 @@
 #include "util/parallel.h"
 #include "util/progress.h"
 #include "util/timer.h"
+#include "util/writer_pool.h"
 
 namespace nbtf {
 namespace fs = std::filesystem;
 
-// ---- Direction lists ------------------------------------------------------------------------
-
-namespace {
-
-double normalizedPhi(double phi) {
-  double p = std::fmod(phi, 360.0);
-  if (p < 0) p += 360.0;
-  return p;
-}
-
-// To the 1e-6 degrees of a typed angle (tTHETApPHI), by the angles themselves.
-bool sameAngles(const Direction& a, const Direction& b) {
-  constexpr double kTol = 1e-6;
-  if (std::fabs(a.thetaDeg - b.thetaDeg) > kTol) return false;
-  if (a.thetaDeg <= kTol) return true;  // the pole: every azimuth is the same direction
-  double d = std::fabs(normalizedPhi(a.phiDeg) - normalizedPhi(b.phiDeg));
-  return std::min(d, 360.0 - d) <= kTol;
-}
-
-bool parseInt(const std::string& s, long& out) {
-  if (s.empty() || !(std::isdigit(static_cast<unsigned char>(s[0])))) return false;
-  char* end = nullptr;
-  errno = 0;
-  out = std::strtol(s.c_str(), &end, 10);
-  return errno == 0 && *end == '\0';
-}
-
-bool parseDouble(const std::string& s, double& out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  out = std::strtod(s.c_str(), &end);
-  return *end == '\0' && std::isfinite(out);
-}
-
-}  // namespace
-
-DirectionChoice chooseDirection(const Direction& d, const std::vector<Direction>& measured) {
-  DirectionChoice c;
-  c.direction = {d.thetaDeg, normalizedPhi(d.phiDeg)};
-  for (std::size_t i = 0; i < measured.size(); ++i)
-    if (sameAngles(c.direction, measured[i])) {
-      c.direction = measured[i];
-      c.index = static_cast<int>(i);
-      break;
-    }
-  return c;
-}
-
-std::vector<DirectionChoice> allDirections(const std::vector<Direction>& measured) {
-  std::vector<DirectionChoice> out;
-  for (std::size_t i = 0; i < measured.size(); ++i) out.push_back({measured[i], static_cast<int>(i)});
-  return out;
-}
-
-std::vector<DirectionChoice> parseDirectionList(const std::string& text, const std::vector<Direction>& measured,
-                                                const std::string& option) {
-  const std::string what = option.substr(option.find_first_not_of('-')) == "views" ? "view" : "light";
-  if (text == "all") return allDirections(measured);
-  auto fail = [&](const std::string& item, const std::string& why) {
-    return Error(option + ": item '" + item + "' " + why +
-                 " (LIST: 'all', or comma-separated N, N-M or tTHETApPHI, e.g. '0-5,12,t37.5p200')");
-  };
-  const int count = static_cast<int>(measured.size());
-  std::vector<DirectionChoice> out;
-  auto add = [&](const DirectionChoice& c) {
-    for (const auto& e : out)
-      if (c.measured() ? e.index == c.index : (!e.measured() && sameAngles(e.direction, c.direction))) return;
-    out.push_back(c);
-  };
-  std::string item;
-  std::istringstream in(text);
-  bool any = false;
-  while (std::getline(in, item, ',')) {
-    any = true;
-    if (item.empty()) throw fail(item, "is empty");
-    if (item[0] == 't') {
-      auto p = item.find('p');
-      double theta = 0, phi = 0;
-      if (p == std::string::npos || !parseDouble(item.substr(1, p - 1), theta) || !parseDouble(item.substr(p + 1), phi))
-        throw fail(item, "is not tTHETApPHI with THETA and PHI in degrees");
-      Direction d{theta, phi};
-      try {
-        checkHemisphere(d, what);
-      } catch (const Error& e) {
-        throw fail(item, std::string("is not on the hemisphere: ") + e.what());
-      }
-      add(chooseDirection(d, measured));
-      continue;
-    }
-    long first = 0, last = 0;
-    auto dash = item.find('-');
-    bool ok = dash == std::string::npos ? parseInt(item, first) && (last = first, true)
-                                        : parseInt(item.substr(0, dash), first) && parseInt(item.substr(dash + 1), last);
-    if (!ok) throw fail(item, "is not an index N, a range N-M or tTHETApPHI");
-    if (first > last) throw fail(item, "is an empty range (N-M needs N <= M)");
-    if (last >= count)
-      throw fail(item, "is out of range: the material has " + std::to_string(count) + " " + what + " directions (0.." +
-                           std::to_string(count - 1) + ")");
-    for (long i = first; i <= last; ++i) add({measured[i], static_cast<int>(i)});
-  }
-  if (!any) throw fail(text, "is empty");
-  return out;
-}
-
-std::pair<int, int> parseImageSize(const std::string& text, const std::string& option, int maxSide) {
-  long w = 0, h = 0;
-  auto x = text.find_first_of("xX");
-  if (x == std::string::npos || !parseInt(text.substr(0, x), w) || !parseInt(text.substr(x + 1), h))
-    throw Error(option + ": expected WxH (e.g. 256x256), got '" + text + "'");
-  const long kMax = maxSide;
-  if (w < 1 || h < 1 || w > kMax || h > kMax)
-    throw Error(option + ": size " + text + " is out of range (1 .. " + std::to_string(kMax) + " per side)");
-  return {static_cast<int>(w), static_cast<int>(h)};
-}
-
-// ---- sRGB encoding ----------------------------------------------------------------------------
-
-namespace {
-float floatFromBits(std::uint32_t b) {
-  float f;
-  std::memcpy(&f, &b, sizeof f);
-  return f;
-}
-std::uint32_t bitsOf(float f) {
-  std::uint32_t b;
-  std::memcpy(&b, &f, sizeof b);
-  return b;
-}
-}  // namespace
-
-Srgb8Encoder::Srgb8Encoder() {
-  // Non-negative floats order like their bit patterns: bisect on the bits.
-  for (int i = 0; i < 255; ++i) {
-    std::uint32_t lo = 0, hi = bitsOf(1.0f);
-    while (lo < hi) {
-      std::uint32_t mid = lo + (hi - lo) / 2;
-      if (linearToSrgb8(floatFromBits(mid)) >= i + 1) hi = mid;
-      else lo = mid + 1;
-    }
-    thresholds_[i] = floatFromBits(lo);
-  }
-  thresholds_[255] = INFINITY;
-  auto codeOf = [this](float x) {  // the number of thresholds <= x
-    return static_cast<int>(std::upper_bound(thresholds_, thresholds_ + 255, x) - thresholds_);
-  };
-  firstBits_ = bitsOf(thresholds_[0]);
-  const std::uint32_t buckets = ((bitsOf(1.0f) - firstBits_) >> kBucketShift) + 1;
-  bucketCode_.resize(buckets);
-  for (std::uint32_t b = 0; b < buckets; ++b) {
-    const std::uint32_t first = firstBits_ + (b << kBucketShift), last = first + (1u << kBucketShift) - 1;
-    bucketCode_[b] = static_cast<std::uint8_t>(codeOf(floatFromBits(first)));
-    // One comparison finishes a value only if its bucket holds at most one threshold.
-    if (codeOf(floatFromBits(std::min(last, bitsOf(1.0f)))) > bucketCode_[b] + 1)
-      throw Error("Srgb8Encoder: two sRGB rounding thresholds in one table bucket");
-  }
-}
-
-// ---- Layout, format, names -------------------------------------------------------------------
+// ---- Layout and format ---------------------------------------------------------------------------
 
 Layout resolvedLayout(const NbtfDecoder& decoder, const DecodeStackOptions& options) {
   if (options.layout != Layout::Unknown) return options.layout;
@@ -198,19 +36,6 @@ Layout resolvedLayout(const NbtfDecoder& decoder, const DecodeStackOptions& opti
 ImageFormat resolvedFormat(const NbtfDecoder& decoder, const DecodeStackOptions& options) {
   if (options.format) return *options.format;
   return decoder.material().sourceSampleType == SampleType::Half ? ImageFormat::Exr : ImageFormat::Png;
-}
-
-std::string decodedImagePath(Layout layout, ImageFormat format, const DirectionChoice& light,
-                             const DirectionChoice& view, int numViews, int outputIndex) {
-  std::string ext = extensionOf(format);
-  const bool measured = light.measured() && view.measured();
-  if (layout == Layout::Ubo2003 && !measured && outputIndex < 0)
-    throw Error("decodedImagePath: an unmeasured direction in the UBO2003 layout needs the output index");
-  std::string name =
-      layout == Layout::Utia ? utiaFileName(light.direction, view.direction, ext)
-      : outputIndex >= 0     ? ubo2003FileName(outputIndex, light.direction, view.direction, ext)
-                             : ubo2003FileName(light.index * numViews + view.index, light.direction, view.direction, ext);
-  return (fs::path(viewFolderName(view.direction)) / name).string();
 }
 
 // ---- Decoding images ----------------------------------------------------------------------------
@@ -273,76 +98,6 @@ void scatterRows(const NbtfDecoder& decoder, const T* rows, int width, int heigh
     }
   }
 }
-
-const Srgb8Encoder& srgbEncoder() {
-  static const Srgb8Encoder encoder;
-  return encoder;
-}
-
-// File writes run on their own threads: every atomic write ends with an fsync, which waits
-// on the disk (about 4 ms per file measured here) while using no CPU, and concurrent
-// fsyncs overlap. The decoding threads hand finished images over through a bounded queue.
-class WriterPool {
- public:
-  WriterPool(int threads, std::size_t capacity) : capacity_(std::max<std::size_t>(1, capacity)) {
-    for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
-  }
-  ~WriterPool() { stop(); }
-
-  // Blocks while the queue is full; throws the first failed write's error.
-  void submit(std::function<void()> job) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    notFull_.wait(lock, [&] { return jobs_.size() < capacity_ || error_; });
-    if (error_) std::rethrow_exception(error_);
-    jobs_.push_back(std::move(job));
-    notEmpty_.notify_one();
-  }
-  // Waits for every queued write; throws the first failed write's error.
-  void finish() {
-    stop();
-    if (error_) std::rethrow_exception(error_);
-  }
-
- private:
-  void stop() {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      closing_ = true;
-    }
-    notEmpty_.notify_all();
-    for (auto& t : threads_)
-      if (t.joinable()) t.join();
-  }
-  void work() {
-    while (true) {
-      std::function<void()> job;
-      {
-        std::unique_lock<std::mutex> lock(mutex_);
-        notEmpty_.wait(lock, [&] { return !jobs_.empty() || closing_; });
-        if (jobs_.empty()) return;
-        job = std::move(jobs_.front());
-        jobs_.pop_front();
-        notFull_.notify_one();
-        if (error_) continue;  // after a failure the rest is dropped
-      }
-      try {
-        job();
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (!error_) error_ = std::current_exception();
-        notFull_.notify_all();
-      }
-    }
-  }
-
-  std::size_t capacity_;
-  std::vector<std::thread> threads_;
-  std::deque<std::function<void()>> jobs_;
-  std::mutex mutex_;
-  std::condition_variable notEmpty_, notFull_;
-  std::exception_ptr error_;
-  bool closing_ = false;
-};
 
 constexpr int kWriterThreads = 8;
 constexpr std::size_t kQueuedBytes = std::size_t(256) << 20;  // bound on images waiting to be written
@@ -418,7 +173,7 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   const ExrColorSpace space = r.layout == Layout::Utia ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
   std::atomic<std::uint64_t> clamped{0};
   Progress progress("decode", static_cast<std::size_t>(r.images), options.progress);
-  const Srgb8Encoder& encode = srgbEncoder();
+  const Srgb8Encoder& encode = srgb8Encoder();
   const std::size_t values = 3 * static_cast<std::size_t>(r.width) * r.height;
   const std::size_t imageBytes = values * (exr ? sizeof(float) : 1);
   WriterPool writers(kWriterThreads, kQueuedBytes / std::max<std::size_t>(1, imageBytes));
@@ -543,7 +298,7 @@ BtfStack decodeStack(const NbtfDecoder& decoder, SampleType type, const std::vec
   stack.sourceHeight = m.sourceHeight;
   stack.crop = m.crop;
   const std::size_t images = static_cast<std::size_t>(stack.numImages());
-  const Srgb8Encoder& encode = srgbEncoder();
+  const Srgb8Encoder& encode = srgb8Encoder();
   Progress progress("decode", images, progressBar);
   parallelForDynamic(images, [&](std::size_t i, int) {
     std::vector<float> rows;

@@ -22,34 +22,11 @@
 #include "codec/decoder.h"
 #include "io/btf_stack.h"
 #include "io/image_io.h"
+#include "pipeline/decode_selection.h"
 #include "preprocess/ubo2014_factorize.h"
 
 namespace nbtf {
 
-// A light or view to decode: a measured direction (index into the material's list) or
-// any other direction on the hemisphere (index -1).
-struct DirectionChoice {
-  Direction direction;
-  int index = -1;
-  bool measured() const { return index >= 0; }
-};
-
-// Parses a --lights / --views LIST (`option` names it in errors):
-//   all                 every measured direction (the default)
-//   ITEM[,ITEM...]      items in the order given, duplicates removed
-//   ITEM = N            measured direction number N (0-based, in the order the loader sorts
-//                       them: theta ascending, then phi; 0..80 for the 81-direction sets)
-//        | N-M          measured directions N to M inclusive
-//        | tTHETApPHI   the direction (THETA, PHI) in degrees, e.g. t37.5p200; a measured
-//                       direction when it is one (to 1e-6 degrees), else unmeasured
-std::vector<DirectionChoice> parseDirectionList(const std::string& text, const std::vector<Direction>& measured,
-                                                const std::string& option);
-// One direction as THETA,PHI degrees (for --light / --view), matched to a measured one when equal.
-DirectionChoice chooseDirection(const Direction& d, const std::vector<Direction>& measured);
-std::vector<DirectionChoice> allDirections(const std::vector<Direction>& measured);
-
-// "WxH" -> (width, height), both in 1..maxSide; throws naming `option`.
-std::pair<int, int> parseImageSize(const std::string& text, const std::string& option, int maxSide = 1 << 16);
 
 struct DecodeStackOptions {
   Layout layout = Layout::Unknown;  // Unknown: the material's source layout (UBO2003 if unknown)
@@ -79,12 +56,6 @@ struct DecodeStackResult {
 // The layout and format the options resolve to for this material.
 Layout resolvedLayout(const NbtfDecoder& decoder, const DecodeStackOptions& options);
 ImageFormat resolvedFormat(const NbtfDecoder& decoder, const DecodeStackOptions& options);
-// Path of one image relative to the output folder. One naming per layout: UBO2003 names
-// carry a running number, the source's image number (light x views + view) when both
-// directions are measured, else `outputIndex` (the decode numbers all of its images by their
-// position in the output whenever one of them is unmeasured, so numbers never collide).
-std::string decodedImagePath(Layout layout, ImageFormat format, const DirectionChoice& light,
-                             const DirectionChoice& view, int numViews, int outputIndex = -1);
 
 // Decodes every selected (light, view) pair into `folder` (created if missing), in
 // parallel on threadCount() threads, each file written atomically.
@@ -110,31 +81,5 @@ std::string formatDecodeUbo2014Summary(const DecodeUbo2014Result& result);
 // (linear), lights x views in the order given (empty = all measured), the material's size.
 BtfStack decodeStack(const NbtfDecoder& decoder, SampleType type, const std::vector<DirectionChoice>& lights = {},
                      const std::vector<DirectionChoice>& views = {}, bool progress = true);
-
-// linearToSrgb8 (io/color.h), bit-exact, without a pow() per value: a table indexed by the
-// float's bit pattern gives the code at the start of the value's bucket (2^13 neighbouring
-// floats, a relative width of 1e-3, narrower than any gap between two rounding thresholds),
-// and one comparison with the next threshold finishes it. Modulated materials encode every
-// texel of every decoded image (65.6 million values for a 100 x 100 x 6561 stack), so this
-// is on the decoder's critical path.
-class Srgb8Encoder {
- public:
-  Srgb8Encoder();
-  std::uint8_t operator()(float linear) const {
-    if (!(linear > 0)) return 0;  // also NaN, like linearToSrgb8
-    if (linear >= 1.0f) return 255;
-    std::uint32_t bits;
-    std::memcpy(&bits, &linear, sizeof bits);
-    if (bits < firstBits_) return 0;
-    const int code = bucketCode_[(bits - firstBits_) >> kBucketShift];
-    return static_cast<std::uint8_t>(code + (linear >= thresholds_[code]));
-  }
-
- private:
-  static constexpr int kBucketShift = 13;
-  float thresholds_[256];                  // smallest linear value that encodes to i + 1; [255] = +inf
-  std::uint32_t firstBits_ = 0;            // bit pattern of thresholds_[0]
-  std::vector<std::uint8_t> bucketCode_;  // code of each bucket's first float
-};
 
 }  // namespace nbtf
