@@ -1,141 +1,31 @@
-// nbtf cluster <input> --clusters K -o DIR: the clustering stage alone (log + standardize,
-// PCA, k-means++ in the --space chosen, representatives), writing DIR/labels.png (the id list, a colour per
-// cluster), DIR/texel_colour.png and DIR/cluster_colour.png (each texel's mean colour over all
-// images, and its cluster's: what the clustering keeps) and DIR/summary.json.
-#include <chrono>
+// nbtf cluster <input> --clusters K -o DIR: the clustering stage alone (log + standardize, PCA,
+// k-means++ in the --space chosen, representatives; pipeline/cluster_stack.h), writing
+// DIR/labels.png (the id list, a colour per cluster), DIR/texel_colour.png and
+// DIR/cluster_colour.png (each texel's mean colour over all images, and its cluster's: what the
+// clustering keeps) and DIR/summary.json.
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 
 #include "cli_common.h"
-#include "cluster/cluster_output.h"
-#include "cluster/clustering.h"
 #include "commands.h"
-#include "io/btf_loader.h"
-#include "io/image_io.h"
 #include "options/memory_options.h"
-#include "pipeline/memory_estimate.h"
-#include "preprocess/abrdf_source.h"
-#include "util/atomic_file.h"
+#include "pipeline/cluster_stack.h"
 #include "util/memory.h"
 #include "util/progress.h"
-#include "util/timer.h"
 
 namespace nbtf::cli {
 namespace {
 
-namespace fs = std::filesystem;
-
-
-int clusterStack(const cxxopts::ParseResult& args) {
-  const auto start = std::chrono::steady_clock::now();
-  const std::string input = args["input"].as<std::string>();
-  const std::string outDir = args["output"].as<std::string>();
-  refuseOverlappingPaths({{"<input>", input}}, {{"-o", outDir, true}});
-  ClusteringOptions options;
-  options.clusters = args["clusters"].as<int>();
-  options.pca.components = args["components"].as<int>();
-  options.pca.powerIterations = args["power-iterations"].as<int>();
-  options.pca.oversampling = args["oversampling"].as<int>();
-  const int sampleMib = args["pca-sample"].as<int>();
-  if (sampleMib < 0) throw Error("--pca-sample must be >= 0 (MiB; 0: every texel), got " + std::to_string(sampleMib));
-  options.pca.sampleBytes = static_cast<std::size_t>(sampleMib) << 20;
-  options.kmeans.maxIterations = args["max-iterations"].as<int>();
-  options.seed = args["seed"].as<std::uint64_t>();
-  const std::string representative = args["representative"].as<std::string>();
-  if (representative == "median") options.representative = Representative::Median;
-  else if (representative == "mean") options.representative = Representative::Mean;
-  else throw Error("--representative: expected median or mean, got '" + representative + "'");
-  const ClusteringSpace space = parseClusteringSpace(args["space"].as<std::string>(), "--space");
-  // Options that can be judged before hours of loading are judged now.
-  if (options.clusters < 1) throw Error("--clusters must be at least 1, got " + std::to_string(options.clusters));
-  if (options.pca.components < 1)
-    throw Error("--components must be at least 1, got " + std::to_string(options.pca.components));
-  if (options.pca.powerIterations < 0) throw Error("--power-iterations must be >= 0");
-  if (options.pca.oversampling < 0) throw Error("--oversampling must be >= 0");
-  if (options.kmeans.maxIterations < 0) throw Error("--max-iterations must be >= 0");
-
-  checkFolderCreatable(outDir);  // created (with its parents) once there is something to write
-  const std::string labelsPath = (fs::path(outDir) / "labels.png").string();
-  const std::string summaryPath = (fs::path(outDir) / "summary.json").string();
-  const std::string texelColourPath = (fs::path(outDir) / "texel_colour.png").string();
-  const std::string clusterColourPath = (fs::path(outDir) / "cluster_colour.png").string();
-
-  ClusterRunInfo info;
-  info.input = input;
-  info.space = space;
-  info.threads = threadCount();
-  auto step = std::chrono::steady_clock::now();
-  LoadOptions load;
-  if (auto layout = layoutOption(args)) load.layout = *layout;
-  if (auto crop = cropOption(args)) load.crop = *crop;
-  // Refuse before loading what cannot fit (docs/compress.md, *Memory*).
-  const MemoryOptions memory = memoryOptions(args);
-  const std::size_t limit = memory.limit ? memory.limit : defaultMemoryLimit();
-  load.expandUpTo = expandBudget(limit);
-  {
-    const StackShape shape = stackShape(input, load);
-    MemoryEstimate estimate = estimateClusterMemory(shape, options.clusters, options.pca.components,
-                                                    options.pca.oversampling, threadCount(), options.pca.sampleBytes);
-    // The output folder may not exist yet: its nearest existing folder holds the scratch file.
-    fs::path near = fs::absolute(outDir);
-    while (!near.empty() && !fs::is_directory(near) && near != near.parent_path()) near = near.parent_path();
-    load.scratchDir = stackScratchDir(memory.stack, near.string(), input, estimate, limit, !Progress::quiet());
-    enforceMemoryLimit(estimate, limit, memory.limitText.empty() ? memoryLimitText(false, "") : memory.limitText,
-                       input, shape);
-  }
-  BtfStack stack = loadBtfStack(input, load);
-  info.loadSeconds = secondsSince(step);
-  info.width = stack.width(), info.height = stack.height(), info.images = stack.numImages();
-  info.crop = stack.crop;
-
-  const int texels = stack.numTexels(), dims = 3 * stack.numImages();
-  if (options.clusters > texels)
-    throw Error("--clusters " + std::to_string(options.clusters) + ": the input has only " + std::to_string(texels) +
-                " texels (" + std::to_string(stack.width()) + " x " + std::to_string(stack.height()) + ")");
-  if (options.pca.components > std::min(texels, dims))
-    throw Error("--components " + std::to_string(options.pca.components) + ": at most " +
-                std::to_string(std::min(texels, dims)) + " for " + std::to_string(texels) + " texels x " +
-                std::to_string(dims) + " dimensions");
-
-  // The standardized ABRDF matrix is streamed from the 8-bit (or half) stack in slices
-  // (preprocess/abrdf_source.h): it never exists whole.
-  step = std::chrono::steady_clock::now();
-  const Eigen::MatrixXf texelColour = texelMeanColour(stack);
-  info.matrixSeconds = secondsSince(step);
-  const int width = stack.width(), height = stack.height(), images = stack.numImages();
-  step = std::chrono::steady_clock::now();
-  ColumnMoments moments;  // spare PCA a pass over the stack, as alpha spares one (targetAlpha's)
-  Standardization standardization = fitStandardization(stack, !Progress::quiet(), &info.alpha, &moments);
-  StackAbrdfSource source(stack, std::move(standardization), std::move(moments));
-  info.standardizeSeconds = secondsSince(step);
-
-  ClusteringResult result = clusterAbrdfs(source, options, clusteringSpaceSource(stack, space, info.alpha).get());
-  info.totalSeconds = secondsSince(start);
-  const std::size_t peak = peakResidentBytes();
-  info.peakMemoryBytes = peak;
-
-  std::error_code ec;
-  fs::create_directories(outDir, ec);
-  if (ec) throw fileError(outDir, "cannot create output folder: " + ec.message());
-  writeImage8(labelsPath, ImageFormat::Png, labelImage(result.ids, width, height));
-  // Both appearance images on one scale (the brightest texel's average), so they compare.
-  const float brightest = texelColour.maxCoeff();
-  writeImage8(texelColourPath, ImageFormat::Png, colourImage(texelColour, width, height, brightest));
-  writeImage8(clusterColourPath, ImageFormat::Png,
-              colourImage(clusterMeanColour(texelColour, result.ids, options.clusters), width, height, brightest));
-  nlohmann::json summary = clusteringSummary(result, options, info);
-  summary["space"] = clusteringSpaceName(space);
-  summary["appearance_images"] = {
-      {"texel_colour", "texel_colour.png"},
-      {"cluster_colour", "cluster_colour.png"},
-      {"encoding", "linear RGB averaged over all images, divided by scale_linear, sRGB 8-bit"},
-      {"scale_linear", brightest}};
-  writeFileAtomic(summaryPath, summary.dump(2) + "\n");
-
-  const auto& sizes = summary["cluster_sizes"];
-  std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, width, height, images,
-              options.clusters, info.totalSeconds);
+// The summary lines: what was clustered, PCA, k-means, the cluster sizes, memory, the files.
+void printSummary(const ClusterStackRun& done, const ClusterOutputFiles& files, const ClusterStackOptions& run) {
+  const ClusteringOptions& options = run.clustering;
+  const ClusteringSpace space = run.space;
+  const ClusteringResult& result = done.result;
+  const int texels = done.info.width * done.info.height;
+  const auto& sizes = files.summaryJson["cluster_sizes"];
+  std::printf("clustered %d texels (%d x %d, %d images) into %d clusters in %.2f s\n", texels, done.info.width,
+              done.info.height, done.info.images, options.clusters, done.info.totalSeconds);
   const std::string sampled = result.pcaSampledTexels > 0
                                   ? ", subspace from " + std::to_string(result.pcaSampledTexels) + " sampled texels"
                                   : "";
@@ -152,10 +42,51 @@ int clusterStack(const cxxopts::ParseResult& args) {
               sizes["max"].get<int>(),
               result.emptyClusters ? (", " + std::to_string(result.emptyClusters) + " empty (too few distinct ABRDFs)").c_str()
                                    : "");
-  std::printf("  memory       peak %s resident (--memory-limit %s)\n", formatBytes(peak).c_str(),
-              formatBytes(limit).c_str());
-  std::printf("  wrote        %s (ids), %s and %s (mean colour per texel / per cluster), %s\n",
-              labelsPath.c_str(), texelColourPath.c_str(), clusterColourPath.c_str(), summaryPath.c_str());
+  std::printf("  memory       peak %s resident (--memory-limit %s)\n", formatBytes(done.info.peakMemoryBytes).c_str(),
+              formatBytes(done.memoryLimit).c_str());
+  std::printf("  wrote        %s (ids), %s and %s (mean colour per texel / per cluster), %s\n", files.labels.c_str(),
+              files.texelColour.c_str(), files.clusterColour.c_str(), files.summary.c_str());
+}
+
+int runCluster(const cxxopts::ParseResult& args) {
+  const std::string input = args["input"].as<std::string>();
+  const std::string outDir = args["output"].as<std::string>();
+  refuseOverlappingPaths({{"<input>", input}}, {{"-o", outDir, true}});
+  ClusterStackOptions run;
+  ClusteringOptions& options = run.clustering;
+  options.clusters = args["clusters"].as<int>();
+  options.pca.components = args["components"].as<int>();
+  options.pca.powerIterations = args["power-iterations"].as<int>();
+  options.pca.oversampling = args["oversampling"].as<int>();
+  const int sampleMib = args["pca-sample"].as<int>();
+  if (sampleMib < 0) throw Error("--pca-sample must be >= 0 (MiB; 0: every texel), got " + std::to_string(sampleMib));
+  options.pca.sampleBytes = static_cast<std::size_t>(sampleMib) << 20;
+  options.kmeans.maxIterations = args["max-iterations"].as<int>();
+  options.seed = args["seed"].as<std::uint64_t>();
+  const std::string representative = args["representative"].as<std::string>();
+  if (representative == "median") options.representative = Representative::Median;
+  else if (representative == "mean") options.representative = Representative::Mean;
+  else throw Error("--representative: expected median or mean, got '" + representative + "'");
+  run.space = parseClusteringSpace(args["space"].as<std::string>(), "--space");
+  // Options that can be judged before hours of loading are judged now.
+  if (options.clusters < 1) throw Error("--clusters must be at least 1, got " + std::to_string(options.clusters));
+  if (options.pca.components < 1)
+    throw Error("--components must be at least 1, got " + std::to_string(options.pca.components));
+  if (options.pca.powerIterations < 0) throw Error("--power-iterations must be >= 0");
+  if (options.pca.oversampling < 0) throw Error("--oversampling must be >= 0");
+  if (options.kmeans.maxIterations < 0) throw Error("--max-iterations must be >= 0");
+
+  checkFolderCreatable(outDir);  // created (with its parents) once there is something to write
+  if (auto layout = layoutOption(args)) run.load.layout = *layout;
+  if (auto crop = cropOption(args)) run.load.crop = *crop;
+  const MemoryOptions memory = memoryOptions(args);
+  run.memoryLimit = memory.limit;
+  run.memoryLimitText = memory.limitText;
+  run.stackStorage = memory.stack;
+  run.progress = !Progress::quiet();
+
+  const ClusterStackRun done = clusterStack(input, outDir, run);
+  printSummary(done, writeClusterOutputs(done, run, outDir), run);
   return 0;
 }
 
@@ -193,7 +124,7 @@ int clusterMain(int argc, char** argv) {
     if (!args.count("input")) throw Error("missing <input> (see 'nbtf cluster --help')");
     if (!args.count("clusters")) throw Error("missing --clusters K (see 'nbtf cluster --help')");
     if (!args.count("output")) throw Error("missing -o <dir> (see 'nbtf cluster --help')");
-    return clusterStack(args);
+    return runCluster(args);
   });
 }
 

@@ -622,11 +622,10 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
         shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : kDefaultPcaComponents,
         PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
     const std::string outputDir = std::filesystem::path(output).parent_path().string();
-    o.load.scratchDir = stackScratchDir(o.stackStorage, outputDir, input, estimate, stats.memoryLimit, o.progress);
+    o.load.scratchDir = placeStackWithinLimit(o.stackStorage, outputDir, input, shape, estimate, stats.memoryLimit,
+                                              o.memoryLimitText, o.progress);
     stats.stackScratchDir = o.load.scratchDir;
     stats.memoryEstimate = estimate.total();
-    enforceMemoryLimit(estimate, stats.memoryLimit,
-                       o.memoryLimitText.empty() ? memoryLimitText(false, "") : o.memoryLimitText, input, shape);
   }
   auto t = Clock::now();
   LoadOptions load = o.load;

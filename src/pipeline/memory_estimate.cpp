@@ -150,4 +150,12 @@ std::string memoryLimitText(bool given, const std::string& value) {
   return "the default --memory-limit (75% of the " + formatBytes(physicalMemoryBytes()) + " of physical memory)";
 }
 
+std::string placeStackWithinLimit(const StackStorageOptions& storage, const std::string& defaultDir,
+                                  const std::string& input, const StackShape& shape, MemoryEstimate& estimate,
+                                  std::size_t limit, const std::string& limitText, bool announce) {
+  std::string dir = stackScratchDir(storage, defaultDir, input, estimate, limit, announce);
+  enforceMemoryLimit(estimate, limit, limitText.empty() ? memoryLimitText(false, "") : limitText, input, shape);
+  return dir;
+}
+
 }  // namespace nbtf

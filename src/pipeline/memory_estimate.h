@@ -56,6 +56,14 @@ MemoryEstimate estimateClusterMemory(const StackShape& shape, int clusters, int 
 void enforceMemoryLimit(const MemoryEstimate& estimate, std::size_t limit, const std::string& limitText,
                         const std::string& input, const StackShape& shape);
 
+// The stack's place and the memory check of one run, both before any image is read: the
+// scratch folder (stackScratchDir, under `defaultDir`; `estimate` then counts the stack in it),
+// then enforceMemoryLimit (`limitText` "" = the default limit's description). Returns the
+// scratch folder ("" = memory).
+std::string placeStackWithinLimit(const StackStorageOptions& storage, const std::string& defaultDir,
+                                  const std::string& input, const StackShape& shape, MemoryEstimate& estimate,
+                                  std::size_t limit, const std::string& limitText, bool announce);
+
 // The largest half-float expansion of a UBO2014 file (LoadOptions::expandUpTo) a run under
 // `limit` makes: half the limit. A larger one stays factorized, its values computed when read
 // (the same values, slower to read).
