@@ -9,6 +9,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "options/clustering_options.h"
 #include "options/memory_options.h"
 #include "pipeline/cluster_stack.h"
 #include "util/memory.h"
@@ -54,20 +55,21 @@ int runCluster(const cxxopts::ParseResult& args) {
   refuseOverlappingPaths({{"<input>", input}}, {{"-o", outDir, true}});
   ClusterStackOptions run;
   ClusteringOptions& options = run.clustering;
-  options.clusters = args["clusters"].as<int>();
-  options.pca.components = args["components"].as<int>();
+  const ClusteringArgs clustering = clusteringArgs(args);
+  options.clusters = clustering.clusters.value_or(0);
+  if (clustering.components) options.pca.components = *clustering.components;
   options.pca.powerIterations = args["power-iterations"].as<int>();
   options.pca.oversampling = args["oversampling"].as<int>();
   const int sampleMib = args["pca-sample"].as<int>();
   if (sampleMib < 0) throw Error("--pca-sample must be >= 0 (MiB; 0: every texel), got " + std::to_string(sampleMib));
   options.pca.sampleBytes = static_cast<std::size_t>(sampleMib) << 20;
   options.kmeans.maxIterations = args["max-iterations"].as<int>();
-  options.seed = args["seed"].as<std::uint64_t>();
+  if (clustering.seed) options.seed = *clustering.seed;
   const std::string representative = args["representative"].as<std::string>();
   if (representative == "median") options.representative = Representative::Median;
   else if (representative == "mean") options.representative = Representative::Mean;
   else throw Error("--representative: expected median or mean, got '" + representative + "'");
-  run.space = parseClusteringSpace(args["space"].as<std::string>(), "--space");
+  run.space = clustering.space.value_or(kDefaultClusteringSpace);
   // Options that can be judged before hours of loading are judged now.
   if (options.clusters < 1) throw Error("--clusters must be at least 1, got " + std::to_string(options.clusters));
   if (options.pca.components < 1)
@@ -97,8 +99,6 @@ int clusterMain(int argc, char** argv) {
     cxxopts::Options options("nbtf cluster", "Cluster a BTF's ABRDFs (log + standardize, PCA, k-means++)");
     options.positional_help("<input> --clusters K -o <dir>");
     options.add_options()("input", "BTF stack folder or UBO2014 .btf file", cxxopts::value<std::string>())(
-        "k,clusters", "Number of clusters", cxxopts::value<int>())(
-        "components", "PCA components", cxxopts::value<int>()->default_value("32"))(
         "power-iterations", "PCA power iterations (more: closer to the exact PCA, one more read of the data each)",
         cxxopts::value<int>()->default_value(std::to_string(PcaOptions().powerIterations)))(
         "oversampling", "PCA sketch columns beyond --components",
@@ -111,12 +111,8 @@ int clusterMain(int argc, char** argv) {
         cxxopts::value<int>()->default_value(std::to_string(KMeansOptions().maxIterations)))(
         "representative", "Cluster representative: median or mean",
         cxxopts::value<std::string>()->default_value("median"))(
-        "space",
-        "Values PCA and k-means work on: log (standardized log ABRDFs) or linear (linear / alpha); the "
-        "representatives are medians of the standardized log ABRDFs either way",
-        cxxopts::value<std::string>()->default_value(clusteringSpaceName(kDefaultClusteringSpace)))(
-        "seed", "Random seed (same seed, same clusters)", cxxopts::value<std::uint64_t>()->default_value("1"))(
         "o,output", "Output folder (labels.png, texel_colour.png, cluster_colour.png, summary.json)", cxxopts::value<std::string>());
+    addClusteringOptions(options);
     addMemoryOptions(options);
     addStackOptions(options);
     cxxopts::ParseResult args;

@@ -118,7 +118,7 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
   // Either space finds the two materials: the same halves, recorded as such.
   for (const char* space : {"linear", "log"}) {
     fs::path dir = root_ / space;
-    code = run((root_ / "stack").string() + " --clusters 2 --components 2 --space " + space + " -q -o " + dir.string(),
+    code = run((root_ / "stack").string() + " --clusters 2 --components 2 --cluster-space " + space + " -q -o " + dir.string(),
                output);
     ASSERT_EQ(code, 0) << output;
     Image8 spaceLabels = readImage8((dir / "labels.png").string());
@@ -134,9 +134,9 @@ TEST_F(ClusterCliTest, WritesLabelImageAndSummary) {
     const std::string values = std::string(space) == "linear" ? "linear ABRDFs / alpha" : "standardized log ABRDFs";
     EXPECT_NE(output.find("of the variance of the " + values + " ("), std::string::npos) << output;
   }
-  code = run((root_ / "stack").string() + " --clusters 2 --space srgb -q -o " + (root_ / "bad").string(), output);
+  code = run((root_ / "stack").string() + " --clusters 2 --cluster-space srgb -q -o " + (root_ / "bad").string(), output);
   EXPECT_EQ(code, 1);
-  EXPECT_NE(output.find("--space: expected log or linear, got 'srgb'"), std::string::npos) << output;
+  EXPECT_NE(output.find("--cluster-space: expected log or linear, got 'srgb'"), std::string::npos) << output;
   EXPECT_FALSE(fs::exists(root_ / "bad"));
 }
 

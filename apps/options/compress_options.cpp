@@ -8,6 +8,7 @@
 #include "model/config_section.h"
 #include "pipeline/compress_config.h"
 #include "util/atomic_file.h"
+#include "options/clustering_options.h"
 #include "options/memory_options.h"
 #include "util/memory.h"
 
@@ -51,11 +52,7 @@ TrainConfig buildTrainConfig(TrainConfig c, const cxxopts::ParseResult& args, co
       throw Error("--time-budget must be a positive number of seconds, got " + number(c.timeBudgetSeconds));
     if (!args.count("epochs")) c.epochs = 0;  // a budget alone: train until it is spent
   }
-  if (args.count("seed")) {
-    long long seed = args["seed"].as<long long>();
-    if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
-    c.seed = static_cast<std::uint64_t>(seed);
-  }
+  if (const auto seed = clusteringArgs(args).seed) c.seed = *seed;
   if (args.count("resume")) c.resume = true;
   if (c.checkpointPath.empty()) c.checkpointPath = defaultCheckpointPath(output);
   validateTrainConfig(c, configSource(args));
@@ -133,10 +130,6 @@ void addCompressOptions(cxxopts::Options& options) {
       "clustered (the paper's clustered neural BTF), per-texel (neural, one latent per texel; = --clusters 0) or "
       "pca (the classic PCA baseline: --components C principal components, no training)",
       cxxopts::value<std::string>()->default_value("clustered"))(
-      "clusters",
-      "k, the number of clusters (0 = per-texel: one latent per texel). Default: the config's clustering.clusters "
-      "(1000 in the default config), capped to one cluster per 10 texels on a small input",
-      cxxopts::value<int>())(
       "config",
       "Config JSON: the training recipe and the adaptive clusters; a file, or the name of a config of configs/, "
       "compiled in (" + builtInConfigList() + ") (default: identical to configs/default.json)",
@@ -144,19 +137,12 @@ void addCompressOptions(cxxopts::Options& options) {
       "holdout", "Fraction of (light, view) images kept out of training, in [0, 1)", cxxopts::value<double>())(
       "epochs", "Training epochs (overrides the config)", cxxopts::value<int>())(
       "time-budget", "Training time budget in seconds (alone: train until it is spent)",
-      cxxopts::value<double>())("seed", "Random seed (clustering and training)", cxxopts::value<long long>())(
+      cxxopts::value<double>())(
       "stats-json", "Also write the summary as JSON to this file", cxxopts::value<std::string>())(
       "save-encoder", "Also write this .nbtf file with the encoder inside (for fine-tuning)",
       cxxopts::value<std::string>())("resume", "Continue from the checkpoint of an interrupted run")(
       "restart", "Delete an interrupted run's checkpoint and start over (without --resume or --restart a run "
                  "whose checkpoint exists is refused)")(
-      "components",
-      "PCA components: before k-means (default 32, capped by the data), or kept by --method pca (required there)",
-      cxxopts::value<int>()->default_value("0"))(
-      "cluster-space",
-      "Values the clusters are found in: log (standardized log ABRDFs, the paper's) or linear (linear / alpha, where "
-      "the error is measured) (overrides the config's clustering.space)",
-      cxxopts::value<std::string>())(
       "world-size", "Data-parallel training over this many processes (docs/model.md; same command on every rank)",
       cxxopts::value<int>()->default_value("1"))(
       "rank", "This process's rank, 0..world-size-1 (rank 0 hosts the rendezvous and writes the file)",
@@ -179,6 +165,7 @@ void addCompressOptions(cxxopts::Options& options) {
       "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
       "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
       cxxopts::value<int>());
+  addClusteringOptions(options);
   addMemoryOptions(options);
   addStackOptions(options);
 }
@@ -198,14 +185,12 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   o.train = buildTrainConfig(config.train, args, output, program);
   if (isBuiltInConfig(configPath)) o.train.builtInConfig = configPath;
   if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
-  o.clusters = args.count("clusters") ? args["clusters"].as<int>() : config.clusters;
-  o.clustersAreDefault = !args.count("clusters");
+  const ClusteringArgs clustering = clusteringArgs(args);
+  o.clusters = clustering.clusters.value_or(config.clusters);
+  o.clustersAreDefault = !clustering.clusters;
   if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
-  o.pcaComponents = args["components"].as<int>();
-  o.clusteringSpace = args.count("cluster-space")
-                          ? parseClusteringSpace(args["cluster-space"].as<std::string>(), "--cluster-space")
-                          : config.clusteringSpace;
-  if (o.pcaComponents < 0) throw Error("--components must be >= 0, got " + std::to_string(o.pcaComponents));
+  o.pcaComponents = clustering.components.value_or(0);
+  o.clusteringSpace = clustering.space.value_or(config.clusteringSpace);
   applyMethod(args, o);
   DistributedConfig& dist = o.train.distributed;
   dist.worldSize = args["world-size"].as<int>();
