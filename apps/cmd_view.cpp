@@ -25,6 +25,11 @@ ViewerReference loadReference(const std::string& stackPath, const std::string& f
   if (auto layout = layoutOption(args)) options.layout = *layout;
   options.crop = cropOption(args).value_or(material.crop);
   options.progress = !quiet(args);
+  // Chosen from the names before any image is read: a reference whose one image cannot fit
+  // the page is refused before loading.
+  const StackListing listing = listBtfStack(stackPath, options.layout);
+  const ViewerReferenceSelection chosen =
+      viewerReferenceDirections(listing.lights, listing.views, static_cast<std::size_t>(material.numTexels()));
   BtfStack stack = loadBtfStack(stackPath, options);
   if (stack.width() != material.width || stack.height() != material.height)
     throw Error("--reference " + stackPath + ": its images are " + std::to_string(stack.width()) + " x " +
@@ -32,8 +37,6 @@ ViewerReference loadReference(const std::string& stackPath, const std::string& f
                 std::to_string(material.width) + " x " + std::to_string(material.height) + " (use --crop)");
   ViewerReference r;
   r.fingerprintCheck = checkReferenceFingerprint(material, stack, file, stackPath, args.count("force") > 0, "nbtf view");
-  const ViewerReferenceSelection chosen =
-      viewerReferenceDirections(stack.lights(), stack.views(), static_cast<std::size_t>(stack.numTexels()));
   r.name = stackPath;
   r.width = stack.width();
   r.height = stack.height();
@@ -45,10 +48,11 @@ ViewerReference loadReference(const std::string& stackPath, const std::string& f
   r.srgb.resize(chosen.lights.size() * chosen.views.size() * imageValues);
   std::vector<float> rgb(imageValues);
   std::uint8_t* out = r.srgb.data();
+  const Srgb8Encoder& encode = srgb8Encoder();
   for (int l : chosen.lights)
     for (int v : chosen.views) {
       stack.imageLinear(l * stack.numViews() + v, rgb.data());
-      for (float x : rgb) *out++ = linearToSrgb8(x);
+      for (float x : rgb) *out++ = encode(x);
     }
   if (!quiet(args) && (r.lights.size() < static_cast<std::size_t>(r.measuredLights) ||
                        r.views.size() < static_cast<std::size_t>(r.measuredViews)))

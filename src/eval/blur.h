@@ -2,8 +2,9 @@
 // reference image, best matches the reconstruction in the MSE sense. Neural BTF
 // reconstructions look blurred; sigma puts a number on "how blurred".
 //
-// The estimate follows the differentiable Gaussian filter of the modular differentiable renderer's paper: sigma is learned
-// by gradient descent (Adam, learning rate 1e-2 as in the source) on
+// The estimate follows the differentiable Gaussian filter of the modular differentiable
+// renderer's paper: sigma is learned by gradient descent (Adam, learning rate 1e-2 as in the
+// source) on
 //   Loss(s) = mean over texels and channels of (blur_s(ref) / alpha - rec / alpha)^2,
 // with dLoss/ds = sum_ij dLoss/dc^_ij * sum_xy c_{i+x,j+y} dK(s,x,y)/ds  (eq. 4).
 //

@@ -105,11 +105,11 @@ function unitOf(thetaDeg, phiDeg) {
   const t = thetaDeg * Math.PI / 180, p = phiDeg * Math.PI / 180;
   return [Math.sin(t) * Math.cos(p), Math.sin(t) * Math.sin(p), Math.cos(t)];
 }
-// World direction of a light at theta from +y, phi from +x towards +z (as nbtf render).
 // The azimuth, in the material's (the BTF's) frame, of the world direction at azimuth phiDeg:
 // the plane's local frame is n = +y, u = +x, v = -z (drawReference's toLocal), so phi turns
 // the other way round.
 function materialPhi(phiDeg) { return (360 - phiDeg) % 360; }
+// World direction of a light at theta from +y, phi from +x towards +z (as nbtf render).
 function worldDir(thetaDeg, phiDeg) {
   const t = thetaDeg * Math.PI / 180, p = phiDeg * Math.PI / 180;
   return [Math.sin(t) * Math.cos(p), Math.cos(t), Math.sin(t) * Math.sin(p)];

@@ -72,8 +72,6 @@ std::string clash(const PathUse& out, const PathUse& other, bool otherIsInput) {
 
 bool samePath(const std::string& a, const std::string& b) { return sameFile(resolved(a), resolved(b)); }
 
-bool pathInside(const std::string& inner, const std::string& outer) { return inside(resolved(inner), resolved(outer)); }
-
 void refuseOverlappingPaths(const std::vector<PathUse>& inputs, const std::vector<PathUse>& outputs) {
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     const PathUse& out = outputs[i];

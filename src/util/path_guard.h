@@ -32,7 +32,4 @@ void refuseOverlappingPaths(const std::vector<PathUse>& inputs, const std::vecto
 // True when the two paths name the same file or folder (same rules as above).
 bool samePath(const std::string& a, const std::string& b);
 
-// True when `inner` lies strictly inside the folder `outer` (same rules as above).
-bool pathInside(const std::string& inner, const std::string& outer);
-
 }  // namespace nbtf
