@@ -30,6 +30,9 @@
 // same API: per (light, view) the mean and basis rows are combined once (interpolated over
 // neighbouring measured pairs when the pair was not measured, codec/pca_model.h), then each
 // texel costs 3 dot products of length C.
+//
+// What evaluates is the model kind's evaluator (codec/methods/): this class checks every
+// call's arguments, maps texels to latent rows and assembles images.
 #pragma once
 #include <array>
 #include <cstddef>
@@ -86,8 +89,7 @@ struct DecoderOptions {
 };
 
 namespace detail {
-struct PackedDecoder;
-struct PcaState;
+class MaterialEvaluator;
 }
 
 class NbtfDecoder {
@@ -173,26 +175,12 @@ class NbtfDecoder {
 
  private:
   void build(const DecoderOptions& options);
-  void decodeRowTerms(const Direction& light, const Direction& view, const DirectionInput& dirs, float* terms,
-                      bool parallel) const;
-  // The direction input of a pair in this material's encoding.
-  DirectionInput directionInput(const Direction& light, const Direction& view) const;
-  // The inner evaluation: n samples (latent row, its texel, directionInputs() values each).
-  void evaluateSamples(const std::int32_t* rows, const std::int32_t* texels, const float* dirs, std::size_t n,
-                       float* rgb, OutputScale scale) const;
-
-  // PCA: the mean (3) and basis (3 x C) at a pair of unit vectors, into meanBasis.
-  void pcaBasisAt(const std::array<double, 3>& light, const std::array<double, 3>& view, float* meanBasis) const;
-  // PCA: `count` queries; query(i, texel, light, view) gives query i (unit vectors).
-  template <class QueryFn>
-  void evaluatePca(std::size_t count, float* rgb, OutputScale scale, const QueryFn& query) const;
 
   CompressedBtf material_;
   std::string name_;
   DecoderIsa isa_ = DecoderIsa::Portable;
-  std::unique_ptr<detail::PackedDecoder> packed_;  // neural methods
-  std::unique_ptr<detail::PcaState> pca_;          // PCA baseline
-  std::vector<float> coefficients_;                // texels x terms_ x channels_ effective coefficients; empty = none
+  std::unique_ptr<detail::MaterialEvaluator> evaluator_;  // the model kind's (codec/methods/method.h)
+  std::vector<float> coefficients_;                        // texels x terms_ x channels_ effective coefficients; empty = none
   int terms_ = 1, channels_ = 1;
 };
 

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "codec/methods/method.h"
 #include "codec/pca_model.h"
 #include "codec/texel_modulation.h"
 
@@ -53,11 +54,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     o << line;
   };
   field("file", path + " (.nbtf format " + std::to_string(btf.formatMajor) + "." + std::to_string(btf.formatMinor) + ")");
-  std::string method = codecMethodName(btf.method);
-  if (btf.method == CodecMethod::ClusteredNeural) method += ", k = " + std::to_string(btf.latentRows) + " clusters";
-  else if (btf.method == CodecMethod::PerTexelNeural) method += ", one latent per texel";
-  else if (btf.isPca()) method += " (classic baseline), C = " + std::to_string(btf.latentDim) + " components";
-  field("method", method);
+  field("method", methodKind(btf.method, path).summary(btf));
   std::string texels = std::to_string(btf.width) + " x " + std::to_string(btf.height) + " = " +
                        std::to_string(btf.numTexels());
   if (!btf.crop.empty())
@@ -119,7 +116,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     field("skipped", "optional sections unknown to this nbtf: " + s);
   }
 
-  // Training statistics recorded by `nbtf compress` (see compressor.cpp for the keys).
+  // Training statistics recorded by `nbtf compress` (see pipeline/compress_parts.cpp for the keys).
   nlohmann::json meta = nlohmann::json::parse(btf.metadataJson, nullptr, /*allow_exceptions=*/false);
   std::string train = jsonNumber(meta, "training", "rmse_train");
   if (!train.empty()) {

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "codec/crc32.h"
+#include "codec/methods/method.h"
 #include "codec/nbtf_format.h"
 #include "codec/nbtf_sections.h"
 #include "util/atomic_file.h"
@@ -139,16 +140,18 @@ void checkParts(const std::vector<const SectionKind*>& present, CodecMethod meth
         const SectionKind* b = inTableOrder ? present[j] : present[i];
         throw fileError(name, "both " + sectionLabel(a->tag) + " and " + sectionLabel(b->tag) + " present");
       }
+  const MethodKind& kind = methodKind(method, name);
   for (Part part : checkedParts()) {
     auto found = std::find_if(present.begin(), present.end(), [&](const SectionKind* k) { return k->part == part; });
-    const Need need = partNeed(part, method);
+    const Need need = kind.need(part);
     if (need == Need::Required && found == present.end()) {
-      const char* owner = partOwner(part);
+      const MethodKind* owner = soleKindRequiring(part);
       throw fileError(name, "missing " + sectionLabel(primaryTag(part)) +
-                                (owner ? std::string(" (required by the ") + owner + " method)" : std::string()));
+                                (owner ? std::string(" (required by the ") + owner->shortName() + " method)"
+                                       : std::string()));
     }
     if (need == Need::Forbidden && found != present.end())
-      throw fileError(name, sectionLabel((*found)->tag) + " present, but the method is " + codecMethodName(method));
+      throw fileError(name, sectionLabel((*found)->tag) + " present, but the method is " + kind.name());
   }
 }
 

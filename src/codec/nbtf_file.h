@@ -32,7 +32,8 @@ constexpr std::uint16_t kNbtfFormatMinor = 11;
 // conversion, 0x1A stops `type` on DOS-like systems (the PNG idea).
 constexpr unsigned char kNbtfMagic[8] = {0x89, 'N', 'B', 'T', 'F', 0x0D, 0x0A, 0x1A};
 
-// How the material is represented. Values are stored in the file; never renumber.
+// How the material is represented: the model kind, one component each (codec/methods/method.h).
+// Values are stored in the file; never renumber.
 enum class CodecMethod : std::uint8_t {
   ClusteredNeural = 1,  // one latent per cluster + id list (the paper's method)
   PerTexelNeural = 2,   // one latent per texel (the earlier neural BTF; our baseline)
@@ -148,10 +149,6 @@ struct CompressedBtf {
   // Checks every invariant the reader checks (shapes agree, values finite, ids in range,
   // directions on the hemisphere...). Throws nbtf::Error prefixed with `name`.
   void validate(const std::string& name = "compressed BTF") const;
-
- private:
-  void validateNeural(const std::string& name) const;  // decoder, latents, ids
-  void validatePca(const std::string& name) const;     // mean, basis, coefficients
 };
 
 // Rounds the decoder and latents to half precision where `storage` says so, so that what is

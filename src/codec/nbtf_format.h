@@ -2,6 +2,8 @@
 // (codec/nbtf_*.cpp): the framing constants, the limits, and how the compact parts are coded.
 // Not part of the decoder's interface; docs/file_format.md describes the bytes.
 #pragma once
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -9,7 +11,6 @@
 #include "codec/nbtf_file.h"
 
 namespace nbtf::format {
-
 
 // Layout (docs/file_format.md).
 constexpr std::size_t kHeaderSize = 32;
@@ -28,6 +29,10 @@ constexpr int kMaxJsonDepth = 64;
 constexpr std::uint32_t kMaxMetadataBytes = 64u << 20;  // METZ: bounds the allocation a hostile size asks for
 constexpr std::uint64_t kMaxDirections = 1u << 20;      // DIRZ: lights or views (bounds the frame's size)
 constexpr float kMaxModulationMagnitude = 1e6f;  // coefficient ranges: no overflow in products
+
+inline bool allFinite(const std::vector<float>& v) {
+  return std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); });
+}
 
 // ---- Coded parts (format 1.2), shared by the writer, the reader and computeSizes
 

@@ -610,7 +610,7 @@ void parseMetadata(const SectionRef& s, CompressedBtf& btf, const std::string&) 
   btf.metadataJson.assign(reinterpret_cast<const char*>(s.payload), s.size);
 }
 
-// ---- Table-1 bytes of the parts as stored (computeSizes)
+// ---- Table-1 bytes of the parts as stored and as the paper stored them (computeSizes)
 
 std::uint64_t texelCount(const CompressedBtf& b) { return static_cast<std::uint64_t>(std::max(b.numTexels(), 0)); }
 std::uint64_t latentValues(const CompressedBtf& b) {
@@ -642,6 +642,12 @@ std::uint64_t idZstdBytes(const CompressedBtf& b) {
 std::uint64_t modulationBytes(const CompressedBtf& b) {
   return codedModulation(b.modulation, b.storage.modulationZstd).size();
 }
+// The paper's storage: float32 values, 4-byte ids.
+std::uint64_t decoderPaperBytes(const CompressedBtf& b) { return decoderParameters(b) * 4; }
+std::uint64_t planePaperBytes(const CompressedBtf& b) { return b.planes.valueCount() * 4; }
+std::uint64_t clusterPlanePaperBytes(const CompressedBtf& b) { return b.clusterPlanes.valueCount() * 4; }
+std::uint64_t latentPaperBytes(const CompressedBtf& b) { return latentValues(b) * 4; }
+std::uint64_t idPaperBytes(const CompressedBtf& b) { return texelCount(b) * 4; }
 std::uint64_t pcaComponents(const CompressedBtf& b) { return static_cast<std::uint64_t>(std::max(b.latentDim, 0)); }
 std::uint64_t pcaMeanBytes(const CompressedBtf& b) { return static_cast<std::uint64_t>(b.numImages()) * 3 * 4; }
 std::uint64_t pcaBasisBytes(const CompressedBtf& b) { return pcaMeanBytes(b) * pcaComponents(b); }
@@ -692,64 +698,41 @@ bool zstdMetadata(const CompressedBtf& b) { return st(b).metadataZstd; }
 // tag, label, part, required, minor, content minor, written, write, parse, Table-1 bytes.
 // The order is the writer's; files written since format 1.0 keep it.
 const std::vector<SectionKind> kSections = {
-    {kInfo, "material info", Part::Info, true, 0, infoMinor, always, writeInfo, parseInfo, nullptr},
-    {kDirs, "directions", Part::Directions, true, 0, nullptr, rawDirections, writeDirections, parseDirections, nullptr},
+    {kInfo, "material info", Part::Info, true, 0, infoMinor, always, writeInfo, parseInfo, nullptr, nullptr},
+    {kDirs, "directions", Part::Directions, true, 0, nullptr, rawDirections, writeDirections, parseDirections, nullptr, nullptr},
     {kDirsZstd, "directions, zstd-coded", Part::Directions, true, 4, nullptr, zstdDirections, writeDirections,
-     parseDirections, nullptr},
-    {tag("PCAM"), "PCA mean", Part::PcaMean, true, 1, nullptr, pca, writePcaMean, parsePcaMean, pcaMeanBytes},
-    {tag("PCAB"), "PCA basis", Part::PcaBasis, true, 1, nullptr, pca, writePcaBasis, parsePcaBasis, pcaBasisBytes},
+     parseDirections, nullptr, nullptr},
+    {tag("PCAM"), "PCA mean", Part::PcaMean, true, 1, nullptr, pca, writePcaMean, parsePcaMean, pcaMeanBytes, nullptr},
+    {tag("PCAB"), "PCA basis", Part::PcaBasis, true, 1, nullptr, pca, writePcaBasis, parsePcaBasis, pcaBasisBytes, nullptr},
     {tag("PCAC"), "PCA coefficients", Part::PcaCoefficients, true, 1, nullptr, pca, writePcaCoefficients,
-     parsePcaCoefficients, pcaCoefficientBytes},
-    {kDecoder, "decoder", Part::Decoder, true, 0, nullptr, float32Decoder, writeDecoder, parseDecoder, decoderBytes},
+     parsePcaCoefficients, pcaCoefficientBytes, nullptr},
+    {kDecoder, "decoder", Part::Decoder, true, 0, nullptr, float32Decoder, writeDecoder, parseDecoder, decoderBytes, decoderPaperBytes},
     {kDecoderHalf, "decoder, half precision", Part::Decoder, true, 2, nullptr, halfDecoder, writeDecoder, parseDecoder,
-     decoderBytes},
+     decoderBytes, decoderPaperBytes},
     {kDecoderInt8, "decoder, 8-bit weights", Part::Decoder, true, 4, nullptr, int8Decoder, writeDecoder, parseDecoder,
-     decoderBytes},
-    {tag("DPLN"), "direction planes", Part::Planes, true, 8, nullptr, hasPlanes, writePlanes, parsePlanes, planeBytes},
+     decoderBytes, decoderPaperBytes},
+    {tag("DPLN"), "direction planes", Part::Planes, true, 8, nullptr, hasPlanes, writePlanes, parsePlanes, planeBytes, planePaperBytes},
     {tag("CPLN"), "cluster planes", Part::ClusterPlanes, true, 9, clusterPlanesMinor, hasClusterPlanes, writeClusterPlanes,
-     parseClusterPlanes, clusterPlaneBytes},
-    {tag("LATN"), "latents", Part::Latents, true, 0, nullptr, float32Latents, writeLatents, parseLatents, latentBytes},
+     parseClusterPlanes, clusterPlaneBytes, clusterPlanePaperBytes},
+    {tag("LATN"), "latents", Part::Latents, true, 0, nullptr, float32Latents, writeLatents, parseLatents, latentBytes, latentPaperBytes},
     {kLatentsHalf, "latents, half precision", Part::Latents, true, 2, nullptr, halfLatents, writeLatents, parseLatents,
-     latentBytes},
-    {tag("TXID"), "id list", Part::Ids, true, 0, nullptr, rawIds, writeIds, parseIds, idBytes},
-    {tag("TXIZ"), "id list, zstd-coded", Part::Ids, true, 2, nullptr, zstdIds, writeIdsZstd, parseIdsZstd, idZstdBytes},
+     latentBytes, latentPaperBytes},
+    {tag("TXID"), "id list", Part::Ids, true, 0, nullptr, rawIds, writeIds, parseIds, idBytes, idPaperBytes},
+    {tag("TXIZ"), "id list, zstd-coded", Part::Ids, true, 2, nullptr, zstdIds, writeIdsZstd, parseIdsZstd, idZstdBytes, idPaperBytes},
     {tag("TXSC"), "per-texel modulation", Part::Modulation, true, 2, nullptr, sharedModulation, writeModulation,
-     parseModulation, modulationBytes},
+     parseModulation, modulationBytes, nullptr},
     {kModulationRgb, "per-texel modulation, per channel", Part::Modulation, true, 5, nullptr, perChannelModulation,
-     writeModulation, parseModulation, modulationBytes},
+     writeModulation, parseModulation, modulationBytes, nullptr},
     {kModulationDecorrelated, "per-texel modulation, decorrelated", Part::Modulation, true, 11, nullptr,
-     decorrelatedModulation, writeModulation, parseModulation, modulationBytes},
-    {tag("HOLD"), "hold-out images", Part::Holdout, false, 0, nullptr, rawHoldout, writeHoldout, parseHoldout, nullptr},
+     decorrelatedModulation, writeModulation, parseModulation, modulationBytes, nullptr},
+    {tag("HOLD"), "hold-out images", Part::Holdout, false, 0, nullptr, rawHoldout, writeHoldout, parseHoldout, nullptr, nullptr},
     {tag("HOLZ"), "hold-out images, zstd-coded", Part::Holdout, false, 4, nullptr, zstdHoldout, writeHoldoutZstd,
-     parseHoldoutZstd, nullptr},
-    {tag("ENCD"), "encoder", Part::Encoder, false, 0, nullptr, hasEncoder, writeEncoder, parseEncoder, nullptr},
-    {tag("META"), "metadata", Part::Metadata, false, 0, nullptr, rawMetadata, writeMetadata, parseMetadata, nullptr},
+     parseHoldoutZstd, nullptr, nullptr},
+    {tag("ENCD"), "encoder", Part::Encoder, false, 0, nullptr, hasEncoder, writeEncoder, parseEncoder, nullptr, nullptr},
+    {tag("META"), "metadata", Part::Metadata, false, 0, nullptr, rawMetadata, writeMetadata, parseMetadata, nullptr, nullptr},
     {tag("METZ"), "metadata, zstd-coded", Part::Metadata, false, 4, nullptr, zstdMetadata, writeMetadataZstd,
-     parseMetadataZstd, nullptr},
+     parseMetadataZstd, nullptr, nullptr},
 };
-
-// Which methods need each part (clustered, per-texel, PCA), in the order the reader checks
-// them, and the method named when a part it alone needs is missing.
-struct PartRule {
-  Part part;
-  Need clustered, perTexel, pca;
-  const char* owner;
-};
-constexpr Need R = Need::Required, O = Need::Optional, F = Need::Forbidden;
-const std::vector<PartRule> kPartRules = {
-    {Part::Info, R, R, R, nullptr},          {Part::Directions, R, R, R, nullptr},
-    {Part::Decoder, R, R, F, nullptr},       {Part::Latents, R, R, F, nullptr},
-    {Part::PcaMean, F, F, R, "PCA"},         {Part::PcaBasis, F, F, R, "PCA"},
-    {Part::PcaCoefficients, F, F, R, "PCA"}, {Part::Ids, R, F, F, "clustered"},
-    {Part::Modulation, O, F, F, nullptr},    {Part::Planes, O, O, O, nullptr},
-    {Part::ClusterPlanes, O, O, F, nullptr},
-    {Part::Holdout, O, O, O, nullptr},       {Part::Encoder, O, O, O, nullptr},
-    {Part::Metadata, O, O, O, nullptr},
-};
-
-const PartRule& ruleOf(Part part) {
-  return *std::find_if(kPartRules.begin(), kPartRules.end(), [&](const PartRule& r) { return r.part == part; });
-}
 
 }  // namespace
 
@@ -767,17 +750,24 @@ const SectionKind* writtenSection(const CompressedBtf& btf, Part part) {
   return nullptr;
 }
 
-Need partNeed(Part part, CodecMethod method) {
-  const PartRule& r = ruleOf(part);
-  return method == CodecMethod::ClusteredNeural ? r.clustered : method == CodecMethod::PerTexelNeural ? r.perTexel : r.pca;
+std::uint64_t tableBytesWritten(const CompressedBtf& btf) {
+  std::uint64_t total = 0;
+  for (const SectionKind& k : kSections)
+    if (k.tableBytes && k.written(btf)) total += k.tableBytes(btf);
+  return total;
 }
 
-const char* partOwner(Part part) { return ruleOf(part).owner; }
+std::uint64_t paperBytesWritten(const CompressedBtf& btf) {
+  std::uint64_t total = 0;
+  for (const SectionKind& k : kSections)
+    if (k.tableBytes && k.written(btf)) total += k.paperBytes ? k.paperBytes(btf) : k.tableBytes(btf);
+  return total;
+}
 
 const std::vector<Part>& checkedParts() {
   static const std::vector<Part> parts = [] {
     std::vector<Part> p;
-    for (const PartRule& r : kPartRules) p.push_back(r.part);
+    for (int i = 0; i <= static_cast<int>(Part::Metadata); ++i) p.push_back(static_cast<Part>(i));
     return p;
   }();
   return parts;

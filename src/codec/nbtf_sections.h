@@ -3,8 +3,9 @@
 // file, which part of the material it holds, and its writer, reader and Table-1 byte count.
 // The writer (codec/nbtf_file.cpp) walks the table in order, writes the sections whose
 // `written` says so, and takes the file's version as the highest `minor` among them; the reader
-// dispatches on the tag and checks the parts against the method. A new kind of content is
-// one new entry here (and its part in Part, with the methods that need it).
+// dispatches on the tag and checks the parts against the method: which parts a method needs is
+// its model kind's (codec/methods/method.h). A new encoding of a part is one new entry here; a
+// new part is its entry, its Part, and the kinds that need it.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -60,6 +61,8 @@ struct SectionKind {
   void (*parse)(const SectionRef&, CompressedBtf& btf, const std::string& name);
   // The bytes the paper's Table 1 counts for this part as stored (0 for provenance and framing).
   std::uint64_t (*tableBytes)(const CompressedBtf&);
+  // The same part stored the paper's way (float32 values, 4-byte ids); null = as stored.
+  std::uint64_t (*paperBytes)(const CompressedBtf&);
 };
 
 // Every section this build knows, in the order the writer writes them.
@@ -67,14 +70,15 @@ const std::vector<SectionKind>& sectionKinds();
 const SectionKind* findSectionKind(std::uint32_t tag);  // null for a tag this build does not know
 // The section the writer stores `part` in for this material; null when it is not written.
 const SectionKind* writtenSection(const CompressedBtf& btf, Part part);
+// The Table-1 bytes of everything the writer stores for this material, as stored and the
+// paper's way: the size table's totals (computeSizes).
+std::uint64_t tableBytesWritten(const CompressedBtf& btf);
+std::uint64_t paperBytesWritten(const CompressedBtf& btf);
 
-// Which methods need a part: the reader refuses a file that lacks a needed part or holds one
-// its method cannot use.
+// Whether a method needs a part (MethodKind::need): the reader refuses a file that lacks a
+// needed part or holds one its method cannot use.
 enum class Need { Optional, Required, Forbidden };
-Need partNeed(Part part, CodecMethod method);
-// "PCA" for the parts only the PCA method has, "clustered" for the id list; null otherwise.
-const char* partOwner(Part part);
-// The parts in the order the reader checks them.
+// Every part, in the order the reader checks them (Part's order; Metadata is the last).
 const std::vector<Part>& checkedParts();
 
 // "section 'DECH' (decoder, half precision)"; the label is left out for an unknown tag.

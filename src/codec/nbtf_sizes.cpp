@@ -9,15 +9,6 @@ namespace nbtf {
 
 using format::storagePlanesHalf;
 
-std::string codecMethodName(CodecMethod m) {
-  switch (m) {
-    case CodecMethod::ClusteredNeural: return "clustered-neural";
-    case CodecMethod::PerTexelNeural: return "per-texel-neural";
-    case CodecMethod::Pca: return "pca";
-  }
-  return "unknown";
-}
-
 int idWidthForClusters(std::int64_t k) {
   if (k <= 0x100) return 1;
   if (k <= 0x10000) return 2;
@@ -37,7 +28,6 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
   s.decoder = partBytes(format::Part::Decoder);
   s.latentRows = static_cast<std::uint64_t>(std::max(btf.latentRows, 0));
   s.latentDim = btf.latentDim;
-  const std::uint64_t latentValues = s.latentRows * static_cast<std::uint64_t>(std::max(btf.latentDim, 0));
   s.latents = partBytes(format::Part::Latents);
   s.texels = static_cast<std::uint64_t>(std::max(btf.numTexels(), 0));
   s.images = static_cast<std::uint64_t>(btf.numImages());
@@ -73,12 +63,9 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.clusterPlaneBytesPerValue = format::clusterPlaneBytesPerValue(btf);
     s.clusterPlanes = partBytes(format::Part::ClusterPlanes);
   }
-  s.total = s.decoder + s.planes + s.clusterPlanes + s.latents + s.ids + s.modulation + s.pcaMean + s.pcaBasis + s.pcaCoefficients;
+  s.total = format::tableBytesWritten(btf);
   // The same model stored the paper's way: float32 decoder, planes and latents, 4-byte ids.
-  s.totalPaper = btf.isPca() ? s.total
-                             : s.decoderParameters * 4 + btf.planes.valueCount() * 4 +
-                                   btf.clusterPlanes.valueCount() * 4 + latentValues * 4 + s.idsPaper +
-                                   s.modulation;
+  s.totalPaper = format::paperBytesWritten(btf);
   s.rawFloat32 = s.texels * s.images * 3 * 4;
   s.fileBytes = fileBytes;
   s.ratio = s.total ? static_cast<double>(s.rawFloat32) / static_cast<double>(s.total) : 0;

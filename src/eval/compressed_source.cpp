@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "codec/methods/method.h"
 #include "codec/texel_modulation.h"
 #include "util/error.h"
 
@@ -67,25 +68,6 @@ SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes) {
   return t;
 }
 
-std::string methodDescription(const CompressedBtf& btf) {
-  std::string planes;
-  if (!btf.planes.empty())
-    planes += " + direction planes (" + std::to_string(btf.planes.resolution) + " x " +
-              std::to_string(btf.planes.resolution) + " x " + std::to_string(btf.planes.features) + ")";
-  if (!btf.clusterPlanes.empty())
-    planes += " + cluster planes (" + std::to_string(btf.clusterPlanes.resolution) + " x " +
-              std::to_string(btf.clusterPlanes.resolution) + " x " + std::to_string(btf.clusterPlanes.features) + ")";
-  if (btf.method == CodecMethod::ClusteredNeural && !btf.modulation.empty())
-    return "clustered neural + per-texel modulation (" + std::to_string(btf.modulation.terms) + " term" +
-           (btf.modulation.terms > 1 ? "s" : "") + (btf.modulation.channels > 1 ? ", per channel" : "") + ")" +
-           planes + ", k = " + std::to_string(btf.latentRows);
-  if (btf.method == CodecMethod::ClusteredNeural)
-    return "clustered neural" + planes + ", k = " + std::to_string(btf.latentRows);
-  if (btf.method == CodecMethod::PerTexelNeural) return "per-texel neural" + planes;
-  if (btf.isPca()) return "PCA, C = " + std::to_string(btf.latentDim);
-  return codecMethodName(btf.method);
-}
-
 EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& reference,
                                 const CompressedReconstruction& reconstruction, const std::string& fileName,
                                 const std::string& referenceName, std::uint64_t fileBytes) {
@@ -95,12 +77,13 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.reconstruct = [&reconstruction](int image, float* out) { reconstruction.image(image, out); };
   in.holdoutImages = btf.holdoutImages;
   in.sizes = sizeTableOf(btf, fileBytes);
-  in.method = methodDescription(btf);
+  const MethodKind& kind = methodKind(btf.method, fileName);
+  in.method = kind.label(btf);
+  in.methodParameter = kind.sweepParameter(btf);
   // Modulated files are a curve of their own in sweeps (they are not the paper's model).
   in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated") +
                     (btf.planes.empty() ? "" : "-planes") + (btf.clusterPlanes.empty() ? "" : "-cluster-planes");
   if (btf.method == CodecMethod::ClusteredNeural) {
-    in.methodParameter = btf.latentRows;
     in.clusterIds = btf.ids;
     in.clusters = btf.latentRows;
     in.clusterGenerations = clusterGenerationsOf(btf);
@@ -115,7 +98,6 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
       in.coefficientChannels = btf.modulation.channels;
     }
   }
-  if (btf.isPca()) in.methodParameter = btf.latentDim;
   in.referenceName = referenceName;
   in.compressedName = fileName;
   if (btf.isPca()) {

@@ -48,8 +48,6 @@ void checkReferenceMatches(const CompressedBtf& btf, const BtfStack& reference, 
 
 // Table 1 sizes of the file (fileBytes = its size on disk, 0 = unknown).
 SizeTable sizeTableOf(const CompressedBtf& btf, std::uint64_t fileBytes);
-// "clustered neural, k = 500" / "per-texel neural" / "PCA, C = 8".
-std::string methodDescription(const CompressedBtf& btf);
 
 // Everything evaluate() needs, from the file and its matching reference. `reconstruction`
 // must outlive the returned inputs.

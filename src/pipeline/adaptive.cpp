@@ -16,7 +16,7 @@
 #include "codec/decoder.h"
 #include "pipeline/compress_config.h"
 #include "model/training_set.h"
-#include "pipeline/compressor_internal.h"
+#include "pipeline/compress_parts.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 #include "util/parallel.h"

@@ -148,6 +148,10 @@ struct CompressStats {
   std::string stackScratchDir;  // the folder of the stack's scratch file ("" = the stack was in memory)
 };
 
+// The model kind the options make: PCA with pcaBaseline (--method pca), clustered with
+// clusters > 0, per-texel with 0. compressStack runs that kind's compressor.
+CodecMethod compressMethod(const CompressOptions& options);
+
 // The in-memory part: stack -> compressed material (no file I/O except checkpoints).
 // Fills `stats` (all but the write stage and fileBytes).
 CompressedBtf compressStack(const BtfStack& stack, const CompressOptions& options, CompressStats& stats);
@@ -175,11 +179,5 @@ std::string formatCompressSummary(const CompressStats& stats);
 // pca, write, total}, and context keys (method, clusters, pca_components, texels, ...).
 std::string compressStatsJson(const CompressStats& stats);
 
-// The "source" object of the file's metadata (path, layout, sample type, crop) as JSON text.
-std::string sourceMetadataJson(const BtfStack& stack);
-
-// A compressed material's description of its source, common to every method: size, crop,
-// source size, layout, sample type, directions, alpha. The method's own parts are left empty.
-CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha);
 
 }  // namespace nbtf

@@ -9,6 +9,7 @@
 #include "cluster/pca.h"
 #include "codec/decoder.h"
 #include "codec/pca_model.h"
+#include "pipeline/compress_parts.h"
 #include "model/training_set.h"
 #include "preprocess/abrdf_matrix.h"
 #include "util/error.h"

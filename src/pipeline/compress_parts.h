@@ -1,15 +1,33 @@
-// Pieces of the compress pipeline shared by the fixed-k path (compressor.cpp) and adaptive
-// clustering (adaptive.cpp). PRIVATE to src/pipeline.
+// The pieces every compressor of a model kind shares (pipeline/neural_compressor.cpp,
+// adaptive.cpp, pca_compressor.cpp): the file's frame and provenance, the decoded RMSE, and the
+// assembly of trained parts into a material. They call nothing above them. PRIVATE to
+// src/pipeline.
 #pragma once
 #include <string>
 #include <utility>
 #include <vector>
+#include <nlohmann/json.hpp>
 
 #include "cluster/clustering.h"
 #include "codec/decoder.h"
 #include "pipeline/compressor.h"
 
-namespace nbtf::detail {
+namespace nbtf {
+
+// A compressed material's description of its source, common to every method: size, crop,
+// source size, layout, sample type, directions, alpha. The method's own parts are left empty.
+CompressedBtf compressedFrame(const BtfStack& stack, CodecMethod method, float alpha);
+// The "source" object of the file's metadata (path, layout, sample type, crop) as JSON text.
+std::string sourceMetadataJson(const BtfStack& stack);
+
+namespace detail {
+
+// PCA components of the clustering when --components is not given (capped by the data).
+constexpr int kDefaultPcaComponents = 32;
+
+inline bool stopRequested(const CompressOptions& o) { return o.stopFlag && o.stopFlag->load(); }
+// A figure that may be absent (< 0) as JSON: the number, or null.
+inline nlohmann::json jsonOrNull(double v) { return v < 0 ? nlohmann::json(nullptr) : nlohmann::json(v); }
 
 // Provenance stored in the file (no timings or paths: the same seed gives the same bytes).
 // `adaptiveJson`: the "adaptive" object (stages, generations), "" = none.
@@ -45,4 +63,5 @@ CompressedBtf assembleCompressed(const BtfStack& stack, const TrainConfig& confi
                                  const std::vector<float>& texelCoefficients, const std::vector<int>& trainImages,
                                  const std::vector<std::uint8_t>& holdout, bool progress);
 
-}  // namespace nbtf::detail
+}  // namespace detail
+}  // namespace nbtf
