@@ -14,7 +14,7 @@ PACKAGES=(
   nlohmann-json3-dev      # configs, reports
   libzstd-dev             # entropy coding of the id list and per-texel codes in .nbtf files
   libgloo-dev             # headers of libtorch's distributed backend (c10d Gloo): data-parallel training
-  libgoogle-glog-dev      # libtorch's logging, initialized quietly by nbtf (src/model/torch_logging.cpp)
+  libgoogle-glog-dev      # libtorch's logging, initialized quietly by nbtf (src/model/autograd/torch_logging.cpp)
   pybind11-dev python3-dev python3-numpy  # the Python module `nbtf` (python/, docs/python.md)
   python3-pytest          # its tests (tests/python, run by ctest)
   chromium                # headless browser test of the viewer (tests/viewer_browser_test.cpp; WebGL2 on SwiftShader)

@@ -110,6 +110,42 @@ TEST(BtfLoader, CropIsAppliedWhileLoading) {
   expectErrorContaining([&] { loadBtfStack(dir.path(), o); }, {"crop", "outside", "8 x 6"});
 }
 
+// The input is resolved once: its listing, crop and shape, and the stack loaded from that
+// description is the stack loaded from the path.
+TEST(BtfLoader, AResolvedInputDescribesTheLoadAndLoadsTheSameStack) {
+  TempDir dir;
+  writeTestStack(dir.path(), kLights, kViews, 8, 6, Layout::Utia, ImageFormat::Png);
+  LoadOptions o = quiet();
+  o.crop = {2, 1, 3, 4};
+  const BtfInput in = resolveBtfInput(dir.path(), o);
+  EXPECT_EQ(in.listing.layout, Layout::Utia);
+  EXPECT_EQ(in.listing.files.size(), 6u);
+  EXPECT_TRUE(in.cropped);
+  EXPECT_EQ(in.crop.x, 2);
+  EXPECT_EQ(in.sourceWidth, 8);
+  EXPECT_EQ(in.sourceHeight, 6);
+  EXPECT_EQ(in.shape.width, 3);
+  EXPECT_EQ(in.shape.height, 4);
+  EXPECT_EQ(in.shape.images(), 6);
+  EXPECT_EQ(in.shape.type, SampleType::Srgb8);
+  EXPECT_EQ(in.ubo2014, nullptr);
+  const BtfStack fromInput = loadBtfStack(in, o), fromPath = loadBtfStack(dir.path(), o);
+  EXPECT_EQ(fromInput.width(), 3);
+  EXPECT_EQ(fromInput.crop.x, 2);
+  EXPECT_EQ(fromInput.sourceWidth, 8);
+  for (int i = 0; i < fromInput.numImages(); ++i)
+    for (int t = 0; t < fromInput.numTexels(); ++t)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(fromInput.sample(i, t, c), fromPath.sample(i, t, c));
+  EXPECT_LT(maxPatternError(fromInput, 2, 1), 0.01f);
+  o.crop = {6, 0, 3, 2};
+  expectErrorContaining([&] { resolveBtfInput(dir.path(), o); }, {dir.path(), "crop", "outside", "8 x 6"});
+  o.crop = {};
+  const BtfInput whole = resolveBtfInput(dir.path(), o);
+  EXPECT_FALSE(whole.cropped);
+  EXPECT_EQ(whole.crop.width, 8);
+  EXPECT_TRUE(loadBtfStack(whole, o).crop.empty());
+}
+
 TEST(BtfLoader, AbrdfAndImageAccessAgree) {
   TempDir dir;
   writeTestStack(dir.path(), kLights, kViews, 3, 2, Layout::Utia, ImageFormat::Png);

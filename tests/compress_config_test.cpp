@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "model/config_section.h"
+#include "model/config/config_section.h"
 #include "test_util.h"
 #include "util/atomic_file.h"
 

@@ -16,7 +16,7 @@
 #include "codec_fixtures.h"
 #include "io/btf_loader.h"
 #include "io/ubo2014_btf.h"
-#include "model/config_section.h"
+#include "model/config/config_section.h"
 #include "pipeline/compress_config.h"
 #include "preprocess/ubo2014_factorize.h"
 #include "support/mlp_reference.h"

@@ -1,4 +1,4 @@
-#include "model/dense_kernels.h"
+#include "model/kernels/dense_kernels.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
-// Data-parallel training (model/distributed.h): the tile shares, the rendezvous store (bound to
+// Data-parallel training (model/distributed/distributed.h): the tile shares, the rendezvous store (bound to
 // the --master address, a shared secret), and `nbtf compress` processes on the loopback
 // interface: two against one process with the same global batch, mismatched ranks, a lone rank.
-#include "model/distributed.h"
+#include "model/distributed/distributed.h"
 
 #include <arpa/inet.h>
 #include <ifaddrs.h>
@@ -23,7 +23,7 @@
 #include <thread>
 
 #include "codec_fixtures.h"
-#include "model/rendezvous_store.h"
+#include "model/distributed/rendezvous_store.h"
 #include "test_util.h"
 #include "util/atomic_file.h"
 #include "util/error.h"

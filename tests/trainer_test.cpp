@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "model/dense_kernels.h"
+#include "model/kernels/dense_kernels.h"
 #include "support/torch_reference.h"
 #include "model_test_material.h"
 #include "util/error.h"

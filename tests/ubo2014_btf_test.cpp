@@ -156,6 +156,20 @@ TEST(Ubo2014Btf, LoaderExpandsOnlyTheCrop) {
   btf.abrdfLinear(2 * 4 + 2, abrdf.data());  // crop texel (1, 1) = file texel (2, 2)
   for (int i = 0; i < s.numImages(); ++i)
     for (int c = 0; c < 3; ++c) EXPECT_EQ(s.sample(i, 3, c), roundToHalf(std::max(0.0f, abrdf[i * 3 + c])));
+  // Resolved once: the factors are read once and the description says whether they stay factorized.
+  const BtfInput in = resolveBtfInput(path, o);
+  ASSERT_NE(in.ubo2014, nullptr);
+  EXPECT_FALSE(in.factorized);
+  EXPECT_EQ(in.shape.width, 2);
+  EXPECT_EQ(in.shape.type, SampleType::Half);
+  EXPECT_EQ(in.sourceWidth, 4);
+  EXPECT_EQ(loadBtfStack(in, o).bytesInMemory(), s.bytesInMemory());
+  LoadOptions small = o;
+  small.expandUpTo = 1;
+  const BtfInput computed = resolveBtfInput(path, small);
+  EXPECT_TRUE(computed.factorized);
+  EXPECT_GT(computed.shape.computedBytes, 0u);
+  EXPECT_TRUE(loadBtfStack(computed, small).isComputed());
   StackListing listing = listBtfStack(path);
   EXPECT_EQ(listing.layout, Layout::Ubo2014);
   EXPECT_EQ(listing.lights, btf.meta().lights);

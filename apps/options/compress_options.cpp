@@ -5,7 +5,7 @@
 #include <cstdio>
 
 #include "cli_common.h"
-#include "model/config_section.h"
+#include "model/config/config_section.h"
 #include "pipeline/compress_config.h"
 #include "util/atomic_file.h"
 #include "options/clustering_options.h"

@@ -234,7 +234,8 @@ py::dict loadStack(const std::string& path, const std::string& crop, const std::
   ProgressScope scope(progress, quiet);
   {
     py::gil_scoped_release release;
-    const StackShape shape = stackShape(path, options);
+    const BtfInput input = resolveBtfInput(path, options);
+    const StackShape& shape = input.shape;
     const std::size_t values = static_cast<std::size_t>(shape.images()) * static_cast<std::size_t>(shape.texels()) * 3;
     const std::size_t need = shape.stackBytes() + (linear ? values * sizeof(float) : 0);
     if (need > limit)
@@ -244,7 +245,7 @@ py::dict loadStack(const std::string& path, const std::string& crop, const std::
                                 "); " + limitText + " allows " + formatBytes(limit) +
                                 ". Load a part of it (crop=(x, y, w, h)) or raise memory_limit");
     options.progress = true;
-    stack = std::make_unique<BtfStack>(loadBtfStack(path, options));
+    stack = std::make_unique<BtfStack>(loadBtfStack(input, options));
   }
   scope.rethrow();
   const BtfStack& s = *stack;

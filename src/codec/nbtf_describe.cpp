@@ -6,26 +6,9 @@
 #include <sstream>
 
 #include "codec/methods/method.h"
-#include "codec/pca_model.h"
-#include "codec/texel_modulation.h"
 
 namespace nbtf {
 namespace {
-
-std::string activationName(Activation a) {
-  switch (a) {
-    case Activation::Relu: return "ReLU";
-    case Activation::Sigmoid: return "sigmoid";
-    default: return "linear";
-  }
-}
-
-// "12 -> 106 (ReLU) -> 106 (ReLU) -> 3 (linear)"
-std::string decoderShape(const Mlp& mlp) {
-  std::string s = mlp.layers.empty() ? "none" : std::to_string(mlp.layers.front().in);
-  for (const auto& l : mlp.layers) s += " -> " + std::to_string(l.out) + " (" + activationName(l.activation) + ")";
-  return s;
-}
 
 std::string number(double v) {
   char buf[64];
@@ -54,7 +37,8 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
     o << line;
   };
   field("file", path + " (.nbtf format " + std::to_string(btf.formatMajor) + "." + std::to_string(btf.formatMinor) + ")");
-  field("method", methodKind(btf.method, path).summary(btf));
+  const MethodKind& kind = methodKind(btf.method, path);
+  field("method", kind.summary(btf));
   std::string texels = std::to_string(btf.width) + " x " + std::to_string(btf.height) + " = " +
                        std::to_string(btf.numTexels());
   if (!btf.crop.empty())
@@ -65,39 +49,7 @@ std::string describeNbtf(const CompressedBtf& btf, const std::string& path, std:
   field("images", std::to_string(btf.numImages()) + " (" + std::to_string(btf.lights.size()) + " lights x " +
                       std::to_string(btf.views.size()) + " views)");
   field("source", "layout " + layoutName(btf.layout) + ", " + sampleTypeName(btf.sourceSampleType));
-  if (btf.isPca()) {
-    field("alpha", number(btf.alpha) + " ((mean + coefficients x basis) x alpha = linear RGB)");
-    const std::string c = std::to_string(btf.latentDim), rows = std::to_string(3 * btf.numImages());
-    field("mean", rows + " values (3 per image)");
-    field("basis", rows + " rows (3 per image) x " + c + " components");
-    field("coefficients", std::to_string(btf.latentRows) + " texels x " + c + " components");
-    field("interpolation", "unmeasured directions: mean and basis blended over the " + std::to_string(kPcaNeighbours) +
-                               " nearest measured (light, view) pairs");
-  } else {
-    field("directions", directionEncodingDescription(btf.directionEncoding));
-    if (!btf.planes.empty())
-      field("planes", "direction planes over light, view and half vector, " + std::to_string(btf.planes.resolution) + " x " +
-                                    std::to_string(btf.planes.resolution) + " points x " +
-                                    std::to_string(btf.planes.features) + " features each (+" +
-                                    std::to_string(btf.planes.inputCount()) + " decoder inputs)");
-    if (!btf.clusterPlanes.empty())
-      field("cluster planes", "each latent row's own planes over light, view and half vector, " +
-                                  std::to_string(btf.clusterPlanes.resolution) + " x " +
-                                  std::to_string(btf.clusterPlanes.resolution) + " points x " +
-                                  std::to_string(btf.clusterPlanes.features) + " features each (+" +
-                                  std::to_string(btf.clusterPlanes.inputCount()) + " decoder inputs)");
-    field("alpha", number(btf.alpha) + " (decoder output x alpha = linear RGB)");
-    std::size_t params = 0;
-    for (const auto& l : btf.decoder.layers) params += l.parameterCount();
-    std::string digits = std::to_string(params), grouped;
-    for (std::size_t i = 0; i < digits.size(); ++i)
-      grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
-    field("decoder", decoderShape(btf.decoder) + ", " + grouped + " parameters");
-    field("latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim));
-    if (!btf.modulation.empty())
-      field("modulation", modulationDescription(btf.modulation) + ", refit to the trained terms");
-    field("storage", storageDescription(btf));
-  }
+  for (const auto& [name, value] : kind.infoFields(btf)) field(name.c_str(), value);
   if (btf.holdoutImages.empty()) {
     field("hold-out", btf.isPca() ? "none (every image was used in the PCA fit)"
                                   : "none (every image was used for training)");

@@ -55,23 +55,25 @@ std::string describe(const Direction& d) {
   return s.str();
 }
 
+// A UBO2014 file's listing: its own directions (reading the factors is the check that they
+// fit); --layout may only confirm it.
+StackListing ubo2014Listing(const std::string& path, Layout forced, const Ubo2014Btf& btf) {
+  if (forced != Layout::Unknown && forced != Layout::Ubo2014)
+    throw fileError(path, "is a UBO2014 .btf file: --layout " + layoutName(forced) +
+                              " applies to folders of images only (leave it out, or give --layout ubo2014)");
+  StackListing listing;
+  listing.layout = Layout::Ubo2014;
+  listing.lights = btf.meta().lights;
+  listing.views = btf.meta().views;
+  return listing;
+}
+
 }  // namespace
 
 StackListing listBtfStack(const std::string& path, Layout forced) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw fileAccessError(path, "no such file or folder", ENOENT);
-  if (looksLikeUbo2014(path)) {
-    if (forced != Layout::Unknown && forced != Layout::Ubo2014)
-      throw fileError(path, "is a UBO2014 .btf file: --layout " + layoutName(forced) +
-                                " applies to folders of images only (leave it out, or give --layout ubo2014)");
-    // The directions are the file's own; reading the factors is the check that they fit.
-    Ubo2014Btf btf = Ubo2014Btf::read(path);
-    StackListing listing;
-    listing.layout = Layout::Ubo2014;
-    listing.lights = btf.meta().lights;
-    listing.views = btf.meta().views;
-    return listing;
-  }
+  if (looksLikeUbo2014(path)) return ubo2014Listing(path, forced, Ubo2014Btf::read(path));
   if (!fs::is_directory(path, ec))
     throw fileAccessError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)", ENOTDIR);
   if (forced == Layout::Ubo2014)
@@ -211,56 +213,65 @@ bool keepFactorized(const Ubo2014Btf& btf, const LoadOptions& options) {
 }
 }  // namespace
 
-Crop checkCrop(const std::string& path, const LoadOptions& options) {
-  if (looksLikeUbo2014(path)) return Ubo2014Btf::read(path).checkedCrop(options.crop);
-  int srcW = 0, srcH = 0;
-  return cropFor(path, listBtfStack(path, options.layout), options, srcW, srcH);
+BtfInput resolveBtfInput(const std::string& path, const LoadOptions& options) {
+  BtfInput in;
+  in.path = path;
+  in.cropped = !options.crop.empty();
+  StackShape& shape = in.shape;
+  if (looksLikeUbo2014(path)) {
+    auto btf = std::make_shared<const Ubo2014Btf>(Ubo2014Btf::read(path));
+    in.listing = ubo2014Listing(path, options.layout, *btf);
+    shape.lights = btf->numLights(), shape.views = btf->numViews();
+    in.sourceWidth = btf->width(), in.sourceHeight = btf->height();
+    in.crop = btf->checkedCrop(options.crop);
+    in.factorized = keepFactorized(*btf, options);
+    shape.type = SampleType::Half;  // the crop's values as half floats, stored or computed
+    shape.width = in.crop.width, shape.height = in.crop.height;
+    if (in.factorized)
+      shape.computedBytes = btf->factorBytes() + ubo2014ComputedBlockBytes(in.crop.width * in.crop.height, btf->numImages());
+    in.ubo2014 = std::move(btf);
+    return in;
+  }
+  in.listing = listBtfStack(path, options.layout);
+  shape.lights = static_cast<int>(in.listing.lights.size()), shape.views = static_cast<int>(in.listing.views.size());
+  in.crop = cropFor(path, in.listing, options, in.sourceWidth, in.sourceHeight);
+  shape.width = in.crop.width, shape.height = in.crop.height;
+  shape.type = imageFormatFromName(in.listing.files.front()) == ImageFormat::Exr ? SampleType::Half : SampleType::Srgb8;
+  return in;
 }
 
+Crop checkCrop(const std::string& path, const LoadOptions& options) { return resolveBtfInput(path, options).crop; }
+
 StackShape stackShape(const std::string& path, const LoadOptions& options) {
-  StackShape shape;
-  if (looksLikeUbo2014(path)) {
-    Ubo2014Btf btf = Ubo2014Btf::read(path);
-    const Crop crop = options.crop.empty() ? Crop{0, 0, btf.width(), btf.height()} : options.crop;  // checked on loading
-    shape.lights = btf.numLights(), shape.views = btf.numViews();
-    shape.width = crop.width, shape.height = crop.height;
-    shape.type = SampleType::Half;  // the crop's values as half floats, stored or computed
-    if (keepFactorized(btf, options))
-      shape.computedBytes = btf.factorBytes() + ubo2014ComputedBlockBytes(crop.width * crop.height, btf.numImages());
-    return shape;
-  }
-  StackListing listing = listBtfStack(path, options.layout);
-  int srcW = 0, srcH = 0;
-  const Crop crop = cropFor(path, listing, options, srcW, srcH);
-  shape.lights = static_cast<int>(listing.lights.size()), shape.views = static_cast<int>(listing.views.size());
-  shape.width = crop.width, shape.height = crop.height;
-  shape.type = imageFormatFromName(listing.files.front()) == ImageFormat::Exr ? SampleType::Half : SampleType::Srgb8;
-  return shape;
+  return resolveBtfInput(path, options).shape;
 }
 
 BtfStack loadBtfStack(const std::string& path, const LoadOptions& options) {
-  // A UBO2014 file: the factors are read; the crop's texels are expanded when that is small
-  // enough, else computed from the factors when read (the same values either way).
-  if (looksLikeUbo2014(path)) {
-    auto btf = std::make_shared<const Ubo2014Btf>(Ubo2014Btf::read(path));
-    if (keepFactorized(*btf, options)) return Ubo2014Btf::computedStack(std::move(btf), options.crop);
-    return btf->toStack(options.crop, options.progress);
-  }
-  StackListing listing = listBtfStack(path, options.layout);
-  const std::string& first = listing.files.front();
-  bool exr = imageFormatFromName(first) == ImageFormat::Exr;
-  ExrColorSpace exrSpace =
-      (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
-  int srcW = 0, srcH = 0;
-  const Crop crop = cropFor(path, listing, options, srcW, srcH);
+  return loadBtfStack(resolveBtfInput(path, options), options);
+}
 
-  BtfStack stack(listing.lights, listing.views, crop.width, crop.height, exr ? SampleType::Half : SampleType::Srgb8,
-                 options.scratchDir);
-  stack.source = path;
+BtfStack loadBtfStack(const BtfInput& in, const LoadOptions& options) {
+  // A UBO2014 file: the crop's texels are expanded when that is small enough, else computed
+  // from the factors when read (the same values either way).
+  const Crop asked = in.cropped ? in.crop : Crop{};
+  if (in.ubo2014) {
+    if (in.factorized) return Ubo2014Btf::computedStack(in.ubo2014, asked);
+    return in.ubo2014->toStack(asked, options.progress);
+  }
+  const StackListing& listing = in.listing;
+  const std::string& first = listing.files.front();
+  const bool exr = in.shape.type == SampleType::Half;
+  const ExrColorSpace exrSpace =
+      (listing.layout == Layout::Utia && options.utiaExrIsXyz) ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
+  const int srcW = in.sourceWidth, srcH = in.sourceHeight;
+  const Crop& crop = in.crop;
+
+  BtfStack stack(listing.lights, listing.views, crop.width, crop.height, in.shape.type, options.scratchDir);
+  stack.source = in.path;
   stack.layout = listing.layout;
   stack.sourceWidth = srcW;
   stack.sourceHeight = srcH;
-  stack.crop = options.crop.empty() ? Crop{} : crop;
+  stack.crop = asked;
 
   Progress progress("load", listing.files.size(), options.progress);
   parallelForDynamic(listing.files.size(), [&](std::size_t i, int) {

@@ -1,11 +1,14 @@
 // Loading UBO2003 and UTIA image stacks from disk, and UBO2014 `.btf` files (io/ubo2014_btf.h):
 // every function here takes a `.btf` file path where it takes a stack folder.
 #pragma once
+#include <memory>
 #include <string>
 
 #include "io/btf_stack.h"
 
 namespace nbtf {
+
+class Ubo2014Btf;
 
 struct LoadOptions {
   Layout layout = Layout::Unknown;  // Unknown = detect from the file names
@@ -38,10 +41,6 @@ struct StackListing {
 };
 StackListing listBtfStack(const std::string& path, Layout forced = Layout::Unknown);
 
-// Loads the whole stack (decoding in parallel on threadCount() threads). Throws nbtf::Error
-// naming the file and the problem for every kind of bad input.
-BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
-
 // The shape a load would give (crop applied), from the listing and the first image only
 // (a UBO2014 file: its header and factors): what memory estimates need before loading.
 struct StackShape {
@@ -56,10 +55,34 @@ struct StackShape {
   }
   std::size_t stackBytes() const { return computedBytes ? computedBytes : storedBytes(); }
 };
-StackShape stackShape(const std::string& path, const LoadOptions& options = {});
 
-// Lists the stack and reads its first image only: throws the loader's errors (a crop outside
-// the images included) before a long load. Returns the crop that loading would apply.
+// An input resolved once: what it is, its directions and files, the crop checked against its
+// images, the shape a load gives, and (a UBO2014 file) its factors, read once and whether they
+// stay factorized. The memory estimate, the loader and the compressor all take this one
+// description, so the input is listed, its first image read and its crop checked once.
+struct BtfInput {
+  std::string path;
+  StackListing listing;                       // layout, directions; files of an image stack
+  int sourceWidth = 0, sourceHeight = 0;      // the images' size on disk
+  Crop crop;                                  // checked; the whole image when none was asked
+  bool cropped = false;                       // a crop was asked (the stack records it)
+  StackShape shape;
+  std::shared_ptr<const Ubo2014Btf> ubo2014;  // a UBO2014 file's factors; null for an image stack
+  bool factorized = false;                    // UBO2014: the crop's values computed when read (LoadOptions::expandUpTo)
+};
+// Lists the input and reads its first image (a UBO2014 file: its header and factors): throws the
+// loader's errors, a crop outside the images included, before a long load.
+BtfInput resolveBtfInput(const std::string& path, const LoadOptions& options = {});
+
+// Loads the whole stack (decoding in parallel on threadCount() threads). Throws nbtf::Error
+// naming the file and the problem for every kind of bad input. `options` gives the scratch
+// folder and the progress bar; the rest was decided when the input was resolved.
+BtfStack loadBtfStack(const BtfInput& input, const LoadOptions& options = {});
+// The same from a path (resolved here).
+BtfStack loadBtfStack(const std::string& path, const LoadOptions& options = {});
+
+// resolveBtfInput(path, options).shape and .crop, for callers that need one of them only.
+StackShape stackShape(const std::string& path, const LoadOptions& options = {});
 Crop checkCrop(const std::string& path, const LoadOptions& options);
 
 }  // namespace nbtf

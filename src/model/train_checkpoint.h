@@ -1,12 +1,12 @@
 // Training checkpoints: model, optimizer state and position, written atomically (temp
 // file + rename) so an interrupted write never replaces a good checkpoint with a broken
-// one. PRIVATE to src/model/*.cpp (includes torch).
+// one. PRIVATE to src/model/ (includes torch).
 #pragma once
 #include <cstdint>
 #include <memory>
 #include <string>
 
-#include "model/torch_modules.h"
+#include "model/autograd/torch_modules.h"
 #include "model/training_set.h"
 
 namespace nbtf {

@@ -1,6 +1,6 @@
-// The exact per-texel RMSE of a trained model (eq. 10). PRIVATE to src/model/*.cpp.
+// The exact per-texel RMSE of a trained model (eq. 10). PRIVATE to src/model/.
 #pragma once
-#include "model/decoder_backprop.h"
+#include "model/autograd/decoder_backprop.h"
 #include "model/training_set.h"
 
 namespace nbtf::detail {

@@ -3,7 +3,7 @@
 // step the optimizer; checkpoint, resume, and finally the exact per-texel RMSE.
 #include "model/trainer.h"
 
-#include "model/torch_logging.h"
+#include "model/autograd/torch_logging.h"
 
 #include <ATen/Parallel.h>
 
@@ -13,10 +13,10 @@
 #include <cstring>
 #include <memory>
 
-#include "model/decoder_backprop.h"
-#include "model/distributed_group.h"
-#include "model/fused_adam.h"
-#include "model/torch_modules.h"
+#include "model/autograd/decoder_backprop.h"
+#include "model/distributed/distributed_group.h"
+#include "model/autograd/fused_adam.h"
+#include "model/autograd/torch_modules.h"
 #include "model/train_checkpoint.h"
 #include "model/train_eval.h"
 #include "model/training_set.h"

@@ -43,8 +43,9 @@ ClusterStackRun clusterStack(const std::string& input, const std::string& outDir
   LoadOptions load = options.load;
   run.memoryLimit = options.memoryLimit ? options.memoryLimit : defaultMemoryLimit();
   load.expandUpTo = expandBudget(run.memoryLimit);
+  const BtfInput in = resolveBtfInput(input, load);
   {
-    const StackShape shape = stackShape(input, load);
+    const StackShape& shape = in.shape;
     MemoryEstimate estimate = estimateClusterMemory(shape, clustering.clusters, clustering.pca.components,
                                                     clustering.pca.oversampling, threadCount(),
                                                     clustering.pca.sampleBytes);
@@ -54,7 +55,7 @@ ClusterStackRun clusterStack(const std::string& input, const std::string& outDir
     load.scratchDir = placeStackWithinLimit(options.stackStorage, near.string(), input, shape, estimate,
                                             run.memoryLimit, options.memoryLimitText, options.progress);
   }
-  BtfStack stack = loadBtfStack(input, load);
+  BtfStack stack = loadBtfStack(in, load);
   info.loadSeconds = secondsSince(step);
   info.width = stack.width(), info.height = stack.height(), info.images = stack.numImages();
   info.crop = stack.crop;

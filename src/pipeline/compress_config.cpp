@@ -3,7 +3,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "model/config_section.h"
+#include "model/config/config_section.h"
 #include "util/error.h"
 
 namespace nbtf {
@@ -19,39 +19,53 @@ constexpr int kMaxAdaptiveStages = 20;
 
 }  // namespace
 
+namespace {
+
+// The "clustering" and "adaptive" keys (config_section.h); the clustering space is read by name
+// beside them.
+#define NBTF_COMPRESS_FIELD(section, key, member) \
+  ConfigField<CompressConfig> { section, key, [](CompressConfig& c) -> ConfigValue { return &c.member; }, nullptr }
+const ConfigField<CompressConfig> kCompressFields[] = {
+    NBTF_COMPRESS_FIELD("clustering", "clusters", clusters),
+    NBTF_COMPRESS_FIELD("adaptive", "enabled", adaptive.enabled),
+    NBTF_COMPRESS_FIELD("adaptive", "target_rmse", adaptive.targetRmse),
+    NBTF_COMPRESS_FIELD("adaptive", "max_clusters", adaptive.maxClusters),
+    NBTF_COMPRESS_FIELD("adaptive", "size_budget", adaptive.sizeBudget),
+    NBTF_COMPRESS_FIELD("adaptive", "initial_clusters", adaptive.initialClusters),
+    NBTF_COMPRESS_FIELD("adaptive", "stages", adaptive.stages),
+    NBTF_COMPRESS_FIELD("adaptive", "growth_fraction", adaptive.growthFraction),
+    NBTF_COMPRESS_FIELD("adaptive", "merge_tolerance", adaptive.mergeTolerance),
+};
+#undef NBTF_COMPRESS_FIELD
+
+void readClusteringSpace(ConfigSection& clustering, CompressConfig& c, const std::string& path) {
+  std::string space = clusteringSpaceName(c.clusteringSpace);
+  clustering.read("space", space);
+  try {
+    c.clusteringSpace = parseClusteringSpace(space, "'clustering.space'");
+  } catch (const Error& e) {
+    throw fileError(path, e.what());
+  }
+}
+
+}  // namespace
+
 CompressConfig loadCompressConfig(const std::string& path) {
   std::vector<std::string> sections = kTrainConfigSections;
   sections.insert(sections.end(), kCompressOnlyConfigSections.begin(), kCompressOnlyConfigSections.end());
   const nlohmann::json root = readConfigFile(path, sections);
   CompressConfig c;
   c.train = trainConfigFromJson(root, path);
-  {
-    ConfigSection clustering(root, "clustering", path);
-    std::string space = clusteringSpaceName(c.clusteringSpace);
-    clustering.read("space", space);
-    clustering.read("clusters", c.clusters);
-    clustering.rejectUnknown();
-    if (c.clusters < 0)
-      throw fileError(path, "'clustering.clusters' must be >= 0 (the default k; 0 = per-texel), got " +
-                                std::to_string(c.clusters));
-    try {
-      c.clusteringSpace = parseClusteringSpace(space, "'clustering.space'");
-    } catch (const Error& e) {
-      throw fileError(path, e.what());
-    }
+  for (const std::string& name : kCompressOnlyConfigSections) {
+    ConfigSection section(root, name, path);
+    if (name == "clustering") readClusteringSpace(section, c, path);
+    readConfigFields(section, name, kCompressFields, c, path);
+    section.rejectUnknown();
   }
-  AdaptiveOptions& a = c.adaptive;
-  ConfigSection s(root, "adaptive", path);
-  s.read("enabled", a.enabled);
-  s.read("target_rmse", a.targetRmse);
-  s.read("max_clusters", a.maxClusters);
-  s.read("size_budget", a.sizeBudget);
-  s.read("initial_clusters", a.initialClusters);
-  s.read("stages", a.stages);
-  s.read("growth_fraction", a.growthFraction);
-  s.read("merge_tolerance", a.mergeTolerance);
-  s.rejectUnknown();
-  validateAdaptiveOptions(a, path);
+  if (c.clusters < 0)
+    throw fileError(path, "'clustering.clusters' must be >= 0 (the default k; 0 = per-texel), got " +
+                              std::to_string(c.clusters));
+  validateAdaptiveOptions(c.adaptive, path);
   return c;
 }
 
@@ -71,15 +85,9 @@ void validateAdaptiveOptions(const AdaptiveOptions& a, const std::string& source
 }
 
 std::string adaptiveConfigJson(const AdaptiveOptions& a) {
-  nlohmann::json j = {{"enabled", a.enabled},
-                      {"target_rmse", a.targetRmse},
-                      {"max_clusters", a.maxClusters},
-                      {"size_budget", a.sizeBudget},
-                      {"initial_clusters", a.initialClusters},
-                      {"stages", a.stages},
-                      {"growth_fraction", a.growthFraction},
-                      {"merge_tolerance", a.mergeTolerance}};
-  return j.dump();
+  CompressConfig c;
+  c.adaptive = a;
+  return configFieldsJson(kCompressFields, c, {"adaptive"})["adaptive"].dump();
 }
 
 }  // namespace nbtf

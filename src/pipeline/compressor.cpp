@@ -155,31 +155,29 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   }
   CompressStats stats;
   stats.output = output;
-  const bool cropped = !o.pcaBaseline && !o.load.crop.empty();
-  if (cropped) checkCrop(input, o.load);  // a crop outside the images is that, not a cluster-count error
+  // ---- The input, resolved once (listing, first image, crop, shape); then fail before loading
+  // when the run cannot fit in --memory-limit.
+  stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
+  o.load.expandUpTo = expandBudget(stats.memoryLimit);
+  const BtfInput in = resolveBtfInput(input, o.load);  // a crop outside the images is that, not a cluster-count error
+  const StackShape& shape = in.shape;                  // the crop's texels when cropped
+  if (!o.pcaBaseline) refuseTooFewTexels(shape, input);
+  detail::resolveDefaultClusters(o, shape.texels(), stats);
+  if (in.cropped && !o.pcaBaseline) detail::checkClusterCounts(o, shape.texels(), "the crop");
+  const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
+  MemoryEstimate estimate = estimateCompressMemory(
+      shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : detail::kDefaultPcaComponents,
+      PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
+  const std::string outputDir = std::filesystem::path(output).parent_path().string();
+  o.load.scratchDir = placeStackWithinLimit(o.stackStorage, outputDir, input, shape, estimate, stats.memoryLimit,
+                                            o.memoryLimitText, o.progress);
+  stats.stackScratchDir = o.load.scratchDir;
+  stats.memoryEstimate = estimate.total();
 
-  {
-    // ---- Fail before loading when the run cannot fit in --memory-limit.
-    stats.memoryLimit = o.memoryLimit > 0 ? o.memoryLimit : defaultMemoryLimit();
-    o.load.expandUpTo = expandBudget(stats.memoryLimit);
-    const StackShape shape = stackShape(input, o.load);  // the crop's texels when cropped
-    if (!o.pcaBaseline) refuseTooFewTexels(shape, input);
-    detail::resolveDefaultClusters(o, shape.texels(), stats);
-    if (cropped) detail::checkClusterCounts(o, shape.texels(), "the crop");
-    const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
-    MemoryEstimate estimate = estimateCompressMemory(
-        shape, o.clusters, o.pcaBaseline, o.pcaComponents > 0 ? o.pcaComponents : detail::kDefaultPcaComponents,
-        PcaOptions().oversampling, modulated ? o.train.modulation.terms * o.train.modulation.channels : 1, threadCount());
-    const std::string outputDir = std::filesystem::path(output).parent_path().string();
-    o.load.scratchDir = placeStackWithinLimit(o.stackStorage, outputDir, input, shape, estimate, stats.memoryLimit,
-                                              o.memoryLimitText, o.progress);
-    stats.stackScratchDir = o.load.scratchDir;
-    stats.memoryEstimate = estimate.total();
-  }
   auto t = Clock::now();
   LoadOptions load = o.load;
   load.progress = load.progress && o.progress;
-  BtfStack stack = loadBtfStack(input, load);
+  BtfStack stack = loadBtfStack(in, load);
   stats.seconds.load = secondsSince(t);
   stats.computedStack = stack.isComputed();
   if (detail::stopRequested(o)) {

@@ -117,84 +117,128 @@ void checkClusterCounts(const CompressOptions& o, std::int64_t texels, const std
                 std::to_string(texels) + " texels of " + what + " (at most the texel count)");
 }
 
+namespace {
+
+// The standardization (eq. 1-4) and alpha (eq. 5). Clustered: the statistics only, from the
+// stack; the standardized ABRDF matrix is streamed from the stack in slices
+// (preprocess/abrdf_source.h) and never exists whole. Per-texel: the matrix itself, the
+// encoder's input.
+struct Standardized {
+  float alpha = 0;
+  MatrixXfCol matrix;                        // per-texel
+  std::unique_ptr<StackAbrdfSource> source;  // clustered
+};
+
+Standardized standardize(const BtfStack& stack, const CompressOptions& o) {
+  Standardized s;
+  if (o.clusters > 0) {
+    ColumnMoments moments;  // spare PCA a pass over the stack
+    Standardization standardization = fitStandardization(stack, o.progress, &s.alpha, &moments);
+    s.source = std::make_unique<StackAbrdfSource>(stack, std::move(standardization), std::move(moments));
+  } else {
+    s.alpha = targetAlpha(stack);
+    s.matrix = abrdfMatrix(stack, o.progress);
+    standardizeInPlace(s.matrix);
+  }
+  return s;
+}
+
+// PCA + k-means++ + per-cluster medians over the streamed matrix; `pcaComponents` receives the
+// count used (the default is capped by the data).
+ClusteringResult clusterTexels(const BtfStack& stack, const CompressOptions& o, const Standardized& data,
+                               int& pcaComponents, CompressStats& stats) {
+  ClusteringOptions co;
+  co.clusters = o.clusters;
+  const int maxComponents = static_cast<int>(std::min<Eigen::Index>(data.source->rows(), data.source->cols()));
+  if (o.pcaComponents > maxComponents)
+    throw Error("--components " + std::to_string(o.pcaComponents) + " exceeds the " + std::to_string(maxComponents) +
+                " the data allows (min of texels and 3 x images)");
+  pcaComponents = o.pcaComponents > 0 ? o.pcaComponents : std::min(kDefaultPcaComponents, maxComponents);
+  co.pca.components = pcaComponents;
+  co.pca.seed = o.train.seed;
+  if (o.kmeansIterations > 0) co.kmeans.maxIterations = o.kmeansIterations;
+  co.kmeans.seed = o.train.seed;
+  co.seed = o.train.seed;
+  co.progress = o.progress;
+  if (o.adaptive.enabled) {
+    co.clusters = initialAdaptiveClusters(o, stack.numTexels());
+    co.keepScores = true;  // splits are 2-means in the same PCA space
+  }
+  // The linear space: the same texels as linear values / alpha, for PCA and k-means only.
+  const auto space = clusteringSpaceSource(stack, o.clusteringSpace, data.alpha);
+  stats.clusteringSpace = clusteringSpaceName(o.clusteringSpace);
+  ClusteringResult clustering = clusterAbrdfs(*data.source, co, space.get());
+  stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
+  stats.pcaComponents = pcaComponents;
+  return clustering;
+}
+
+// The recipe training runs: the options' with the run's terms, controls and checkpoint.
+TrainConfig trainingConfig(const BtfStack& stack, const CompressOptions& o, bool modulated, const TrainInputs& inputs,
+                           int pcaComponents, CompressStats& stats) {
+  TrainConfig config = o.train;
+  config.model.outputTerms = modulated ? o.train.modulation.terms : 1;
+  config.progress = config.progress && o.progress;
+  config.stopFlag = o.stopFlag;
+  config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
+  config.finalEvaluation = !assemblyMeasures(config, o.clusters);  // its figures would be replaced
+  stats.checkpointPath = config.checkpointPath;
+  if (config.distributed.enabled())
+    config.distributed.mustAgree = distributedSettings(stack, stats.output, o, config, inputs.ids, pcaComponents);
+  return config;
+}
+
+void recordTraining(const TrainResult& train, const TrainConfig& config, CompressStats& stats) {
+  stats.seconds.trainParts = train.profile;
+  stats.epochs = train.epochsRun;
+  stats.steps = train.steps;
+  stats.samplesPerSecond = train.samplesPerSecond;
+  stats.decoderGflops = train.decoderGflops;
+  stats.products = train.products;
+  stats.worldSize = config.distributed.worldSize;
+  stats.allReduceBytesPerStep = train.allReduceBytesPerStep;
+  stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
+}
+
+}  // namespace
+
 CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& options, CompressStats& stats) {
   CompressOptions o = options;
   resolveDefaultClusters(o, stack.numTexels(), stats);
   if (o.adaptive.enabled && o.clusters <= 0) throw Error("--adaptive needs the clustered mode (--clusters > 0)");
-  const int texels = stack.numTexels();
-  stats.texels = texels;
+  stats.texels = stack.numTexels();
   stats.images = stack.numImages();
   stats.clusters = o.clusters;
-  stats.method = o.clusters > 0 ? CodecMethod::ClusteredNeural : CodecMethod::PerTexelNeural;
-  checkClusterCounts(o, texels, stack.source.empty() ? "the material" : stack.source);
+  stats.method = compressMethod(o);
+  checkClusterCounts(o, stack.numTexels(), stack.source.empty() ? "the material" : stack.source);
 
-  // ---- Preprocess: log + standardize (eq. 1-4), alpha (eq. 5). Clustered: the statistics
-  // only, from the stack; the standardized ABRDF matrix is streamed from the stack in slices
-  // (preprocess/abrdf_source.h) and never exists whole. Per-texel: the matrix itself, the
-  // encoder's input.
   auto t = Clock::now();
-  float alpha = 0;
-  MatrixXfCol x;
-  std::unique_ptr<StackAbrdfSource> source;
-  if (o.clusters > 0) {
-    ColumnMoments moments;  // spare PCA a pass over the stack
-    Standardization standardization = fitStandardization(stack, o.progress, &alpha, &moments);
-    source = std::make_unique<StackAbrdfSource>(stack, std::move(standardization), std::move(moments));
-  } else {
-    alpha = targetAlpha(stack);
-    x = abrdfMatrix(stack, o.progress);
-    standardizeInPlace(x);
-  }
-  stats.alpha = alpha;
+  Standardized data = standardize(stack, o);
+  stats.alpha = data.alpha;
   stats.seconds.preprocess = secondsSince(t);
 
-  // ---- Cluster (PCA + k-means++ + per-cluster medians), or per-texel: X itself
+  // ---- Cluster, or per-texel: the standardized matrix itself
   TrainInputs inputs;
   inputs.stack = &stack;
-  inputs.alpha = alpha;
+  inputs.alpha = data.alpha;
   ClusteringResult clustering;
   int pcaComponents = 0;
   t = Clock::now();
   if (o.clusters > 0) {
-    ClusteringOptions co;
-    co.clusters = o.clusters;
-    int maxComponents = static_cast<int>(std::min<Eigen::Index>(source->rows(), source->cols()));
-    if (o.pcaComponents > maxComponents)
-      throw Error("--components " + std::to_string(o.pcaComponents) + " exceeds the " +
-                  std::to_string(maxComponents) + " the data allows (min of texels and 3 x images)");
-    pcaComponents = o.pcaComponents > 0 ? o.pcaComponents : std::min(kDefaultPcaComponents, maxComponents);
-    co.pca.components = pcaComponents;
-    co.pca.seed = o.train.seed;
-    if (o.kmeansIterations > 0) co.kmeans.maxIterations = o.kmeansIterations;
-    co.kmeans.seed = o.train.seed;
-    co.seed = o.train.seed;
-    co.progress = o.progress;
-    const bool adaptive = o.adaptive.enabled;
-    if (adaptive) {
-      co.clusters = initialAdaptiveClusters(o, texels);
-      co.keepScores = true;  // splits are 2-means in the same PCA space
-    }
-    // The linear space: the same texels as linear values / alpha, for PCA and k-means only.
-    const auto space = clusteringSpaceSource(stack, o.clusteringSpace, alpha);
-    stats.clusteringSpace = clusteringSpaceName(o.clusteringSpace);
-    clustering = clusterAbrdfs(*source, co, space.get());
-    if (adaptive) {
-      stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
-      stats.pcaComponents = pcaComponents;
+    clustering = clusterTexels(stack, o, data, pcaComponents, stats);
+    if (o.adaptive.enabled) {
       stats.seconds.cluster = secondsSince(t);
-      return compressAdaptive(stack, o, *source, std::move(clustering), alpha, pcaComponents, stats);
+      return compressAdaptive(stack, o, *data.source, std::move(clustering), data.alpha, pcaComponents, stats);
     }
-    source.reset();  // the encoder sees only the k representatives
+    data.source.reset();  // the encoder sees only the k representatives
     stats.seconds.clusterParts.pca = clustering.pcaSeconds;
     stats.seconds.clusterParts.kmeans = clustering.kmeansSeconds;
     stats.seconds.clusterParts.medians = clustering.representativeSeconds;
     stats.kmeansIterations = clustering.iterations;
-    stats.pcaExplainedVarianceRatio = clustering.explainedVarianceRatio;
-    stats.pcaComponents = pcaComponents;  // the count used (the default is capped by the data)
     inputs.encoderInputs = &clustering.representatives;
     inputs.ids = clustering.ids;
   } else {
-    inputs.encoderInputs = &x;
+    inputs.encoderInputs = &data.matrix;
   }
 
   // ---- Per-texel modulation (beyond the paper): factors from the training images, quantized
@@ -211,8 +255,7 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
   if (modulated) {
     // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
     // the stored ones are refit to the trained terms afterwards.
-    inputs.texelCoefficients =
-        trainingCoefficients(stack, alpha, inputs.ids, o.clusters, holdout, mc, o.progress);
+    inputs.texelCoefficients = trainingCoefficients(stack, data.alpha, inputs.ids, o.clusters, holdout, mc, o.progress);
     inputs.coefficientTerms = mc.terms;
     inputs.coefficientChannels = mc.channels;
     stats.modulationTerms = mc.terms;
@@ -227,27 +270,11 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
   }
 
   // ---- Train
-  TrainConfig config = o.train;
-  config.model.outputTerms = modulated ? mc.terms : 1;
-  config.progress = config.progress && o.progress;
-  config.stopFlag = o.stopFlag;
-  config.checkpointPath = o.checkpointPath.empty() ? config.checkpointPath : o.checkpointPath;
-  config.finalEvaluation = !assemblyMeasures(config, o.clusters);  // its figures would be replaced
-  stats.checkpointPath = config.checkpointPath;
-  if (config.distributed.enabled())
-    config.distributed.mustAgree = distributedSettings(stack, stats.output, o, config, inputs.ids, pcaComponents);
+  const TrainConfig config = trainingConfig(stack, o, modulated, inputs, pcaComponents, stats);
   t = Clock::now();
   TrainResult train = trainModel(inputs, config);
   stats.seconds.train = secondsSince(t);
-  stats.seconds.trainParts = train.profile;
-  stats.epochs = train.epochsRun;
-  stats.steps = train.steps;
-  stats.samplesPerSecond = train.samplesPerSecond;
-  stats.decoderGflops = train.decoderGflops;
-  stats.products = train.products;
-  stats.worldSize = config.distributed.worldSize;
-  stats.allReduceBytesPerStep = train.allReduceBytesPerStep;
-  stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
+  recordTraining(train, config, stats);
   if (train.interrupted) {  // on a worker too: a stopped rank has not trained its shares
     stats.interrupted = true;
     return {};
@@ -257,23 +284,18 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
     return {};
   }
   if (o.clusters > 0) {
-    if (!modulated) {
-      stats.rmseFloor = train.rmseFloor;
-    } else {
-      stats.rmseFloor = train.rmsePlainFloor;  // from training's pass over the stack
-      stats.rmseFloorModulated = train.rmseFloor;
-    }
+    stats.rmseFloor = modulated ? train.rmsePlainFloor : train.rmseFloor;  // from training's pass over the stack
+    if (modulated) stats.rmseFloorModulated = train.rmseFloor;
   }
 
   // ---- Assemble the compressed material (storage rounding, modulation refit, decoded RMSE)
   t = Clock::now();
-  CompressedBtf b = assembleCompressed(stack, config, stats.method, alpha, train, std::move(inputs.ids),
-                                               o.clusters, inputs.texelCoefficients, trainImages, holdout, o.progress);
+  CompressedBtf b = assembleCompressed(stack, config, stats.method, data.alpha, train, std::move(inputs.ids),
+                                       o.clusters, inputs.texelCoefficients, trainImages, holdout, o.progress);
   stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
   stats.rmseTrain = train.rmseTrain;
   stats.rmseHoldout = train.rmseHoldout;
-  b.metadataJson = metadataJson(stack, config, train, o.clusters > 0 ? &clustering : nullptr,
-                                        pcaComponents, stats, "");
+  b.metadataJson = metadataJson(stack, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents, stats, "");
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
   stats.seconds.assemble = secondsSince(t);

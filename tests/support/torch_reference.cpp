@@ -6,12 +6,12 @@
 #include <tuple>
 #include <utility>
 
-#include "model/batch_norm.h"
-#include "model/conv_pool.h"
-#include "model/decoder_backprop.h"
-#include "model/fused_adam.h"
-#include "model/small_linear.h"
-#include "model/torch_modules.h"
+#include "model/autograd/batch_norm.h"
+#include "model/autograd/conv_pool.h"
+#include "model/autograd/decoder_backprop.h"
+#include "model/autograd/fused_adam.h"
+#include "model/autograd/small_linear.h"
+#include "model/autograd/torch_modules.h"
 #include "util/directions.h"
 #include "util/random.h"
 

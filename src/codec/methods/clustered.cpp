@@ -72,7 +72,7 @@ void validateModulation(const CompressedBtf& btf, const std::string& name) {
                  std::to_string(i / columns) + " exceeds " + std::to_string(m.bits) + " bits");
 }
 
-class ClusteredNeural final : public MethodKind {
+class ClusteredNeural final : public NeuralKind {
  public:
   CodecMethod code() const override { return CodecMethod::ClusteredNeural; }
   const char* name() const override { return "clustered-neural"; }
@@ -112,10 +112,6 @@ class ClusteredNeural final : public MethodKind {
     validateNeuralParts(btf, name);
     validateIds(btf, name);
     if (!btf.modulation.empty()) validateModulation(btf, name);
-  }
-  std::unique_ptr<detail::MaterialEvaluator> evaluator(const CompressedBtf& btf, DecoderIsa isa,
-                                                       const DecoderOptions& options) const override {
-    return makeNeuralEvaluator(btf, isa, options);
   }
 };
 

@@ -11,6 +11,7 @@
 #pragma once
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "codec/nbtf_file.h"
@@ -40,6 +41,8 @@ class MethodKind {
 
   // `nbtf info`'s method line: "clustered-neural, k = 1000 clusters".
   virtual std::string summary(const CompressedBtf& btf) const = 0;
+  // `nbtf info`'s lines about the kind's own parts (name, value), after the material's geometry.
+  virtual std::vector<std::pair<std::string, std::string>> infoFields(const CompressedBtf& btf) const = 0;
   // A report's method label: "clustered neural + direction planes (9 x 9 x 2), k = 1000".
   virtual std::string label(const CompressedBtf& btf) const = 0;
   // The number a sweep plots the kind against (k, C), 0 when it has none.

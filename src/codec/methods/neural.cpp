@@ -1,7 +1,10 @@
 // The parts both neural kinds store, and their checks.
 #include "codec/methods/neural.h"
 
+#include <cstdio>
+
 #include "codec/nbtf_format.h"
+#include "codec/texel_modulation.h"
 #include "util/error.h"
 #include "util/half.h"
 
@@ -103,7 +106,57 @@ void checkStorageExact(const CompressedBtf& btf, const std::string& name) {
     throw fail("latents are to be stored in half precision but hold values that half cannot represent");
 }
 
+std::string activationName(Activation a) {
+  switch (a) {
+    case Activation::Relu: return "ReLU";
+    case Activation::Sigmoid: return "sigmoid";
+    default: return "linear";
+  }
+}
+
+// "12 -> 106 (ReLU) -> 106 (ReLU) -> 3 (linear), 24,383 parameters"
+std::string decoderDescription(const Mlp& mlp) {
+  std::string s = mlp.layers.empty() ? "none" : std::to_string(mlp.layers.front().in);
+  for (const auto& l : mlp.layers) s += " -> " + std::to_string(l.out) + " (" + activationName(l.activation) + ")";
+  std::size_t params = 0;
+  for (const auto& l : mlp.layers) params += l.parameterCount();
+  const std::string digits = std::to_string(params);
+  std::string grouped;
+  for (std::size_t i = 0; i < digits.size(); ++i)
+    grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
+  return s + ", " + grouped + " parameters";
+}
+
+// "each latent row's own planes over light, view and half vector, 8 x 8 points x 4 features
+// each (+12 decoder inputs)"
+std::string planesDescription(const char* whose, int resolution, int features, int inputs) {
+  return std::string(whose) + " over light, view and half vector, " + std::to_string(resolution) + " x " +
+         std::to_string(resolution) + " points x " + std::to_string(features) + " features each (+" +
+         std::to_string(inputs) + " decoder inputs)";
+}
+
 }  // namespace
+
+std::vector<std::pair<std::string, std::string>> NeuralKind::infoFields(const CompressedBtf& btf) const {
+  std::vector<std::pair<std::string, std::string>> fields;
+  fields.push_back({"directions", directionEncodingDescription(btf.directionEncoding)});
+  const DirectionPlanes& p = btf.planes;
+  const RowPlanes& c = btf.clusterPlanes;
+  if (!p.empty())
+    fields.push_back({"planes", planesDescription("direction planes", p.resolution, p.features, p.inputCount())});
+  if (!c.empty())
+    fields.push_back(
+        {"cluster planes", planesDescription("each latent row's own planes", c.resolution, c.features, c.inputCount())});
+  char alpha[64];
+  std::snprintf(alpha, sizeof alpha, "%.6g", btf.alpha);
+  fields.push_back({"alpha", std::string(alpha) + " (decoder output x alpha = linear RGB)"});
+  fields.push_back({"decoder", decoderDescription(btf.decoder)});
+  fields.push_back({"latents", std::to_string(btf.latentRows) + " x " + std::to_string(btf.latentDim)});
+  if (!btf.modulation.empty())
+    fields.push_back({"modulation", modulationDescription(btf.modulation) + ", refit to the trained terms"});
+  fields.push_back({"storage", storageDescription(btf)});
+  return fields;
+}
 
 void validateNeuralParts(const CompressedBtf& btf, const std::string& name) {
   auto fail = [&](const std::string& message) { return fileError(name, message); };

@@ -16,8 +16,15 @@ void validateNeuralParts(const CompressedBtf& btf, const std::string& name);
 // " + direction planes (9 x 9 x 2) + cluster planes (...)", or "" without planes.
 std::string planesLabel(const CompressedBtf& btf);
 
-// The decoder MLP's evaluator (neural_evaluator.cpp): packed once, evaluated in SIMD tiles.
-std::unique_ptr<detail::MaterialEvaluator> makeNeuralEvaluator(const CompressedBtf& btf, DecoderIsa isa,
-                                                               const DecoderOptions& options);
+// The base of the two neural kinds: what they show and how they evaluate is the same.
+class NeuralKind : public MethodKind {
+ public:
+  // `nbtf info`'s lines for the neural parts: direction inputs, planes, alpha, decoder,
+  // latents, modulation, storage.
+  std::vector<std::pair<std::string, std::string>> infoFields(const CompressedBtf& btf) const override;
+  // The decoder MLP's evaluator (neural_evaluator.cpp): packed once, evaluated in SIMD tiles.
+  std::unique_ptr<detail::MaterialEvaluator> evaluator(const CompressedBtf& btf, DecoderIsa isa,
+                                                       const DecoderOptions& options) const override;
+};
 
 }  // namespace nbtf

@@ -194,8 +194,8 @@ class NeuralEvaluator final : public detail::MaterialEvaluator {
 
 }  // namespace
 
-std::unique_ptr<detail::MaterialEvaluator> makeNeuralEvaluator(const CompressedBtf& btf, DecoderIsa isa,
-                                                               const DecoderOptions& options) {
+std::unique_ptr<detail::MaterialEvaluator> NeuralKind::evaluator(const CompressedBtf& btf, DecoderIsa isa,
+                                                                 const DecoderOptions& options) const {
   return std::make_unique<NeuralEvaluator>(btf, isa, options);
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 
 #include "codec/methods/evaluator.h"
 #include "codec/methods/method.h"
@@ -177,6 +178,17 @@ class Pca final : public MethodKind {
     return std::string(name()) + " (classic baseline), C = " + std::to_string(btf.latentDim) + " components";
   }
   std::string label(const CompressedBtf& btf) const override { return "PCA, C = " + std::to_string(btf.latentDim); }
+  std::vector<std::pair<std::string, std::string>> infoFields(const CompressedBtf& btf) const override {
+    char alpha[64];
+    std::snprintf(alpha, sizeof alpha, "%.6g", btf.alpha);
+    const std::string c = std::to_string(btf.latentDim), rows = std::to_string(3 * btf.numImages());
+    return {{"alpha", std::string(alpha) + " ((mean + coefficients x basis) x alpha = linear RGB)"},
+            {"mean", rows + " values (3 per image)"},
+            {"basis", rows + " rows (3 per image) x " + c + " components"},
+            {"coefficients", std::to_string(btf.latentRows) + " texels x " + c + " components"},
+            {"interpolation", "unmeasured directions: mean and basis blended over the " +
+                                  std::to_string(kPcaNeighbours) + " nearest measured (light, view) pairs"}};
+  }
   int sweepParameter(const CompressedBtf& btf) const override { return btf.latentDim; }
   void validate(const CompressedBtf& btf, const std::string& name) const override { validatePca(btf, name); }
   std::unique_ptr<detail::MaterialEvaluator> evaluator(const CompressedBtf& btf, DecoderIsa,

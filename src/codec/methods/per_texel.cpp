@@ -9,7 +9,7 @@ namespace {
 using format::Need;
 using format::Part;
 
-class PerTexelNeural final : public MethodKind {
+class PerTexelNeural final : public NeuralKind {
  public:
   CodecMethod code() const override { return CodecMethod::PerTexelNeural; }
   const char* name() const override { return "per-texel-neural"; }
@@ -45,10 +45,6 @@ class PerTexelNeural final : public MethodKind {
       throw fail("per-texel file has " + std::to_string(btf.latentRows) + " latents for " +
                  std::to_string(btf.numTexels()) + " texels");
     if (!btf.modulation.empty()) throw fail("per-texel modulation is only defined for the clustered method");
-  }
-  std::unique_ptr<detail::MaterialEvaluator> evaluator(const CompressedBtf& btf, DecoderIsa isa,
-                                                       const DecoderOptions& options) const override {
-    return makeNeuralEvaluator(btf, isa, options);
   }
 };
 
