@@ -194,6 +194,13 @@ struct NbtfSizes {
   bool pca = false;
   int pcaComponents = 0;
   std::uint64_t pcaMean = 0, pcaBasis = 0, pcaCoefficients = 0;
+  // The size table's rows: each stored part (and a part the kind shows as absent, at 0 bytes)
+  // with what its bytes are made of, in the part table's order (codec/nbtf_sections.h).
+  struct PartRow {
+    std::string name, totalName, note;
+    std::uint64_t bytes = 0;
+  };
+  std::vector<PartRow> rows;
 };
 NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes = 0);
 

@@ -9,6 +9,7 @@
 #include "util/error.h"
 #include "util/half.h"
 #include "util/printable.h"
+#include <cstdio>
 
 namespace nbtf::format {
 namespace {
@@ -734,6 +735,76 @@ const std::vector<SectionKind> kSections = {
      parseMetadataZstd, nullptr, nullptr},
 };
 
+// ---- The size table's rows: what each part's bytes are made of (formatSizeTable)
+
+std::string precisionNote(int bytes) { return bytes == 2 ? " x 2 bytes (half)" : " x 4 bytes (float32)"; }
+std::string texelsText(const CompressedBtf& b) { return groupedDigits(texelCount(b)); }
+std::string imagesText(const CompressedBtf& b) { return groupedDigits(static_cast<std::uint64_t>(b.numImages())); }
+
+std::string decoderNote(const CompressedBtf& b) {
+  return groupedDigits(decoderParameters(b)) + " parameters" +
+         (st(b).decoderInt8 ? std::string(": 8-bit weights, half scale per row, half biases")
+                            : precisionNote(st(b).decoderHalf ? 2 : 4));
+}
+std::string planesNote(const CompressedBtf& b) {
+  const std::string r = std::to_string(b.planes.resolution);
+  return "3 direction planes x " + r + " x " + r + " points x " + std::to_string(b.planes.features) + " features" +
+         precisionNote(storagePlanesHalf(b) ? 2 : 4);
+}
+std::string clusterPlanesNote(const CompressedBtf& b) {
+  const RowPlanes& p = b.clusterPlanes;
+  const int bytes = format::clusterPlaneBytesPerValue(b);
+  const std::string r = std::to_string(p.resolution);
+  return groupedDigits(static_cast<std::uint64_t>(b.latentRows)) + " rows x 3 planes x " + r + " x " + r +
+         " points x " + std::to_string(p.features) + " features" +
+         (bytes == 1 ? std::string(": 8-bit codes, a float32 range per row and feature") : precisionNote(bytes));
+}
+std::string latentsNote(const CompressedBtf& b) {
+  return groupedDigits(static_cast<std::uint64_t>(b.latentRows)) + " x " + std::to_string(b.latentDim) +
+         precisionNote(st(b).latentsHalf ? 2 : 4);
+}
+std::string idsNote(const CompressedBtf& b) {
+  const int width = idWidthForClusters(b.latentRows);
+  const std::string bytes = std::to_string(width) + " byte" + (width > 1 ? "s" : "");
+  if (!(st(b).idsZstd && b.ids.size() == texelCount(b)))  // raw, or planning (no ids yet)
+    return texelsText(b) + " texels x " + bytes + " (smallest width that fits k; the paper used 4)";
+  char bits[64];
+  std::snprintf(bits, sizeof bits, "%.2f", texelCount(b) ? 8.0 * idZstdBytes(b) / texelCount(b) : 0.0);
+  return texelsText(b) + " texels x " + bytes + ", zstd-coded (" + bits + " bits per texel)";
+}
+const char* idsAbsent(const CompressedBtf& b) {
+  return b.method == CodecMethod::PerTexelNeural ? "none (per-texel: one latent per texel)" : nullptr;
+}
+std::string modulationNote(const CompressedBtf& b) {
+  const TexelModulation& m = b.modulation;
+  const int columns = m.columns();
+  char note[200];
+  std::snprintf(note, sizeof note, "%s texels x %d coefficient%s%s x %d-bit codes, %.2f bits per texel as stored",
+                texelsText(b).c_str(), columns, columns > 1 ? "s" : "",
+                m.decorrelated ? " (per RGB channel, decorrelated)" : m.channels > 1 ? " (per RGB channel)" : "", m.bits,
+                texelCount(b) ? 8.0 * modulationBytes(b) / texelCount(b) : 0.0);
+  return note;
+}
+std::string pcaMeanNote(const CompressedBtf& b) { return imagesText(b) + " images x 3 x 4 bytes"; }
+std::string pcaBasisNote(const CompressedBtf& b) {
+  return imagesText(b) + " images x 3 x " + std::to_string(b.latentDim) + " components x 4 bytes";
+}
+std::string pcaCoefficientsNote(const CompressedBtf& b) {
+  return texelsText(b) + " texels x " + std::to_string(b.latentDim) + " components x 4 bytes";
+}
+
+const std::vector<PartRow> kPartRows = {
+    {Part::Decoder, "decoder", "decoder", decoderNote, nullptr},
+    {Part::Planes, "planes", "planes", planesNote, nullptr},
+    {Part::ClusterPlanes, "cl. planes", "cluster planes", clusterPlanesNote, nullptr},
+    {Part::Latents, "latents", "latents", latentsNote, nullptr},
+    {Part::Ids, "id list", "id list", idsNote, idsAbsent},
+    {Part::Modulation, "per-texel", "per-texel", modulationNote, nullptr},
+    {Part::PcaMean, "mean", "mean", pcaMeanNote, nullptr},
+    {Part::PcaBasis, "basis", "basis", pcaBasisNote, nullptr},
+    {Part::PcaCoefficients, "coefficients", "coefficients", pcaCoefficientsNote, nullptr},
+};
+
 }  // namespace
 
 const std::vector<SectionKind>& sectionKinds() { return kSections; }
@@ -763,6 +834,8 @@ std::uint64_t paperBytesWritten(const CompressedBtf& btf) {
     if (k.tableBytes && k.written(btf)) total += k.paperBytes ? k.paperBytes(btf) : k.tableBytes(btf);
   return total;
 }
+
+const std::vector<PartRow>& partRows() { return kPartRows; }
 
 const std::vector<Part>& checkedParts() {
   static const std::vector<Part> parts = [] {

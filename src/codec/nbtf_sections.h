@@ -75,6 +75,18 @@ const SectionKind* writtenSection(const CompressedBtf& btf, Part part);
 std::uint64_t tableBytesWritten(const CompressedBtf& btf);
 std::uint64_t paperBytesWritten(const CompressedBtf& btf);
 
+// A part as the size table shows it (formatSizeTable): its name there and in the total's sum,
+// what its bytes are made of (its note), and the row a material without the part still shows
+// (null, or a note returning null: no row). In the table's order (partRows()).
+struct PartRow {
+  Part part;
+  const char* name;       // "cl. planes"
+  const char* totalName;  // "cluster planes"
+  std::string (*note)(const CompressedBtf&);
+  const char* (*absent)(const CompressedBtf&);
+};
+const std::vector<PartRow>& partRows();
+
 // Whether a method needs a part (MethodKind::need): the reader refuses a file that lacks a
 // needed part or holds one its method cannot use.
 enum class Need { Optional, Required, Forbidden };

@@ -4,6 +4,7 @@
 
 #include "codec/nbtf_format.h"
 #include "codec/nbtf_sections.h"
+#include "util/printable.h"
 
 namespace nbtf {
 
@@ -63,6 +64,13 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
     s.clusterPlaneBytesPerValue = format::clusterPlaneBytesPerValue(btf);
     s.clusterPlanes = partBytes(format::Part::ClusterPlanes);
   }
+  for (const format::PartRow& row : format::partRows()) {
+    const format::SectionKind* kind = format::writtenSection(btf, row.part);
+    if (kind && kind->tableBytes)
+      s.rows.push_back({row.name, row.totalName, row.note(btf), kind->tableBytes(btf)});
+    else if (const char* absent = row.absent ? row.absent(btf) : nullptr)
+      s.rows.push_back({row.name, row.totalName, absent, 0});
+  }
   s.total = format::tableBytesWritten(btf);
   // The same model stored the paper's way: float32 decoder, planes and latents, 4-byte ids.
   s.totalPaper = format::paperBytesWritten(btf);
@@ -74,104 +82,41 @@ NbtfSizes computeSizes(const CompressedBtf& btf, std::uint64_t fileBytes) {
 }
 
 namespace {
-std::string withCommas(std::uint64_t v) {
-  std::string digits = std::to_string(v), out;
-  for (std::size_t i = 0; i < digits.size(); ++i) {
-    if (i && (digits.size() - i) % 3 == 0) out += ',';
-    out += digits[i];
-  }
-  return out;
-}
 std::string kib(std::uint64_t bytes) {
   char buf[32];
   if (bytes >= 10u << 20) std::snprintf(buf, sizeof buf, "%.1f MiB", bytes / (1024.0 * 1024.0));
   else std::snprintf(buf, sizeof buf, "%.1f KiB", bytes / 1024.0);
   return buf;
 }
-std::string row(const char* part, std::uint64_t bytes, const std::string& note) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "  %-12s %14s B %14s  %s\n", part, withCommas(bytes).c_str(), kib(bytes).c_str(),
-                note.c_str());
+std::string row(const std::string& part, std::uint64_t bytes, const std::string& note) {
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "  %-12s %14s B %14s  %s\n", part.c_str(), groupedDigits(bytes).c_str(),
+                kib(bytes).c_str(), note.c_str());
   return buf;
 }
 }  // namespace
 
+// The rows are the parts' own (codec/nbtf_sections.cpp, partRows); the total is their sum.
 std::string formatSizeTable(const NbtfSizes& s) {
-  auto rawAndRatio = [&] {
-    char ratio[160];
-    std::snprintf(ratio, sizeof ratio, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
-    return row("raw float32", s.rawFloat32,
-               withCommas(s.texels) + " texels x " + withCommas(s.images) + " images x 3 x 4 bytes") +
-           ratio;
-  };
-  if (s.pca) {
-    // The baseline's parts, in the same table shape and units as the neural methods.
-    std::string out = "sizes (PCA baseline, parts as stored in float32; KiB = 1024 bytes, the paper's KB)\n";
-    std::string c = std::to_string(s.pcaComponents);
-    out += row("mean", s.pcaMean, withCommas(s.images) + " images x 3 x 4 bytes");
-    out += row("basis", s.pcaBasis, withCommas(s.images) + " images x 3 x " + c + " components x 4 bytes");
-    out += row("coefficients", s.pcaCoefficients, withCommas(s.texels) + " texels x " + c + " components x 4 bytes");
-    out += row("total", s.total, "mean + basis + coefficients");
-    out += rawAndRatio();
-    if (s.fileBytes) out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
-    return out;
+  std::string out = s.pca ? "sizes (PCA baseline, parts as stored in float32; KiB = 1024 bytes, the paper's KB)\n"
+                          : "sizes (as in the paper's Table 1, as stored; KiB = 1024 bytes, the paper's KB)\n";
+  std::string sum;
+  for (const NbtfSizes::PartRow& r : s.rows) {
+    out += row(r.name, r.bytes, r.note);
+    sum += (sum.empty() ? "" : " + ") + r.totalName;
   }
-  std::string out = "sizes (as in the paper's Table 1, as stored; KiB = 1024 bytes, the paper's KB)\n";
-  auto precision = [](int bytes) { return bytes == 2 ? std::string(" x 2 bytes (half)") : std::string(" x 4 bytes (float32)"); };
-  out += row("decoder", s.decoder,
-             withCommas(s.decoderParameters) + " parameters" +
-                 (s.decoderBytesPerValue == 1 ? std::string(": 8-bit weights, half scale per row, half biases")
-                                              : precision(s.decoderBytesPerValue)));
-  if (s.planes)
-    out += row("planes", s.planes,
-               "3 direction planes x " + std::to_string(s.planeResolution) + " x " + std::to_string(s.planeResolution) +
-                   " points x " + std::to_string(s.planeFeatures) + " features" + precision(s.planeBytesPerValue));
-  if (s.clusterPlanes)
-    out += row("cl. planes", s.clusterPlanes,
-               withCommas(s.latentRows) + " rows x 3 planes x " + std::to_string(s.clusterPlaneResolution) + " x " +
-                   std::to_string(s.clusterPlaneResolution) + " points x " + std::to_string(s.clusterPlaneFeatures) +
-                   " features" +
-                   (s.clusterPlaneBytesPerValue == 1 ? std::string(": 8-bit codes, a float32 range per row and feature")
-                                                     : precision(s.clusterPlaneBytesPerValue)));
-  out += row("latents", s.latents,
-             withCommas(s.latentRows) + " x " + std::to_string(s.latentDim) + precision(s.latentBytesPerValue));
-  if (s.idWidth && s.idsZstd) {
-    char note[160];
-    std::snprintf(note, sizeof note, "%s texels x %d byte%s, zstd-coded (%.2f bits per texel)",
-                  withCommas(s.texels).c_str(), s.idWidth, s.idWidth > 1 ? "s" : "",
-                  s.texels ? 8.0 * s.ids / s.texels : 0.0);
-    out += row("id list", s.ids, note);
-  } else if (s.idWidth) {
-    out += row("id list", s.ids,
-               withCommas(s.texels) + " texels x " + std::to_string(s.idWidth) + " byte" +
-                   (s.idWidth > 1 ? "s" : "") + " (smallest width that fits k; the paper used 4)");
-  } else {
-    out += row("id list", 0, "none (per-texel: one latent per texel)");
-  }
-  if (s.modulationTerms) {
-    char note[200];
-    const int columns = s.modulationTerms * s.modulationChannels;
-    std::snprintf(note, sizeof note, "%s texels x %d coefficient%s%s x %d-bit codes, %.2f bits per texel as stored",
-                  withCommas(s.texels).c_str(), columns, columns > 1 ? "s" : "",
-                  s.modulationDecorrelated ? " (per RGB channel, decorrelated)"
-                  : s.modulationChannels > 1 ? " (per RGB channel)" : "",
-                  s.modulationBits,
-                  s.texels ? 8.0 * s.modulation / s.texels : 0.0);
-    out += row("per-texel", s.modulation, note);
-  }
-  out += row("total", s.total,
-             std::string(s.planes ? "decoder + planes" : "decoder") + (s.clusterPlanes ? " + cluster planes" : "") +
-                 " + latents + id list" +
-                 (s.modulationTerms ? " + per-texel" : ""));
-  out += rawAndRatio();
-  char ratio[160];
+  out += row("total", s.total, sum);
+  out += row("raw float32", s.rawFloat32,
+             groupedDigits(s.texels) + " texels x " + groupedDigits(s.images) + " images x 3 x 4 bytes");
+  char line[160];
+  std::snprintf(line, sizeof line, "  %-12s 1 : %.1f (raw float32 / total)\n", "ratio", s.ratio);
+  out += line;
   if (s.idWidth && s.totalPaper != s.total) {
-    std::snprintf(ratio, sizeof ratio, "  %-12s total %s, 1 : %.1f (stored the paper's way: float32, 4-byte ids)\n",
+    std::snprintf(line, sizeof line, "  %-12s total %s, 1 : %.1f (stored the paper's way: float32, 4-byte ids)\n",
                   "paper-style", kib(s.totalPaper).c_str(), s.ratioPaper);
-    out += ratio;
+    out += line;
   }
-  if (s.fileBytes)
-    out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
+  if (s.fileBytes) out += row("file", s.fileBytes, "actual .nbtf size (adds directions, header, metadata, checksums)");
   return out;
 }
 

@@ -50,9 +50,10 @@ json blurJson(const BlurEstimate& b) {
 
 }  // namespace
 
-json reportJson(const EvalResult& r) {
-  const int nv = static_cast<int>(r.views.size());
-  json j;
+namespace {
+
+// What was compared: the method, the reference, the material and the spaces of every number.
+void addContext(const EvalResult& r, json& j) {
   j["format"] = "nbtf-eval-report";
   j["version"] = 1;
   j["method"] = r.method;
@@ -84,8 +85,10 @@ json reportJson(const EvalResult& r) {
       {"bytes", "bytes"},
       {"ratio", "raw float32 bytes / total bytes"},
   };
+}
 
-  // ---- Headline metrics
+// The headline metrics: RMSE and PSNR, on training and held-out images, against the reference and the ground truth.
+void addHeadline(const EvalResult& r, json& j) {
   j["values"] = r.all.count;
   j["rmse"] = r.all.rmse;
   j["rmse_srgb8"] = r.all.rmseSrgb8;
@@ -110,8 +113,10 @@ json reportJson(const EvalResult& r) {
   j["mean_brightness_error_magnification"] = r.meanMapMagnification;
   j["floor_rmse"] = r.floorRmse >= 0 ? json(r.floorRmse) : json(nullptr);
   j["floor_rmse_modulated"] = r.floorRmseModulated >= 0 ? json(r.floorRmseModulated) : json(nullptr);
+}
 
-  // ---- Sizes (Table 1)
+// The Table-1 sizes and the ratio (null when the file's size is not known).
+void addSizes(const EvalResult& r, json& j) {
   if (r.sizes.known()) {
     if (r.sizes.pca)
       j["bytes"] = {{"raw_float32", r.sizes.rawFloat32},
@@ -137,8 +142,11 @@ json reportJson(const EvalResult& r) {
     j["bytes"] = nullptr;
     j["ratio"] = nullptr;
   }
+}
 
-  // ---- Error by direction
+// The error by light and view elevation and per image, the worst pair, the directions.
+void addErrorByDirection(const EvalResult& r, json& j) {
+  const int nv = static_cast<int>(r.views.size());
   j["by_light_elevation"] = elevationJson(r.byLightElevation);
   j["by_view_elevation"] = elevationJson(r.byViewElevation);
   ErrorSummary worst = r.table.image(r.worstImage);
@@ -158,8 +166,10 @@ json reportJson(const EvalResult& r) {
   for (const auto& d : r.lights) j["lights"].push_back(directionJson(d));
   j["views"] = json::array();
   for (const auto& d : r.views) j["views"].push_back(directionJson(d));
+}
 
-  // ---- Comparisons
+// The comparison images: requested and chosen pairs, their errors and figures.
+void addComparisons(const EvalResult& r, json& j) {
   json comps = json::array();
   for (std::size_t i = 0; i < r.comparisons.size(); ++i) {
     const auto& c = r.comparisons[i];
@@ -181,8 +191,10 @@ json reportJson(const EvalResult& r) {
                      {"figure", comparisonFile(i)}});
   }
   j["comparisons"] = comps;
+}
 
-  // ---- Effective blur
+// The effective blur: per estimated image and the median.
+void addBlur(const EvalResult& r, json& j) {
   json samples = json::array();
   for (const auto& s : r.blurSamples) {
     json b = blurJson(s.estimate);
@@ -199,7 +211,10 @@ json reportJson(const EvalResult& r) {
                {"optimizer", "Adam (beta1 0.9, beta2 0.999)"},
                {"learning_rate", r.blurOptions.learningRate},
                {"max_iterations", r.blurOptions.maxIterations}};
+}
 
+// The figures' files, the cluster map's generations and the render comparison.
+void addFigures(const EvalResult& r, json& j) {
   j["figures"] = {{"heat_map", kHeatMapFile}, {"elevation", kElevationFile}, {"mean_brightness", kMeanMapFile}};
   if (!r.clusterMapFigure.rgb.empty()) {
     j["figures"]["cluster_map"] = kClusterMapFile;
@@ -225,6 +240,19 @@ json reportJson(const EvalResult& r) {
   } else {
     j["render_comparison"] = nullptr;
   }
+}
+
+}  // namespace
+
+json reportJson(const EvalResult& r) {
+  json j;
+  addContext(r, j);
+  addHeadline(r, j);
+  addSizes(r, j);
+  addErrorByDirection(r, j);
+  addComparisons(r, j);
+  addBlur(r, j);
+  addFigures(r, j);
   j["seconds"] = r.seconds;
   return j;
 }

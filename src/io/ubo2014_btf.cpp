@@ -658,6 +658,8 @@ Ubo2014Btf readFmfBody(ByteReader& r, Ubo2014Meta m, std::uint64_t pairs, std::u
 
 }  // namespace
 
+// One piece: a sequential parse in the order of Bonn's reader (docs/ubo2014.md cites it field by
+// field), so that each check sits where that reader reads the field.
 Ubo2014Btf Ubo2014Btf::read(const std::string& path) {
   ByteReader r = ByteReader::openFile(path, "UBO BTF file");
   // Signature (ubo_btf_signatures.m; read_ubo_dfmf.m seeks past it).

@@ -28,21 +28,11 @@ bool hasClusterParts(const CompressStats& s) { return s.clusters > 0 && s.adapti
 bool hasTrainParts(const CompressStats& s) {
   return s.method != CodecMethod::Pca && s.adaptiveStages.empty() && s.steps > 0;
 }
-}  // namespace
 
-std::string formatCompressSummary(const CompressStats& s) {
+// "error: ...": the RMSE on training and held-out images, the floors and the split of the MSE.
+std::string errorLines(const CompressStats& s) {
   std::string out;
   char line[256];
-  std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
-                          : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
-                                                         : "";
-  if (s.clustersConfigured > 0)
-    parameter += ": the config's " + std::to_string(s.clustersConfigured) + " capped to one cluster per " +
-                 std::to_string(kTexelsPerDefaultCluster) + " of the " + std::to_string(s.texels) + " texels";
-  std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
-                parameter.c_str());
-  out += line;
-  out += formatSizeTable(s.sizes);
   std::snprintf(line, sizeof line,
                 "error: RMSE of eq. (10) over texels x images x RGB, on linear RGB / alpha (alpha = %.6g)\n",
                 s.alpha);
@@ -84,21 +74,33 @@ std::string formatCompressSummary(const CompressStats& s) {
                   100 * std::max(0.0, 1 - floor * floor / (s.rmseTrain * s.rmseTrain)));
     out += line;
   }
-  if (!s.adaptiveStages.empty()) {
-    std::snprintf(line, sizeof line, "adaptive: %zu stages, k %d -> %d (%s)\n", s.adaptiveStages.size(),
-                  s.adaptiveStages.front().clusters, s.clusters, s.adaptiveStopReason.c_str());
+  return out;
+}
+
+// "adaptive: ...": one line per stage.
+std::string adaptiveLines(const CompressStats& s) {
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof line, "adaptive: %zu stages, k %d -> %d (%s)\n", s.adaptiveStages.size(),
+                s.adaptiveStages.front().clusters, s.clusters, s.adaptiveStopReason.c_str());
+  out += line;
+  out += "  stage      k      steps  rmse (train)        bytes  then: merges pruned splits\n";
+  for (std::size_t i = 0; i < s.adaptiveStages.size(); ++i) {
+    const AdaptiveStage& st = s.adaptiveStages[i];
+    std::snprintf(line, sizeof line, "  %5zu %6d %10lld  %12.6f %12llu  %6d %6d %6d\n", i + 1, st.clusters,
+                  static_cast<long long>(st.steps), st.rmseTrain, static_cast<unsigned long long>(st.bytes),
+                  st.merges, st.pruned, st.splits);
     out += line;
-    out += "  stage      k      steps  rmse (train)        bytes  then: merges pruned splits\n";
-    for (std::size_t i = 0; i < s.adaptiveStages.size(); ++i) {
-      const AdaptiveStage& st = s.adaptiveStages[i];
-      std::snprintf(line, sizeof line, "  %5zu %6d %10lld  %12.6f %12llu  %6d %6d %6d\n", i + 1, st.clusters,
-                    static_cast<long long>(st.steps), st.rmseTrain, static_cast<unsigned long long>(st.bytes),
-                    st.merges, st.pruned, st.splits);
-      out += line;
-    }
   }
+  return out;
+}
+
+// Training's figures and the time per stage (and its parts), then the memory line.
+std::string timeLines(const CompressStats& s) {
+  std::string out;
+  char line[256];
   const StageSeconds& t = s.seconds;
-  if (pca) {
+  if (s.method == CodecMethod::Pca) {
     std::snprintf(line, sizeof line,
                   "pca: %d components explain %.2f%% of the variance of the fitted ABRDFs (linear RGB / alpha)\n",
                   s.pcaComponents, 100 * s.pcaExplainedVarianceRatio);
@@ -144,6 +146,25 @@ std::string formatCompressSummary(const CompressStats& s) {
   }
   out += formatMemoryLine(s);
   return out;
+}
+
+}  // namespace
+
+std::string formatCompressSummary(const CompressStats& s) {
+  std::string out;
+  char line[256];
+  std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
+                          : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
+                                                         : "";
+  if (s.clustersConfigured > 0)
+    parameter += ": the config's " + std::to_string(s.clustersConfigured) + " capped to one cluster per " +
+                 std::to_string(kTexelsPerDefaultCluster) + " of the " + std::to_string(s.texels) + " texels";
+  std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
+                parameter.c_str());
+  out += line;
+  out += formatSizeTable(s.sizes);
+  if (s.adaptiveStages.empty()) return out + errorLines(s) + timeLines(s);
+  return out + errorLines(s) + adaptiveLines(s) + timeLines(s);
 }
 
 std::string compressStatsJson(const CompressStats& s) {

@@ -205,9 +205,8 @@ void addPlanesCost(int features, ShaderCost& c) {
 
 // ---- The neural decoder -------------------------------------------------------------------
 
-void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& out) {
-  ShaderDecoderDescription& d = out.description;
-  const std::string& name = out.name;
+// The description of a neural material's shader: encoding, planes, latents, id map, modulation.
+void describeNeural(const CompressedBtf& m, const std::string& name, ShaderDecoderDescription& d) {
   if (!isDirectionEncoding(static_cast<int>(m.directionEncoding)))
     throw Error(name + ": direction encoding code " + std::to_string(static_cast<int>(m.directionEncoding)) +
                 " has no GLSL form in this build");
@@ -225,10 +224,12 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
   if (d.idMap && m.latentRows > (1 << 24))
     throw Error(name + ": " + std::to_string(m.latentRows) +
                 " clusters: the shader's id map holds ids as float32 (exact up to 2^24)");
+}
 
-  // Layers, in groups of 4 output rows: the rows' weights (each padded to whole vec4s; rows past
-  // `out` are zero), then the group's 4 biases. In the weights texture one after the other; in
-  // uniform blocks packed greedily, a group never split across two blocks.
+// The layers, in groups of 4 output rows: the rows' weights (each padded to whole vec4s; rows past
+// `out` are zero), then the group's 4 biases. Every group's vec4s, layer by layer; d.layers filled.
+std::vector<std::vector<float>> layerGroups(const CompressedBtf& m, const std::string& name,
+                                            ShaderDecoderDescription& d) {
   std::vector<std::vector<float>> groups;  // every group's vec4s, layer by layer
   for (std::size_t li = 0; li < m.decoder.layers.size(); ++li) {
     const DenseLayer& l = m.decoder.layers[li];
@@ -253,6 +254,14 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     }
     d.layers.push_back(s);
   }
+  return groups;
+}
+
+// The groups in the weights texture one after the other, or in uniform blocks packed greedily, a
+// group never split across two blocks; each layer's segments say where its groups are.
+void placeWeights(const std::vector<std::vector<float>>& groups, ShaderWeights weights, ShaderDecoder& out) {
+  ShaderDecoderDescription& d = out.description;
+  const std::string& name = out.name;
   std::size_t totalVec4s = 0;
   for (const auto& g : groups) totalVec4s += g.size() / 4;
   // Blocks the greedy packing needs.
@@ -299,6 +308,12 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     if (d.weightsInUniformBlocks) closeBlock();
     else out.textures.push_back(makeTexture(name, "nbtf_weights", "decoder weights and biases", flat));
   }
+}
+
+// The latents, the id map, the modulation coefficients and the planes as textures.
+void addNeuralTextures(const CompressedBtf& m, ShaderDecoder& out) {
+  const ShaderDecoderDescription& d = out.description;
+  const std::string& name = out.name;
   const int z4 = vec4sOf(m.latentDim);
   out.textures.push_back(makeTexture(name, "nbtf_latents",
                                      "latents (" + std::to_string(m.latentRows) + " rows x " + std::to_string(z4) + " vec4)",
@@ -330,8 +345,14 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
                                            " latent rows x [plane][y][x], " + std::to_string(g4) + " vec4 per point)",
                                        paddedRows(m.clusterPlanes.values.data(), m.clusterPlanes.rows * clusterPoints,
                                                   d.clusterPlaneFeatures, g4)));
+}
 
-  // ---- GLSL
+// Layer 0's input: the latent of the texel's row, then the direction inputs and the planes' features.
+std::string neuralInputGlsl(const CompressedBtf& m, const ShaderDecoder& out) {
+  const ShaderDecoderDescription& d = out.description;
+  const std::string& name = out.name;
+  const int z4 = vec4sOf(m.latentDim), g4 = vec4sOf(d.clusterPlaneFeatures);
+  const std::size_t clusterPoints = static_cast<std::size_t>(3) * d.clusterPlaneResolution * d.clusterPlaneResolution;
   std::ostringstream s;
   s << fetchFunctions(out.textures);
   for (const ShaderUniformBlock& b : out.uniformBlocks)
@@ -365,7 +386,15 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     s << planesGlsl("Cluster planes (the row's own)", d.clusterPlaneResolution, d.clusterPlaneFeatures,
                     m.latentDim + d.encodingInputs + 3 * d.planeFeatures, "nbtf_cluster_planes_at",
                     "row * " + std::to_string(clusterPoints * g4));
-  // Dense layers: four output rows per step, a vec4 of inputs per read.
+  return s.str();
+}
+
+// The dense layers: four output rows per step, a vec4 of inputs per read; the last one's output
+// array is h<L-1>.
+std::string denseLayersGlsl(const ShaderDecoder& out) {
+  const ShaderDecoderDescription& d = out.description;
+  const std::string& name = out.name;
+  std::ostringstream s;
   std::string input = "a";
   for (std::size_t li = 0; li < d.layers.size(); ++li) {
     const ShaderLayer& l = d.layers[li];
@@ -395,7 +424,15 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     }
     input = outName;
   }
-  // Output: RGB, or R RGB terms mixed by the texel's coefficients (codec/texel_modulation.h).
+  return s.str();
+}
+
+// RGB from the last layer, or R RGB terms mixed by the texel's coefficients
+// (codec/texel_modulation.h), x alpha.
+std::string neuralOutputGlsl(const CompressedBtf& m, const ShaderDecoderDescription& d) {
+  const std::string input = "h" + std::to_string(d.layers.size() - 1);
+  const int e4 = vec4sOf(d.modulationTerms * d.modulationChannels);
+  std::ostringstream s;
   if (d.modulationTerms == 0) {
     s << "  vec3 rgb = vec3(" << comp(input, 0) << ", " << comp(input, 1) << ", " << comp(input, 2) << ");\n";
   } else {
@@ -412,9 +449,13 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     }
   }
   s << "  return rgb * " << lit(m.alpha) << ";  // x alpha: linear RGB\n}\n";
-  out.glsl = s.str();
+  return s.str();
+}
 
-  // ---- Cost per pixel (see ShaderCost)
+// Cost per pixel (see ShaderCost).
+void addNeuralCost(const CompressedBtf& m, ShaderDecoder& out) {
+  const ShaderDecoderDescription& d = out.description;
+  const int z4 = vec4sOf(m.latentDim), e4 = vec4sOf(d.modulationTerms * d.modulationChannels);
   ShaderCost& c = out.cost;
   c.textureFetches = z4 + (d.idMap ? 1 : 0);
   c.otherOps = 8 + 6;  // texel index; stereographic pair
@@ -439,6 +480,14 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
     c.multiplyAdds += 3.0 * d.modulationTerms;
   }
   c.multiplyAdds += 3;  // alpha
+}
+
+void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& out) {
+  describeNeural(m, out.name, out.description);
+  placeWeights(layerGroups(m, out.name, out.description), weights, out);
+  addNeuralTextures(m, out);
+  out.glsl = neuralInputGlsl(m, out) + denseLayersGlsl(out) + neuralOutputGlsl(m, out.description);
+  addNeuralCost(m, out);
 }
 
 // ---- The PCA baseline ---------------------------------------------------------------------

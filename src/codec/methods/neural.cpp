@@ -7,6 +7,7 @@
 #include "codec/texel_modulation.h"
 #include "util/error.h"
 #include "util/half.h"
+#include "util/printable.h"
 
 namespace nbtf {
 namespace {
@@ -120,11 +121,7 @@ std::string decoderDescription(const Mlp& mlp) {
   for (const auto& l : mlp.layers) s += " -> " + std::to_string(l.out) + " (" + activationName(l.activation) + ")";
   std::size_t params = 0;
   for (const auto& l : mlp.layers) params += l.parameterCount();
-  const std::string digits = std::to_string(params);
-  std::string grouped;
-  for (std::size_t i = 0; i < digits.size(); ++i)
-    grouped += (i && (digits.size() - i) % 3 == 0 ? "," : "") + std::string(1, digits[i]);
-  return s + ", " + grouped + " parameters";
+  return s + ", " + groupedDigits(params) + " parameters";
 }
 
 // "each latent row's own planes over light, view and half vector, 8 x 8 points x 4 features
