@@ -122,6 +122,81 @@ void checkDecodeMemory(int width, int height) {
 }
 }  // namespace
 
+namespace {
+// What every image of a decode shares: the decoder, the images' shape and format, the writers.
+struct ImageSink {
+  const NbtfDecoder& decoder;
+  const DecodeStackResult& r;
+  const DecodeStackOptions& options;
+  ExrColorSpace space;
+  WriterPool& writers;
+  Progress& progress;
+  std::atomic<std::uint64_t>& clamped;
+};
+
+// One image: decoded at (l, v), encoded for its format and handed to the writers.
+void decodeAndSubmit(const ImageSink& sink, const DirectionChoice& l, const DirectionChoice& v, std::string path) {
+  const NbtfDecoder& decoder = sink.decoder;
+  const DecodeStackResult& r = sink.r;
+  WriterPool& writers = sink.writers;
+  // The writers run after this returns: what they use is captured by value, the progress bar
+  // (the caller's) by reference.
+  const int width = r.width, height = r.height, quality = sink.options.jpegQuality;
+  const ImageFormat format = r.format;
+  const ExrColorSpace space = sink.space;
+  const bool exr = r.format == ImageFormat::Exr;
+  const Srgb8Encoder& encode = srgb8Encoder();
+  const std::size_t values = 3 * static_cast<std::size_t>(r.width) * r.height;
+  std::vector<float> rows;
+  std::uint64_t neg = 0;
+  if (decoder.modulated()) {
+    // Every texel has its own value: decode the image, then encode texel by texel.
+    std::vector<float> linear;
+    decodeCheckedImage(decoder, l, v, r.width, r.height, linear, neg, exr ? kHalfMax : INFINITY);
+    sink.clamped += neg;
+    if (exr) {
+      writers.submit([width, height, space, &progress = sink.progress,
+                      path = std::move(path), image = std::move(linear)] {
+        writeExr(path, width, height, image.data(), true, space);
+        progress.advance();
+      });
+    } else {
+      Image8 image;
+      image.width = r.width, image.height = r.height;
+      image.rgb.resize(values);
+      for (std::size_t j = 0; j < values; ++j) image.rgb[j] = encode(linear[j]);
+      writers.submit([format, quality, &progress = sink.progress, path = std::move(path), image = std::move(image)] {
+        writeImage8(path, format, image, quality);
+        progress.advance();
+      });
+    }
+    return;
+  }
+  decodeCheckedRows(decoder, l, v, rows, neg, exr ? kHalfMax : INFINITY);
+  sink.clamped += neg;
+  if (exr) {
+    std::vector<float> image(values);
+    scatterRows(decoder, rows.data(), r.width, r.height, image.data());
+    writers.submit([width, height, space, &progress = sink.progress,
+                    path = std::move(path), image = std::move(image)] {
+      writeExr(path, width, height, image.data(), true, space);
+      progress.advance();
+    });
+  } else {
+    std::vector<std::uint8_t> rowBytes(rows.size());
+    for (std::size_t j = 0; j < rows.size(); ++j) rowBytes[j] = encode(rows[j]);
+    Image8 image;
+    image.width = r.width, image.height = r.height;
+    image.rgb.resize(values);
+    scatterRows(decoder, rowBytes.data(), r.width, r.height, image.rgb.data());
+    writers.submit([format, quality, &progress = sink.progress, path = std::move(path), image = std::move(image)] {
+      writeImage8(path, format, image, quality);
+      progress.advance();
+    });
+  }
+}
+}  // namespace
+
 DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::string& folder,
                                     const DecodeStackOptions& options) {
   DecodeStackResult r;
@@ -173,63 +248,15 @@ DecodeStackResult writeDecodedStack(const NbtfDecoder& decoder, const std::strin
   const ExrColorSpace space = r.layout == Layout::Utia ? ExrColorSpace::CieXyz : ExrColorSpace::LinearSrgb;
   std::atomic<std::uint64_t> clamped{0};
   Progress progress("decode", static_cast<std::size_t>(r.images), options.progress);
-  const Srgb8Encoder& encode = srgb8Encoder();
-  const std::size_t values = 3 * static_cast<std::size_t>(r.width) * r.height;
-  const std::size_t imageBytes = values * (exr ? sizeof(float) : 1);
+  const std::size_t imageBytes = 3 * static_cast<std::size_t>(r.width) * r.height * (exr ? sizeof(float) : 1);
   WriterPool writers(kWriterThreads, kQueuedBytes / std::max<std::size_t>(1, imageBytes));
+  const ImageSink sink{decoder, r, options, space, writers, progress, clamped};
   const auto stopped = [&] { return options.stopFlag && options.stopFlag->load(); };
   std::atomic<int> started{0};
   parallelForDynamic(static_cast<std::size_t>(r.images), [&](std::size_t i, int) {
     if (stopped()) return;
     ++started;
-    const DirectionChoice& l = lights[i / r.views];
-    const DirectionChoice& v = views[i % r.views];
-    std::vector<float> rows;
-    std::uint64_t neg = 0;
-    std::string path = pathOf(static_cast<int>(i));
-    if (decoder.modulated()) {
-      // Every texel has its own value: decode the image, then encode texel by texel.
-      std::vector<float> linear;
-      decodeCheckedImage(decoder, l, v, r.width, r.height, linear, neg, exr ? kHalfMax : INFINITY);
-      clamped += neg;
-      if (exr) {
-        writers.submit([&, path = std::move(path), image = std::move(linear)] {
-          writeExr(path, r.width, r.height, image.data(), true, space);
-          progress.advance();
-        });
-      } else {
-        Image8 image;
-        image.width = r.width, image.height = r.height;
-        image.rgb.resize(values);
-        for (std::size_t j = 0; j < values; ++j) image.rgb[j] = encode(linear[j]);
-        writers.submit([&, path = std::move(path), image = std::move(image)] {
-          writeImage8(path, r.format, image, options.jpegQuality);
-          progress.advance();
-        });
-      }
-      return;
-    }
-    decodeCheckedRows(decoder, l, v, rows, neg, exr ? kHalfMax : INFINITY);
-    clamped += neg;
-    if (exr) {
-      std::vector<float> image(values);
-      scatterRows(decoder, rows.data(), r.width, r.height, image.data());
-      writers.submit([&, path = std::move(path), image = std::move(image)] {
-        writeExr(path, r.width, r.height, image.data(), true, space);
-        progress.advance();
-      });
-    } else {
-      std::vector<std::uint8_t> rowBytes(rows.size());
-      for (std::size_t j = 0; j < rows.size(); ++j) rowBytes[j] = encode(rows[j]);
-      Image8 image;
-      image.width = r.width, image.height = r.height;
-      image.rgb.resize(values);
-      scatterRows(decoder, rowBytes.data(), r.width, r.height, image.rgb.data());
-      writers.submit([&, path = std::move(path), image = std::move(image)] {
-        writeImage8(path, r.format, image, options.jpegQuality);
-        progress.advance();
-      });
-    }
+    decodeAndSubmit(sink, lights[i / r.views], views[i % r.views], pathOf(static_cast<int>(i)));
   });
   writers.finish();
   if (stopped()) {  // the DecodeFolder removes the staging folder on its way out

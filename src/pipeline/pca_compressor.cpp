@@ -80,6 +80,70 @@ int maxPcaComponents(std::int64_t texels, std::int64_t fittedImages) {
   return static_cast<int>(std::min<std::int64_t>({texels, 3 * fittedImages, 1 << 16}));
 }
 
+namespace {
+
+// The material: every image gets a mean and basis row (held-out ones interpolated over the fitted
+// ones), every texel its coefficients.
+CompressedBtf assemblePca(const BtfStack& stack, float alpha, int components, const PcaResult& pca,
+                          const MatrixXfCol& coefficients, const std::vector<int>& fittedImages,
+                          const std::vector<int>& holdout, const std::vector<std::uint8_t>& fitted) {
+  const int texels = stack.numTexels(), images = stack.numImages();
+  CompressedBtf b = compressedFrame(stack, CodecMethod::Pca, alpha);
+  b.latentDim = components;
+  b.latentRows = texels;
+  const std::size_t c = static_cast<std::size_t>(components);
+  b.latents.resize(static_cast<std::size_t>(texels) * c);
+  for (int t2 = 0; t2 < texels; ++t2)
+    for (std::size_t k = 0; k < c; ++k) b.latents[t2 * c + k] = coefficients(t2, static_cast<Eigen::Index>(k));
+  b.pcaMean.assign(3 * static_cast<std::size_t>(images), 0.0f);
+  b.pcaBasis.assign(3 * static_cast<std::size_t>(images) * c, 0.0f);
+  for (std::size_t j = 0; j < fittedImages.size(); ++j)
+    for (int ch = 0; ch < 3; ++ch) {
+      const std::size_t row = 3 * static_cast<std::size_t>(fittedImages[j]) + ch;
+      const Eigen::Index fittedRow = 3 * static_cast<Eigen::Index>(j) + ch;
+      b.pcaMean[row] = pca.mean[fittedRow];
+      for (std::size_t k = 0; k < c; ++k) b.pcaBasis[row * c + k] = pca.basis(fittedRow, static_cast<Eigen::Index>(k));
+    }
+  if (!holdout.empty()) {
+    DirectionInterpolator fittedOnly(stack.lights(), stack.views(), fitted);
+    const int nv = stack.numViews();
+    for (int h : holdout) {
+      const std::size_t row = 3 * static_cast<std::size_t>(h);
+      combinePcaRows(b.pcaMean.data(), b.pcaBasis.data(), components,
+                     fittedOnly.weights(stack.lights()[h / nv], stack.views()[h % nv]), &b.pcaMean[row],
+                     &b.pcaBasis[row * c]);
+    }
+  }
+  b.holdoutImages = holdout;
+  return b;
+}
+
+// Provenance: no timings or paths of this run, so the same seed gives the same bytes.
+std::string pcaMetadataJson(const BtfStack& stack, const CompressOptions& o, const CompressStats& stats,
+                            const PcaOptions& po, std::size_t fittedImages) {
+  const int components = stats.pcaComponents;
+  json meta;
+  meta["method"] = "pca";
+  meta["seed"] = o.train.seed;
+  meta["threads"] = threadCount();
+  meta["source"] = json::parse(sourceMetadataJson(stack));
+  meta["pca"] = {{"components", components},
+                 {"explained_variance_ratio", stats.pcaExplainedVarianceRatio},
+                 {"fitted_images", fittedImages},
+                 {"data", "linear RGB / alpha, mean-centred (no log transform or standardization)"},
+                 {"oversampling", po.oversampling},
+                 {"power_iterations", po.powerIterations},
+                 {"interpolation", "modified Shepard weights over the " + std::to_string(kPcaNeighbours) +
+                                       " nearest measured (light, view) pairs"}};
+  meta["training"] = {{"rmse_train", stats.rmseTrain},
+                      {"rmse_holdout", stats.rmseHoldout < 0 ? json(nullptr) : json(stats.rmseHoldout)},
+                      {"rmse_space", "linear RGB / alpha (eq. 10)"},
+                      {"holdout_fraction", o.train.holdoutFraction}};
+  return meta.dump();
+}
+
+}  // namespace
+
 CompressedBtf compressPcaStack(const BtfStack& stack, const CompressOptions& o, CompressStats& stats) {
   const int texels = stack.numTexels(), images = stack.numImages();
   const int components = o.pcaComponents;
@@ -130,65 +194,19 @@ CompressedBtf compressPcaStack(const BtfStack& stack, const CompressOptions& o, 
   }
   x.resize(0, 0);
 
-  // ---- Assemble: every image gets a mean and basis row; held-out ones are interpolated
-  CompressedBtf b = compressedFrame(stack, CodecMethod::Pca, alpha);
-  b.latentDim = components;
-  b.latentRows = texels;
-  const std::size_t c = static_cast<std::size_t>(components);
-  b.latents.resize(static_cast<std::size_t>(texels) * c);
-  for (int t2 = 0; t2 < texels; ++t2)
-    for (std::size_t k = 0; k < c; ++k) b.latents[t2 * c + k] = coefficients(t2, static_cast<Eigen::Index>(k));
-  b.pcaMean.assign(3 * static_cast<std::size_t>(images), 0.0f);
-  b.pcaBasis.assign(3 * static_cast<std::size_t>(images) * c, 0.0f);
-  for (std::size_t j = 0; j < fittedImages.size(); ++j)
-    for (int ch = 0; ch < 3; ++ch) {
-      const std::size_t row = 3 * static_cast<std::size_t>(fittedImages[j]) + ch;
-      const Eigen::Index fittedRow = 3 * static_cast<Eigen::Index>(j) + ch;
-      b.pcaMean[row] = pca.mean[fittedRow];
-      for (std::size_t k = 0; k < c; ++k) b.pcaBasis[row * c + k] = pca.basis(fittedRow, static_cast<Eigen::Index>(k));
-    }
-  if (!holdout.empty()) {
-    DirectionInterpolator fittedOnly(stack.lights(), stack.views(), fitted);
-    const int nv = stack.numViews();
-    for (int h : holdout) {
-      const std::size_t row = 3 * static_cast<std::size_t>(h);
-      combinePcaRows(b.pcaMean.data(), b.pcaBasis.data(), components,
-                     fittedOnly.weights(stack.lights()[h / nv], stack.views()[h % nv]), &b.pcaMean[row],
-                     &b.pcaBasis[row * c]);
-    }
-  }
-  b.holdoutImages = holdout;
+  // ---- Assemble, then the RMSE of eq. (10) by decoding the result (the stored float32 values,
+  // as eval does)
+  CompressedBtf b = assemblePca(stack, alpha, components, pca, coefficients, fittedImages, holdout, fitted);
   b.storage.metadataZstd = o.train.storage.metadata == "zstd";
   b.storage.directionsZstd = o.train.storage.directions == "zstd";
   stats.holdoutImages = static_cast<int>(holdout.size());
-
-  // ---- RMSE of eq. (10), by decoding the result (the stored float32 values, as eval does)
   std::vector<double> sse = squaredErrorPerImage(b, stack, alpha, o.progress);
   double fitSse = 0, holdoutSse = 0;
   for (int i = 0; i < images; ++i) (fitted[i] ? fitSse : holdoutSse) += sse[static_cast<std::size_t>(i)];
   const double perImage = 3.0 * texels;
   stats.rmseTrain = std::sqrt(fitSse / (perImage * static_cast<double>(fittedImages.size())));
   stats.rmseHoldout = holdout.empty() ? -1 : std::sqrt(holdoutSse / (perImage * static_cast<double>(holdout.size())));
-
-  // ---- Provenance: no timings or paths of this run, so the same seed gives the same bytes
-  json meta;
-  meta["method"] = "pca";
-  meta["seed"] = o.train.seed;
-  meta["threads"] = threadCount();
-  meta["source"] = json::parse(sourceMetadataJson(stack));
-  meta["pca"] = {{"components", components},
-                 {"explained_variance_ratio", stats.pcaExplainedVarianceRatio},
-                 {"fitted_images", fittedImages.size()},
-                 {"data", "linear RGB / alpha, mean-centred (no log transform or standardization)"},
-                 {"oversampling", po.oversampling},
-                 {"power_iterations", po.powerIterations},
-                 {"interpolation", "modified Shepard weights over the " + std::to_string(kPcaNeighbours) +
-                                       " nearest measured (light, view) pairs"}};
-  meta["training"] = {{"rmse_train", stats.rmseTrain},
-                      {"rmse_holdout", stats.rmseHoldout < 0 ? json(nullptr) : json(stats.rmseHoldout)},
-                      {"rmse_space", "linear RGB / alpha (eq. 10)"},
-                      {"holdout_fraction", o.train.holdoutFraction}};
-  b.metadataJson = meta.dump();
+  b.metadataJson = pcaMetadataJson(stack, o, stats, po, fittedImages.size());
   b.validate("compressed result");
   stats.sizes = computeSizes(b);
   stats.seconds.pca = secondsSince(t);
