@@ -4,6 +4,7 @@
 #include <climits>
 #include <cmath>
 
+#include "codec/methods/method.h"
 #include "codec/nbtf_format.h"
 #include "codec/zstd_codec.h"
 #include "util/error.h"
@@ -657,8 +658,12 @@ std::uint64_t pcaCoefficientBytes(const CompressedBtf& b) { return texelCount(b)
 // ---- Which encoding the writer picks
 
 bool always(const CompressedBtf&) { return true; }
-bool neural(const CompressedBtf& b) { return !b.isPca(); }
-bool clustered(const CompressedBtf& b) { return b.method == CodecMethod::ClusteredNeural; }
+// Whether the material's kind stores the part at all (codec/methods/); the storage flags then
+// pick its encoding.
+bool stores(const CompressedBtf& b, Part part) {
+  const MethodKind* kind = findMethodKind(b.method);
+  return kind && kind->need(part) != Need::Forbidden;
+}
 const PartStorage& st(const CompressedBtf& b) { return b.storage; }
 
 std::uint16_t infoMinor(const CompressedBtf& b) {
@@ -673,16 +678,19 @@ std::uint16_t infoMinor(const CompressedBtf& b) {
 // A reader before 1.10 refuses value type 2 by name.
 std::uint16_t clusterPlanesMinor(const CompressedBtf& b) { return b.storage.clusterPlanes8Bit ? 10 : 9; }
 
-bool pca(const CompressedBtf& b) { return b.isPca(); }
-bool float32Decoder(const CompressedBtf& b) { return neural(b) && !st(b).decoderInt8 && !st(b).decoderHalf; }
-bool halfDecoder(const CompressedBtf& b) { return neural(b) && !st(b).decoderInt8 && st(b).decoderHalf; }
-bool int8Decoder(const CompressedBtf& b) { return neural(b) && st(b).decoderInt8; }
+bool pcaMean(const CompressedBtf& b) { return stores(b, Part::PcaMean); }
+bool pcaBasis(const CompressedBtf& b) { return stores(b, Part::PcaBasis); }
+bool pcaCoefficients(const CompressedBtf& b) { return stores(b, Part::PcaCoefficients); }
+bool storesDecoder(const CompressedBtf& b) { return stores(b, Part::Decoder); }
+bool float32Decoder(const CompressedBtf& b) { return storesDecoder(b) && !st(b).decoderInt8 && !st(b).decoderHalf; }
+bool halfDecoder(const CompressedBtf& b) { return storesDecoder(b) && !st(b).decoderInt8 && st(b).decoderHalf; }
+bool int8Decoder(const CompressedBtf& b) { return storesDecoder(b) && st(b).decoderInt8; }
 bool hasPlanes(const CompressedBtf& b) { return !b.planes.empty(); }
 bool hasClusterPlanes(const CompressedBtf& b) { return !b.clusterPlanes.empty(); }
-bool float32Latents(const CompressedBtf& b) { return neural(b) && !st(b).latentsHalf; }
-bool halfLatents(const CompressedBtf& b) { return neural(b) && st(b).latentsHalf; }
-bool rawIds(const CompressedBtf& b) { return clustered(b) && !st(b).idsZstd; }
-bool zstdIds(const CompressedBtf& b) { return clustered(b) && st(b).idsZstd; }
+bool float32Latents(const CompressedBtf& b) { return stores(b, Part::Latents) && !st(b).latentsHalf; }
+bool halfLatents(const CompressedBtf& b) { return stores(b, Part::Latents) && st(b).latentsHalf; }
+bool rawIds(const CompressedBtf& b) { return stores(b, Part::Ids) && !st(b).idsZstd; }
+bool zstdIds(const CompressedBtf& b) { return stores(b, Part::Ids) && st(b).idsZstd; }
 bool sharedModulation(const CompressedBtf& b) { return !b.modulation.empty() && b.modulation.channels == 1; }
 bool perChannelModulation(const CompressedBtf& b) {
   return !b.modulation.empty() && b.modulation.channels != 1 && !b.modulation.decorrelated;
@@ -703,9 +711,9 @@ const std::vector<SectionKind> kSections = {
     {kDirs, "directions", Part::Directions, true, 0, nullptr, rawDirections, writeDirections, parseDirections, nullptr, nullptr},
     {kDirsZstd, "directions, zstd-coded", Part::Directions, true, 4, nullptr, zstdDirections, writeDirections,
      parseDirections, nullptr, nullptr},
-    {tag("PCAM"), "PCA mean", Part::PcaMean, true, 1, nullptr, pca, writePcaMean, parsePcaMean, pcaMeanBytes, nullptr},
-    {tag("PCAB"), "PCA basis", Part::PcaBasis, true, 1, nullptr, pca, writePcaBasis, parsePcaBasis, pcaBasisBytes, nullptr},
-    {tag("PCAC"), "PCA coefficients", Part::PcaCoefficients, true, 1, nullptr, pca, writePcaCoefficients,
+    {tag("PCAM"), "PCA mean", Part::PcaMean, true, 1, nullptr, pcaMean, writePcaMean, parsePcaMean, pcaMeanBytes, nullptr},
+    {tag("PCAB"), "PCA basis", Part::PcaBasis, true, 1, nullptr, pcaBasis, writePcaBasis, parsePcaBasis, pcaBasisBytes, nullptr},
+    {tag("PCAC"), "PCA coefficients", Part::PcaCoefficients, true, 1, nullptr, pcaCoefficients, writePcaCoefficients,
      parsePcaCoefficients, pcaCoefficientBytes, nullptr},
     {kDecoder, "decoder", Part::Decoder, true, 0, nullptr, float32Decoder, writeDecoder, parseDecoder, decoderBytes, decoderPaperBytes},
     {kDecoderHalf, "decoder, half precision", Part::Decoder, true, 2, nullptr, halfDecoder, writeDecoder, parseDecoder,

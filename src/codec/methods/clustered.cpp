@@ -74,9 +74,7 @@ void validateModulation(const CompressedBtf& btf, const std::string& name) {
 
 class ClusteredNeural final : public NeuralKind {
  public:
-  CodecMethod code() const override { return CodecMethod::ClusteredNeural; }
-  const char* name() const override { return "clustered-neural"; }
-  const char* shortName() const override { return "clustered"; }
+  ClusteredNeural() : NeuralKind(CodecMethod::ClusteredNeural, "clustered-neural", "clustered") {}
   // Every Part listed, no default: the compiler names the kinds a new part must be added to.
   Need need(Part part) const override {
     switch (part) {

@@ -28,13 +28,15 @@ class MaterialEvaluator;
 
 class MethodKind {
  public:
+  // `name`: the stored name ("clustered-neural", "per-texel-neural", "pca"); `shortName`: who
+  // needs a part only this kind has, in "required by the X method" ("clustered", "PCA").
+  MethodKind(CodecMethod code, const char* name, const char* shortName)
+      : code_(code), name_(name), shortName_(shortName) {}
   virtual ~MethodKind() = default;
 
-  virtual CodecMethod code() const = 0;
-  // The stored name: "clustered-neural", "per-texel-neural", "pca".
-  virtual const char* name() const = 0;
-  // Who needs a part only this kind has, in "required by the X method": "clustered", "PCA".
-  virtual const char* shortName() const = 0;
+  CodecMethod code() const { return code_; }
+  const char* name() const { return name_; }
+  const char* shortName() const { return shortName_; }
 
   // Which parts this kind stores: required ones a file must hold, forbidden ones it must not.
   virtual format::Need need(format::Part part) const = 0;
@@ -54,6 +56,11 @@ class MethodKind {
   // The evaluator the decoder holds for a validated material.
   virtual std::unique_ptr<detail::MaterialEvaluator> evaluator(const CompressedBtf& btf, DecoderIsa isa,
                                                                const DecoderOptions& options) const = 0;
+
+ private:
+  CodecMethod code_;
+  const char* name_;
+  const char* shortName_;
 };
 
 // The registry: every kind this build knows, in code order.

@@ -19,6 +19,7 @@ std::string planesLabel(const CompressedBtf& btf);
 // The base of the two neural kinds: what they show and how they evaluate is the same.
 class NeuralKind : public MethodKind {
  public:
+  using MethodKind::MethodKind;
   // `nbtf info`'s lines for the neural parts: direction inputs, planes, alpha, decoder,
   // latents, modulation, storage.
   std::vector<std::pair<std::string, std::string>> infoFields(const CompressedBtf& btf) const override;

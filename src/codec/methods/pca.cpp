@@ -151,9 +151,7 @@ class PcaEvaluator final : public detail::MaterialEvaluator {
 
 class Pca final : public MethodKind {
  public:
-  CodecMethod code() const override { return CodecMethod::Pca; }
-  const char* name() const override { return "pca"; }
-  const char* shortName() const override { return "PCA"; }
+  Pca() : MethodKind(CodecMethod::Pca, "pca", "PCA") {}
   // Every Part listed, no default: the compiler names the kinds a new part must be added to.
   Need need(Part part) const override {
     switch (part) {

@@ -11,9 +11,7 @@ using format::Part;
 
 class PerTexelNeural final : public NeuralKind {
  public:
-  CodecMethod code() const override { return CodecMethod::PerTexelNeural; }
-  const char* name() const override { return "per-texel-neural"; }
-  const char* shortName() const override { return "per-texel"; }
+  PerTexelNeural() : NeuralKind(CodecMethod::PerTexelNeural, "per-texel-neural", "per-texel") {}
   // Every Part listed, no default: the compiler names the kinds a new part must be added to.
   Need need(Part part) const override {
     switch (part) {
