@@ -12,8 +12,11 @@
 #include <string>
 #include <vector>
 
+#include <fstream>
+
 #include "io/btf_names.h"
 #include "io/image_io.h"
+#include "util/error.h"
 
 namespace nbtf::test {
 
@@ -35,6 +38,26 @@ class TempDir {
  private:
   std::string path_;
 };
+
+// The message of the nbtf::Error `f` throws, or "(no error)".
+inline std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// A path in the system temp dir ("nbtf_test_" + name), and `text` written there.
+inline std::string tempFilePath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("nbtf_test_" + name)).string();
+}
+inline std::string writeTempText(const std::string& name, const std::string& text) {
+  const std::string path = tempFilePath(name);
+  std::ofstream(path) << text;
+  return path;
+}
 
 // Linear value of texel (x, y), channel c in image (light, view): a smooth, distinct pattern.
 inline float patternValue(int light, int view, int x, int y, int c) {
