@@ -154,8 +154,6 @@ Rgb NbtfDecoder::evaluate(int x, int y, const Direction& light, const Direction&
 }
 
 Rgb NbtfDecoder::evaluateUv(float u, float v, const Direction& light, const Direction& view, OutputScale scale) const {
-  checkHemisphere(light, "light");
-  checkHemisphere(view, "view");
   const int texel = texelOfUv(u, v);
   return evaluate(texel % width(), texel / width(), light, view, scale);
 }

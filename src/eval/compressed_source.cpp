@@ -81,7 +81,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.method = kind.label(btf);
   in.methodParameter = kind.sweepParameter(btf);
   // Modulated files are a curve of their own in sweeps (they are not the paper's model).
-  in.methodFamily = codecMethodName(btf.method) + (btf.modulation.empty() ? "" : "-modulated") +
+  in.methodFamily = std::string(kind.name()) + (btf.modulation.empty() ? "" : "-modulated") +
                     (btf.planes.empty() ? "" : "-planes") + (btf.clusterPlanes.empty() ? "" : "-cluster-planes");
   if (btf.method == CodecMethod::ClusteredNeural) {
     in.clusterIds = btf.ids;
@@ -101,7 +101,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   in.referenceName = referenceName;
   in.compressedName = fileName;
   if (btf.isPca()) {
-    in.details = {{"method", codecMethodName(btf.method)},
+    in.details = {{"method", kind.name()},
                   {"PCA components", std::to_string(btf.latentDim)},
                   {"data", "linear RGB / alpha, mean-centred"},
                   {"unmeasured directions", "mean and basis interpolated over the nearest measured pairs"},
@@ -112,7 +112,7 @@ EvalInputs compressedEvalInputs(const CompressedBtf& btf, const BtfStack& refere
   }
   std::string shape = std::to_string(btf.decoder.inputSize());
   for (const auto& layer : btf.decoder.layers) shape += " -> " + std::to_string(layer.out);
-  in.details = {{"method", codecMethodName(btf.method)},
+  in.details = {{"method", kind.name()},
                 {"latent rows (k or texels)", std::to_string(btf.latentRows)},
                 {"latent dimension", std::to_string(btf.latentDim)},
                 {"decoder", shape + " (" + std::to_string(btf.decoder.parameterCount()) + " parameters)"},

@@ -71,16 +71,11 @@ class PcaEvaluator final : public detail::MaterialEvaluator {
 
   void evaluate(const NbtfDecoder& d, const UvQuery* queries, std::size_t count, float* rgb,
                 OutputScale scale) const override {
-    auto unit = [](const std::array<float, 3>& dir) {
-      std::array<double, 3> u{dir[0], dir[1], dir[2]};
-      double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);  // > 0: checked by the decoder
-      return std::array<double, 3>{u[0] / n, u[1] / n, u[2] / n};
-    };
     evaluateQueries(d, count, rgb, scale, [&](std::size_t i, int& texel, std::array<double, 3>& l, std::array<double, 3>& v) {
       const UvQuery& q = queries[i];
       texel = d.texelOfUv(q.u, q.v);
-      l = unit(q.light);
-      v = unit(q.view);
+      l = unitQueryVector(q.light, "light");  // checked by the decoder: these do not throw
+      v = unitQueryVector(q.view, "view");
     });
   }
 
