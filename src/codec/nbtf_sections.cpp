@@ -6,6 +6,7 @@
 
 #include "codec/methods/method.h"
 #include "codec/nbtf_format.h"
+#include "codec/part_checks.h"
 #include "codec/zstd_codec.h"
 #include "util/error.h"
 #include "util/half.h"
@@ -802,15 +803,15 @@ std::string pcaCoefficientsNote(const CompressedBtf& b) {
 }
 
 const std::vector<PartRow> kPartRows = {
-    {Part::Decoder, "decoder", "decoder", decoderNote, nullptr},
-    {Part::Planes, "planes", "planes", planesNote, nullptr},
-    {Part::ClusterPlanes, "cl. planes", "cluster planes", clusterPlanesNote, nullptr},
-    {Part::Latents, "latents", "latents", latentsNote, nullptr},
-    {Part::Ids, "id list", "id list", idsNote, idsAbsent},
-    {Part::Modulation, "per-texel", "per-texel", modulationNote, nullptr},
-    {Part::PcaMean, "mean", "mean", pcaMeanNote, nullptr},
-    {Part::PcaBasis, "basis", "basis", pcaBasisNote, nullptr},
-    {Part::PcaCoefficients, "coefficients", "coefficients", pcaCoefficientsNote, nullptr},
+    {Part::Decoder, "decoder", "decoder", decoderNote, nullptr, checkDecoderPart},
+    {Part::Planes, "planes", "planes", planesNote, nullptr, checkDirectionPlanesPart},
+    {Part::ClusterPlanes, "cl. planes", "cluster planes", clusterPlanesNote, nullptr, checkClusterPlanesPart},
+    {Part::Latents, "latents", "latents", latentsNote, nullptr, checkLatentsPart},
+    {Part::Ids, "id list", "id list", idsNote, idsAbsent, checkIdsPart},
+    {Part::Modulation, "per-texel", "per-texel", modulationNote, nullptr, checkModulationPart},
+    {Part::PcaMean, "mean", "mean", pcaMeanNote, nullptr, checkPcaMeanPart},
+    {Part::PcaBasis, "basis", "basis", pcaBasisNote, nullptr, checkPcaBasisPart},
+    {Part::PcaCoefficients, "coefficients", "coefficients", pcaCoefficientsNote, nullptr, checkPcaCoefficientsPart},
 };
 
 }  // namespace

@@ -75,15 +75,17 @@ const SectionKind* writtenSection(const CompressedBtf& btf, Part part);
 std::uint64_t tableBytesWritten(const CompressedBtf& btf);
 std::uint64_t paperBytesWritten(const CompressedBtf& btf);
 
-// A part as the size table shows it (formatSizeTable): its name there and in the total's sum,
-// what its bytes are made of (its note), and the row a material without the part still shows
-// (null, or a note returning null: no row). In the table's order (partRows()).
+// A part of a material: how the size table shows it (formatSizeTable: its name there and in
+// the total's sum, what its bytes are made of, the row a material without the part still shows:
+// null, or a note returning null for no row) and its own checks (part_checks.h), which every
+// kind that may store the part runs (checkStoredParts). In the table's order (partRows()).
 struct PartRow {
   Part part;
   const char* name;       // "cl. planes"
   const char* totalName;  // "cluster planes"
   std::string (*note)(const CompressedBtf&);
   const char* (*absent)(const CompressedBtf&);
+  void (*check)(const CompressedBtf&, const std::string& name);
 };
 const std::vector<PartRow>& partRows();
 

@@ -36,6 +36,11 @@ const MethodKind* soleKindRequiring(format::Part part) {
   return sole;
 }
 
+void checkStoredParts(const CompressedBtf& btf, const MethodKind& kind, const std::string& name) {
+  for (const format::PartRow& row : format::partRows())
+    if (row.check && kind.need(row.part) != format::Need::Forbidden) row.check(btf, name);
+}
+
 std::string codecMethodName(CodecMethod m) {
   const MethodKind* kind = findMethodKind(m);
   return kind ? kind->name() : "unknown";

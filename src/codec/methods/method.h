@@ -74,6 +74,10 @@ const MethodKind& methodKind(CodecMethod code, const std::string& name = "compre
 // file lacks it; null when several or none do.
 const MethodKind* soleKindRequiring(format::Part part);
 
+// The own checks of every part `kind` may store (its need is not Forbidden), in the part
+// table's order (format::PartRow::check): what a kind's validate runs between its own checks.
+void checkStoredParts(const CompressedBtf& btf, const MethodKind& kind, const std::string& name);
+
 // The registry's rows (one per kind file).
 const MethodKind& clusteredNeuralMethod();
 const MethodKind& perTexelNeuralMethod();

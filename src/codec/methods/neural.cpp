@@ -19,59 +19,6 @@ using format::kMaxLatentDim;
 using format::kMaxLayerWidth;
 using format::storagePlanesHalf;
 
-// Latent + direction inputs (util/directions.h) in, RGB (x terms) out, shapes chained.
-void checkDecoder(const CompressedBtf& btf, const std::string& name) {
-  auto fail = [&](const std::string& message) { return fileError(name, message); };
-  if (btf.latentDim < 1 || btf.latentDim > int(kMaxLatentDim)) throw fail("latent dimension " + std::to_string(btf.latentDim) + " is out of range");
-  if (btf.decoder.layers.empty()) throw fail("decoder has no layers");
-  for (std::size_t i = 0; i < btf.decoder.layers.size(); ++i) {
-    const DenseLayer& l = btf.decoder.layers[i];
-    std::string which = "decoder layer " + std::to_string(i);
-    if (l.in < 1 || l.out < 1 || l.in > int(kMaxLayerWidth) || l.out > int(kMaxLayerWidth))
-      throw fail(which + " has shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
-    const int directionInputs = btf.directionInputs();
-    int expectedIn = i == 0 ? btf.latentDim + directionInputs : btf.decoder.layers[i - 1].out;
-    if (l.in != expectedIn)
-      throw fail(which + " takes " + std::to_string(l.in) + " inputs, expected " + std::to_string(expectedIn) +
-                 (i == 0 ? " (latent + " + std::to_string(directionInputs) + " direction inputs, " +
-                              directionEncodingName(btf.directionEncoding) +
-                              (btf.planes.empty() ? std::string() : " + direction planes") +
-                              (btf.clusterPlanes.empty() ? std::string() : " + cluster planes") + ")"
-                        : std::string(" (previous layer's outputs)")));
-    if (l.weight.size() != static_cast<std::size_t>(l.in) * l.out || l.bias.size() != static_cast<std::size_t>(l.out))
-      throw fail(which + " has " + std::to_string(l.weight.size()) + " weights and " + std::to_string(l.bias.size()) +
-                 " biases for shape " + std::to_string(l.out) + " x " + std::to_string(l.in));
-    if (l.activation != Activation::None && l.activation != Activation::Relu && l.activation != Activation::Sigmoid)
-      throw fail(which + " has unknown activation code " + std::to_string(static_cast<int>(l.activation)));
-    if (!allFinite(l.weight) || !allFinite(l.bias)) throw fail(which + " has non-finite parameters (NaN or Inf)");
-  }
-  const int terms = btf.modulation.empty() ? 1 : btf.modulation.terms;
-  if (btf.decoder.layers.back().out != 3 * terms)
-    throw fail("decoder outputs " + std::to_string(btf.decoder.layers.back().out) + " values, expected " +
-               (terms == 1 ? std::string("3 (RGB)") : std::to_string(3 * terms) + " (RGB x " + std::to_string(terms) +
-                                                          " per-texel modulation terms)"));
-}
-
-// Direction planes, shared or per latent row: `what` names them in messages.
-void checkPlanes(const std::string& what, int resolution, int features, const std::vector<float>& values,
-                 std::size_t expected, const std::string& name) {
-  auto fail = [&](const std::string& message) { return fileError(name, message); };
-  if (features == 0) {
-    if (!values.empty()) throw fail(what + " plane values without features");
-    return;
-  }
-  if (features < 0 || features > DirectionPlanes::kMaxFeatures || resolution < 2 ||
-      resolution > DirectionPlanes::kMaxResolution)
-    throw fail(what + " planes of " + std::to_string(resolution) + " x " + std::to_string(resolution) +
-               " points x " + std::to_string(features) + " features are out of range (2.." +
-               std::to_string(DirectionPlanes::kMaxResolution) + " points, 1.." +
-               std::to_string(DirectionPlanes::kMaxFeatures) + " features)");
-  if (values.size() != expected)
-    throw fail(what + " planes hold " + std::to_string(values.size()) + " values, expected " +
-               std::to_string(expected));
-  if (!allFinite(values)) throw fail(what + " planes contain non-finite values (NaN or Inf)");
-}
-
 // Stored in half or 8 bits, the values in memory are exactly the stored ones (roundToStorage).
 void checkStorageExact(const CompressedBtf& btf, const std::string& name) {
   auto fail = [&](const std::string& message) { return fileError(name, message); };
@@ -157,20 +104,9 @@ std::vector<std::pair<std::string, std::string>> NeuralKind::infoFields(const Co
 
 void validateNeuralParts(const CompressedBtf& btf, const std::string& name) {
   auto fail = [&](const std::string& message) { return fileError(name, message); };
-  checkDecoder(btf, name);
-  checkPlanes("direction", btf.planes.resolution, btf.planes.features, btf.planes.values, btf.planes.valueCount(), name);
-  if (!btf.clusterPlanes.empty() && btf.clusterPlanes.rows != btf.latentRows)
-    throw fail("cluster planes have " + std::to_string(btf.clusterPlanes.rows) + " rows, expected one per latent row (" +
-               std::to_string(btf.latentRows) + ")");
-  checkPlanes("cluster", btf.clusterPlanes.resolution, btf.clusterPlanes.features, btf.clusterPlanes.values,
-              btf.clusterPlanes.valueCount(), name);
-  if (btf.latentRows < 1) throw fail("no latents");
-  if (btf.latents.size() != static_cast<std::size_t>(btf.latentRows) * btf.latentDim)
-    throw fail("latents hold " + std::to_string(btf.latents.size()) + " values, expected " + std::to_string(btf.latentRows) +
-               " x " + std::to_string(btf.latentDim));
-  if (!allFinite(btf.latents)) throw fail("latents contain non-finite values (NaN or Inf)");
-  if (!btf.pcaMean.empty() || !btf.pcaBasis.empty())
-    throw fail(methodKind(btf.method).name() + std::string(" file has a PCA mean or basis"));
+  const MethodKind& kind = methodKind(btf.method);
+  checkStoredParts(btf, kind, name);
+  if (!btf.pcaMean.empty() || !btf.pcaBasis.empty()) throw fail(kind.name() + std::string(" file has a PCA mean or basis"));
   checkStorageExact(btf, name);
   if (btf.modulation.empty() && !btf.modulation.codes.empty()) throw fail("modulation codes without modulation terms");
 }

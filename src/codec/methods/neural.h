@@ -9,8 +9,9 @@
 
 namespace nbtf {
 
-// The decoder, the direction and cluster planes, the latents, and that the values in memory
-// are the ones their storage holds (roundToStorage). The kind checks its ids and modulation.
+// The checks of every part the kind may store (checkStoredParts: decoder, planes, latents, and
+// the clustered kind's ids and modulation), then that no PCA part is held and that the values
+// in memory are the ones their storage holds (roundToStorage).
 void validateNeuralParts(const CompressedBtf& btf, const std::string& name);
 
 // " + direction planes (9 x 9 x 2) + cluster planes (...)", or "" without planes.

@@ -21,6 +21,8 @@ using format::kMaxPcaComponents;
 using format::Need;
 using format::Part;
 
+// The kind's shape (C components, one coefficient row per texel) before its parts' checks,
+// which size the mean, basis and coefficients by it.
 void validatePca(const CompressedBtf& btf, const std::string& name) {
   auto fail = [&](const std::string& message) { return fileError(name, message); };
   const std::int64_t rows = 3 * static_cast<std::int64_t>(btf.numImages());
@@ -34,19 +36,7 @@ void validatePca(const CompressedBtf& btf, const std::string& name) {
   if (btf.latentRows != texels)
     throw fail("PCA file has " + std::to_string(btf.latentRows) + " coefficient rows for " + std::to_string(texels) +
                " texels");
-  const std::size_t c = static_cast<std::size_t>(btf.latentDim);
-  if (btf.pcaMean.size() != static_cast<std::size_t>(rows))
-    throw fail("PCA mean holds " + std::to_string(btf.pcaMean.size()) + " values, expected 3 x " +
-               std::to_string(btf.numImages()) + " images");
-  if (btf.pcaBasis.size() != static_cast<std::size_t>(rows) * c)
-    throw fail("PCA basis holds " + std::to_string(btf.pcaBasis.size()) + " values, expected " + std::to_string(rows) +
-               " x " + std::to_string(c));
-  if (btf.latents.size() != static_cast<std::size_t>(texels) * c)
-    throw fail("PCA coefficients hold " + std::to_string(btf.latents.size()) + " values, expected " +
-               std::to_string(texels) + " x " + std::to_string(c));
-  if (!allFinite(btf.pcaMean)) throw fail("PCA mean contains non-finite values (NaN or Inf)");
-  if (!allFinite(btf.pcaBasis)) throw fail("PCA basis contains non-finite values (NaN or Inf)");
-  if (!allFinite(btf.latents)) throw fail("PCA coefficients contain non-finite values (NaN or Inf)");
+  checkStoredParts(btf, methodKind(btf.method), name);
 }
 
 // Per (light, view) the mean and basis rows are combined once, then each texel costs 3 dot
