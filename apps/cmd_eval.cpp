@@ -73,6 +73,13 @@ int runEval(const cxxopts::ParseResult& args) {
                 result.holdoutImages.size(), result.training.rmse);
   else
     std::printf("held-out RMSE   none (the file records no held-out images)\n");
+  if (result.hasGroundTruth) {
+    std::printf("vs truth RMSE   %.5f all images", result.groundTruthAll.rmse);
+    if (result.hasHoldout()) std::printf(", %.5f held out", result.groundTruthHoldout.rmse);
+    std::printf(" (linear RGB / alpha, against the float ground truth)\n");
+    std::printf("noise floor     %.5f: the %s stack against the ground truth (%s)\n", result.referenceVsGroundTruth.rmse,
+                result.referenceEncoding.c_str(), result.noiseFloorCause.c_str());
+  }
   std::printf("ratio           1 : %.0f (raw float32 / total)\n", result.sizes.ratio());
   int atBound = 0;
   for (const auto& s : result.blurSamples) atBound += s.estimate.atUpperBound;

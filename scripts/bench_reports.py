@@ -25,3 +25,46 @@ def markdown_table(head, rows):
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+# The error columns every quality benchmark prints: against the stack and against the float
+# ground truth nbtf-synth writes beside it, all images and held-out images.
+TRUTH_HEAD = ["RMSE vs stack", "held-out vs stack", "RMSE vs truth", "held-out vs truth"]
+TRUTH_NOTE = ("RMSE: linear RGB / alpha (eq. 10); vs stack: against the stored 8-bit images; vs truth: against the "
+              "float ground truth nbtf-synth wrote beside them; held-out: the 10% of images kept out of training. The "
+              "stack row is the stack itself against the truth: the noise floor (JPEG: mostly the JPEG's loss; PNG: "
+              "the 8-bit steps). A model closer to the stack than to the truth has learned part of that noise.")
+
+
+def _cell(value):
+    return "-" if value is None else f"{value:.5f}"
+
+
+def truth_cells(report):
+    """The four TRUTH_HEAD cells of one evaluation report."""
+    return [_cell(report.get(k)) for k in ("rmse", "rmse_holdout", "rmse_ground_truth", "rmse_ground_truth_holdout")]
+
+
+def noise_floor_row(preset, report, before, after):
+    """The stack against its ground truth as a table row: preset, run name, `before` empty
+    cells, the four TRUTH_HEAD cells (0 against itself), `after` empty cells."""
+    return ([preset, "stack (noise floor)"] + ["-"] * before +
+            ["0", "0", _cell(report.get("rmse_reference_vs_ground_truth")),
+             _cell(report.get("rmse_reference_vs_ground_truth_holdout"))] + ["-"] * after)
+
+
+def dominance_verdict(ours, rivals, key, low, high):
+    """At every ratio r in [low, high] (the window's ends and every run's ratio inside it), the
+    best of `ours` (label -> (stats, report)) of ratio >= r must be below every rival of ratio in
+    [low, r], on report[key]. Returns the verdict text ending in PASS or FAIL."""
+    def points(runs):
+        return [(s["ratio"], r[key], l) for l, (s, r) in runs.items() if r.get(key) is not None]
+    mine, theirs = points(ours), points(rivals)
+    for ratio in sorted({low, high} | {x for x, *_ in mine + theirs if low <= x <= high}):
+        best = min(((e, l) for x, e, l in mine if x >= ratio), default=None)
+        rival = min(((e, l) for x, e, l in theirs if low <= x <= ratio), default=None)
+        if rival is not None and (best is None or best[0] >= rival[0]):
+            ours_text = "none" if best is None else f"{best[0]:.5f} ({best[1]})"
+            return (f"at 1:{ratio:.0f} nbtf's best point of that size or smaller has {key} {ours_text} against "
+                    f"{rival[1]}'s {rival[0]:.5f} FAIL")
+    return f"at every ratio from 1:{low} to 1:{high} nbtf's best point beats PCA and per-texel at that size or larger ({key}) PASS"

@@ -39,6 +39,23 @@ synth_once() {
   fi
 }
 
+# preset_layout SPEC: "NAME" (the UBO2003 layout, 8-bit JPEG) or "NAME:utia" (the UTIA layout,
+# 8-bit PNG) -> "NAME LAYOUT LABEL", LABEL naming the preset's runs (fabric, fabric_utia).
+preset_layout() {
+  local name=${1%%:*} layout=ubo2003
+  [[ $1 == *:* ]] && layout=${1#*:}
+  case "$layout" in
+    ubo2003) echo "$name ubo2003 $name";;
+    utia) echo "$name utia ${name}_utia";;
+    *) echo "unknown layout '$layout' in preset '$1' (NAME or NAME:utia)" >&2; return 2;;
+  esac
+}
+
+# synth_layout_options LAYOUT: nbtf-synth's options for a layout of preset_layout.
+synth_layout_options() {
+  if [[ $1 == utia ]]; then echo "--layout utia --format png"; else echo "--layout ubo2003"; fi
+}
+
 # bench_banner [TEXT]: the first line of every benchmark's output: cores, date, commit, TEXT.
 bench_banner() {
   echo "== $(nproc) cores, $(date -u '+%Y-%m-%d %H:%M UTC'), commit" \

@@ -14,6 +14,8 @@
 #include "codec_fixtures.h"
 #include "eval/compressed_source.h"
 #include "io/btf_loader.h"
+#include "io/ground_truth.h"
+#include "io/image_io.h"
 #include "test_util.h"
 #include "util/progress.h"
 
@@ -123,6 +125,56 @@ TEST_F(CmdEval, PcaFileGivesAReportWithItsSizeParts) {
   CommandRun s = runNbtf("eval --summarize -o '" + (tmp / "sweep") + "' '" + (tmp / "pout/report.json") + "'", tmp / "log2");
   ASSERT_EQ(s.code, 0) << s.output;
   EXPECT_TRUE(std::filesystem::exists(tmp / "sweep/rd_ref_pca.dat")) << s.output;
+}
+
+// The stack's own distance from the float ground truth (the noise floor) is printed and
+// reported only where a ground truth lies beside the stack.
+TEST_F(CmdEval, ReportsTheNoiseFloorWithAGroundTruthAndOmitsItWithout) {
+  auto evalReport = [&](const std::string& name, CommandRun& run) {
+    run = runNbtf("eval '" + file + "' --reference '" + (tmp / "ref") + "' -o '" + (tmp / name) + "' -q --threads 2",
+                  tmp / (name + ".log"));
+    std::ifstream in(tmp / (name + "/report.json"));
+    return nlohmann::json::parse(in);
+  };
+  CommandRun bare;
+  nlohmann::json without = evalReport("bare", bare);
+  ASSERT_EQ(bare.code, 0) << bare.output;
+  EXPECT_EQ(bare.output.find("noise floor"), std::string::npos) << bare.output;
+  EXPECT_TRUE(without["rmse_reference_vs_ground_truth"].is_null());
+  EXPECT_TRUE(without["noise_floor_cause"].is_null());
+
+  // A ground truth 0.01 above the stack's values everywhere (one float32 EXR per view, the
+  // light images stacked): the floor is 0.01 / alpha, up to the stack's half rounding.
+  const float offset = 0.01f;
+  const int w = btf.sourceWidth, h = btf.sourceHeight, lights = static_cast<int>(btf.lights.size());
+  std::filesystem::create_directories(tmp / ("ref/" + std::string(kGroundTruthFolder)));
+  for (std::size_t v = 0; v < btf.views.size(); ++v) {
+    std::vector<float> rgb(static_cast<std::size_t>(w) * h * lights * 3);
+    for (int l = 0; l < lights; ++l)
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c)
+            rgb[((static_cast<std::size_t>(l) * h + y) * w + x) * 3 + c] = test::patternValue(l, int(v), x, y, c) + offset;
+    writeExr(groundTruthPath(tmp / "ref", btf.views[v]), w, h * lights, rgb.data(), false);
+  }
+  CommandRun truth;
+  nlohmann::json with = evalReport("truth", truth);
+  ASSERT_EQ(truth.code, 0) << truth.output;
+  EXPECT_NE(truth.output.find("noise floor"), std::string::npos) << truth.output;
+  EXPECT_NE(truth.output.find("half float stack"), std::string::npos) << truth.output;
+  EXPECT_NE(truth.output.find("vs truth RMSE"), std::string::npos) << truth.output;
+  const double floor = offset / btf.alpha;
+  EXPECT_NEAR(with["rmse_reference_vs_ground_truth"].get<double>(), floor, 0.05 * floor);
+  EXPECT_NEAR(with["rmse_reference_vs_ground_truth_holdout"].get<double>(), floor, 0.05 * floor);
+  EXPECT_EQ(with["reference_encoding"].get<std::string>(), "half float");
+  EXPECT_EQ(with["noise_floor_cause"].get<std::string>(), "half-precision rounding");
+  EXPECT_FALSE(with["rmse_ground_truth_holdout"].is_null());
+  // The stack-side figures do not change with a ground truth beside it.
+  EXPECT_EQ(with["rmse"].get<double>(), without["rmse"].get<double>());
+  std::ifstream md(tmp / "truth/report.md");
+  std::stringstream text;
+  text << md.rdbuf();
+  EXPECT_NE(text.str().find("Noise floor: the stack (half float)"), std::string::npos);
 }
 
 TEST_F(CmdEval, RejectsAReferenceWithOtherDirections) {

@@ -73,6 +73,10 @@ TEST_F(GroundTruth, EvalMeasuresTheReconstructionAndTheStoredStackAgainstIt) {
   EXPECT_GT(r.groundTruthHoldout.rmse, 0.0);
   EXPECT_EQ(r.referenceVsGroundTruth.rmse, r.groundTruthAll.rmse);
   EXPECT_EQ(r.referenceVsGroundTruth.count, r.all.count);
+  EXPECT_EQ(r.referenceVsGroundTruthHoldout.rmse, r.groundTruthHoldout.rmse);
+  // UTIA PNGs are lossless: their floor is the 8-bit steps alone.
+  EXPECT_EQ(r.referenceEncoding, "8-bit sRGB");
+  EXPECT_NE(r.noiseFloorCause.find("8-bit steps"), std::string::npos);
   // 8-bit sRGB PNGs: the quantization stays below half a code step of the brightest values.
   EXPECT_LT(r.groundTruthAll.rmseSrgb8, 0.5);
 }

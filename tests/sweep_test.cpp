@@ -110,6 +110,34 @@ TEST(Sweep, PcaIsTheFirstCurveLabelledByComponents) {
   (void)f;
 }
 
+// With a ground truth beside the stacks the sweep adds its tables and a plot against it, with
+// the noise floor; reports without one (older or real captures) keep the stack's alone.
+TEST(Sweep, AGroundTruthAddsItsTablesAndPlotWithTheNoiseFloor) {
+  json j = {{"material", {{"name", "fabric"}}}, {"method", "pca"}, {"method_family", "pca"}, {"method_parameter", 8},
+            {"ratio", 800}, {"rmse", 0.03}, {"rmse_srgb8", 5.5}, {"rmse_holdout", 0.031}, {"blur_sigma", 0.8},
+            {"rmse_ground_truth", 0.032}, {"rmse_ground_truth_holdout", 0.033}, {"rmse_reference_vs_ground_truth", 0.0186}};
+  SweepEntry withTruth = sweepEntryFromReport(j, "r.json");
+  EXPECT_EQ(withTruth.rmseGroundTruth, 0.032);
+  EXPECT_EQ(withTruth.rmseGroundTruthHoldout, 0.033);
+  EXPECT_EQ(withTruth.noiseFloor, 0.0186);
+  for (const char* key : {"rmse_ground_truth", "rmse_ground_truth_holdout", "rmse_reference_vs_ground_truth"}) j.erase(key);
+  EXPECT_TRUE(std::isnan(sweepEntryFromReport(j, "r.json").rmseGroundTruth));
+
+  std::vector<SweepEntry> entries = sample();
+  EXPECT_EQ(sweepTablesMarkdown(entries).find("ground truth"), std::string::npos);
+  withTruth.material = "WOOL";
+  entries.push_back(withTruth);
+  const std::string md = sweepTablesMarkdown(entries);
+  EXPECT_NE(md.find("### RMSE against the ground truth, all images"), std::string::npos) << md;
+  EXPECT_NE(md.find("### Noise floor"), std::string::npos) << md;
+  EXPECT_NE(md.find("0.0186"), std::string::npos) << md;
+  test::TempDir tmp;
+  SweepFiles files = writeSweepSummary(entries, tmp / "sweep");
+  EXPECT_TRUE(std::filesystem::exists(tmp / "sweep/rd_WOOL_truth.png"));
+  EXPECT_FALSE(std::filesystem::exists(tmp / "sweep/rd_fabric02_truth.png"));
+  EXPECT_EQ(files.plots.size(), 3u);
+}
+
 TEST(Sweep, OddMaterialNamesMakePlainFileNames) {
   test::TempDir tmp;
   std::vector<SweepEntry> e = {entry("o'brien wool", "clustered-neural", 500, 5127, 0.03),

@@ -53,6 +53,22 @@ struct GroundTruthTables {
 
 // The result's description of the material and the method, and alpha (the reference's
 // maximum unless given).
+// What the reference's values went through on their way to disk, and so what its distance
+// from the float ground truth is made of. The UBO2003 layout is JPEG (FORMATS.md); 8-bit
+// images in the other layouts are taken as lossless (UTIA's PNG).
+void describeEncoding(const BtfStack& ref, EvalResult& r) {
+  if (ref.sampleType() != SampleType::Srgb8) {
+    r.referenceEncoding = "half float";
+    r.noiseFloorCause = "half-precision rounding";
+  } else if (ref.layout == Layout::Ubo2003) {
+    r.referenceEncoding = "8-bit sRGB JPEG";
+    r.noiseFloorCause = "mostly the JPEG's loss, then the 8-bit steps";
+  } else {
+    r.referenceEncoding = "8-bit sRGB";
+    r.noiseFloorCause = "the 8-bit steps (and the images' compression, if lossy)";
+  }
+}
+
 EvalResult describe(const EvalInputs& in, const EvalOptions& options) {
   const BtfStack& ref = *in.reference;
   EvalResult r;
@@ -63,6 +79,7 @@ EvalResult describe(const EvalInputs& in, const EvalOptions& options) {
   r.width = ref.width(), r.height = ref.height();
   r.lights = ref.lights(), r.views = ref.views();
   r.sizes = in.sizes;
+  describeEncoding(ref, r);
   r.blurOptions = options.blur;
   checkHoldoutImages(in.holdoutImages, ref.numImages());
   r.holdoutImages = in.holdoutImages;
@@ -310,6 +327,7 @@ EvalResult evaluate(const EvalInputs& in, const EvalOptions& options) {
     r.groundTruthTraining = r.hasHoldout() ? truth.reconstruction.subset(r.holdoutImages, true) : r.groundTruthAll;
     if (r.hasHoldout()) r.groundTruthHoldout = truth.reconstruction.subset(r.holdoutImages, false);
     r.referenceVsGroundTruth = truth.reference.all();
+    if (r.hasHoldout()) r.referenceVsGroundTruthHoldout = truth.reference.subset(r.holdoutImages, false);
   }
   addWorstComparison(in, r, kept);
   blurImages.insert(r.worstImage);

@@ -122,10 +122,16 @@ struct EvalResult {
   ErrorTable table;
   ErrorSummary all, training, holdout;  // training = all when there is no hold-out set
   // Against the float ground truth (EvalInputs::groundTruth; hasGroundTruth false = none):
-  // the reconstruction's errors, and the stored reference's own (its quantization).
+  // the reconstruction's errors, and the stored reference's own: the noise floor, what the
+  // stack's encoding lost (an 8-bit JPEG stack: mostly the JPEG's loss) and no model fitted to
+  // the stack can tell from the material. A model closer to the stack than this is fitting it.
   bool hasGroundTruth = false;
   std::string groundTruthName;
-  ErrorSummary groundTruthAll, groundTruthTraining, groundTruthHoldout, referenceVsGroundTruth;
+  ErrorSummary groundTruthAll, groundTruthTraining, groundTruthHoldout;
+  ErrorSummary referenceVsGroundTruth, referenceVsGroundTruthHoldout;
+  // How the reference stores its values ("8-bit sRGB JPEG", ...) and what its noise floor is
+  // made of, in words for the report.
+  std::string referenceEncoding, noiseFloorCause;
   std::vector<ElevationError> byLightElevation, byViewElevation;
   int worstImage = 0;
   std::vector<Comparison> comparisons;

@@ -107,6 +107,10 @@ void addHeadline(const EvalResult& r, json& j) {
   j["rmse_ground_truth_training"] = truth(r.groundTruthTraining, r.hasGroundTruth);
   j["rmse_ground_truth_holdout"] = truth(r.groundTruthHoldout, r.hasGroundTruth && r.hasHoldout());
   j["rmse_reference_vs_ground_truth"] = truth(r.referenceVsGroundTruth, r.hasGroundTruth);
+  j["rmse_reference_vs_ground_truth_holdout"] =
+      truth(r.referenceVsGroundTruthHoldout, r.hasGroundTruth && r.hasHoldout());
+  j["reference_encoding"] = r.referenceEncoding;
+  j["noise_floor_cause"] = r.hasGroundTruth ? json(r.noiseFloorCause) : json(nullptr);
   j["psnr_holdout"] = r.hasHoldout() ? finiteOrNull(r.holdout.psnr) : json(nullptr);
   j["mean_brightness_rmse"] = r.meanMapRmse;
   j["mean_brightness_display_gain"] = r.meanMapGain;
@@ -332,8 +336,12 @@ void addSummary(Doc& doc, const json& j) {
     if (holdout)
       rows.push_back({"RMSE against the float ground truth, held-out images",
                       rmseText(j["rmse_ground_truth_holdout"]), kLinear});
-    rows.push_back({"The stored reference against the float ground truth (its quantization)",
+    rows.push_back({"Noise floor: the stack (" + j.value("reference_encoding", std::string("stored")) +
+                        ") against the float ground truth, all images (" +
+                        j.value("noise_floor_cause", std::string("its encoding's loss")) + ")",
                     rmseText(j["rmse_reference_vs_ground_truth"]), kLinear});
+    if (holdout && !j.value("rmse_reference_vs_ground_truth_holdout", json()).is_null())
+      rows.push_back({"Noise floor, held-out images", rmseText(j["rmse_reference_vs_ground_truth_holdout"]), kLinear});
   }
   rows.push_back({"RMSE, all images", srgbText(j["rmse_srgb8"]), kSrgb});
   if (holdout) rows.push_back({"RMSE, held-out images", srgbText(j["rmse_srgb8_holdout"]), kSrgb});

@@ -89,6 +89,11 @@ SweepEntry sweepEntryFromReport(const json& j, const std::string& path) {
   e.rmseSrgb8 = number(j, "rmse_srgb8", path);
   e.rmseHoldout = number(j, "rmse_holdout", path, true);
   e.blurSigma = number(j, "blur_sigma", path);
+  // Reports written before the ground-truth keys existed have none of them.
+  auto optional = [&](const char* key) { return j.contains(key) ? number(j, key, path, true) : kNaN; };
+  e.rmseGroundTruth = optional("rmse_ground_truth");
+  e.rmseGroundTruthHoldout = optional("rmse_ground_truth_holdout");
+  e.noiseFloor = optional("rmse_reference_vs_ground_truth");
   e.report = path;
   return e;
 }
@@ -149,6 +154,18 @@ std::string sweepTablesMarkdown(const std::vector<SweepEntry>& entriesIn) {
     table("RMSE, held-out images (interpolation)",
           "Linear RGB / alpha, on the images kept out of training (or out of the PCA fit).",
           [](const SweepEntry& e) { return std::isnan(e.rmseHoldout) ? std::string("-") : fmt("%.4f", e.rmseHoldout); });
+  auto fourDecimals = [](double v) { return std::isnan(v) ? std::string("-") : fmt("%.4f", v); };
+  if (std::any_of(entries.begin(), entries.end(), [](const SweepEntry& e) { return !std::isnan(e.rmseGroundTruth); })) {
+    table("RMSE against the ground truth, all images",
+          "Linear RGB / alpha, against the float ground truth beside the stack (not its 8-bit images).",
+          [&](const SweepEntry& e) { return fourDecimals(e.rmseGroundTruth); });
+    if (anyHoldout)
+      table("RMSE against the ground truth, held-out images", "Linear RGB / alpha, as above, on the held-out images.",
+            [&](const SweepEntry& e) { return fourDecimals(e.rmseGroundTruthHoldout); });
+    table("Noise floor", "The stack itself against the ground truth, all images (linear RGB / alpha): what its "
+          "encoding lost; the same in every column of a material.",
+          [&](const SweepEntry& e) { return fourDecimals(e.noiseFloor); });
+  }
   table("RMSE in 8-bit sRGB", "sRGB code values 0-255.", [](const SweepEntry& e) { return fmt("%.2f", e.rmseSrgb8); });
   table("Compression ratio",
         "Raw float32 size / total compressed size (neural: decoder + latents + id list; PCA: mean + basis + "
@@ -177,9 +194,34 @@ Color8 familyColor(const std::string& family, std::size_t i) {
   return colors[rank < 3 ? static_cast<std::size_t>(rank) : 3 + i % kOthers];
 }
 
+// What a rate-distortion plot draws on its y axis.
+struct RdMeasure {
+  double SweepEntry::*rmse;
+  const char* title;  // after "Rate-distortion"
+  const char* axis;
+};
+const RdMeasure kAgainstStack{&SweepEntry::rmse, "", "RMSE (linear RGB / alpha, eq. 10)"};
+const RdMeasure kAgainstTruth{&SweepEntry::rmseGroundTruth, " against the ground truth",
+                              "RMSE against the float ground truth (linear RGB / alpha)"};
+
+// The noise floor as a flat line over the plotted ratios (empty without a ground truth).
+ChartSeries noiseFloorLine(const std::vector<SweepEntry>& entries) {
+  ChartSeries line;
+  line.name = "noise floor (the stack vs the truth)";
+  line.color = {0x99, 0x99, 0x99};
+  double floor = kNaN, lo = HUGE_VAL, hi = 0;
+  for (const auto& e : entries) {
+    if (!std::isnan(e.noiseFloor)) floor = e.noiseFloor;
+    lo = std::min(lo, std::max(e.ratio, 1e-12)), hi = std::max(hi, std::max(e.ratio, 1e-12));
+  }
+  if (std::isnan(floor)) return line;
+  line.x = {lo, hi}, line.y = {floor, floor}, line.labels = {"", ""};
+  return line;
+}
+
 // The rate-distortion plot drawn by nbtf: x = log10 of the ratio (the line chart's axes are linear).
 Image8 rateDistortionChart(const std::string& material, const std::vector<SweepEntry>& entries,
-                           const std::vector<std::string>& families) {
+                           const std::vector<std::string>& families, const RdMeasure& measure = kAgainstStack) {
   std::vector<ChartSeries> series;
   for (std::size_t i = 0; i < families.size(); ++i) {
     ChartSeries s;
@@ -190,16 +232,21 @@ Image8 rateDistortionChart(const std::string& material, const std::vector<SweepE
       if (e.family == families[i]) pts.push_back(&e);
     std::sort(pts.begin(), pts.end(), [](const SweepEntry* a, const SweepEntry* b) { return a->ratio < b->ratio; });
     for (const auto* e : pts) {
-      s.x.push_back(std::max(e->ratio, 1e-12)), s.y.push_back(e->rmse);
+      if (std::isnan((*e).*measure.rmse)) continue;
+      s.x.push_back(std::max(e->ratio, 1e-12)), s.y.push_back((*e).*measure.rmse);
       s.labels.push_back(pointLabel(*e));
     }
-    series.push_back(std::move(s));
+    if (!s.x.empty()) series.push_back(std::move(s));
+  }
+  if (measure.rmse == kAgainstTruth.rmse) {
+    ChartSeries floor = noiseFloorLine(entries);
+    if (!floor.x.empty()) series.push_back(std::move(floor));
   }
   ChartAxes axes;
   axes.logX = true;
   axes.xTickPrefix = "1:";
-  return renderLineChart(series, "Rate-distortion: " + material, "compression ratio (raw float32 / total), log scale",
-                         "RMSE (linear RGB / alpha, eq. 10)", axes);
+  return renderLineChart(series, std::string("Rate-distortion") + measure.title + ": " + material,
+                         "compression ratio (raw float32 / total), log scale", measure.axis, axes);
 }
 }  // namespace
 
@@ -250,6 +297,11 @@ SweepFiles writeSweepSummary(const std::vector<SweepEntry>& entries, const std::
     std::string png = "rd_" + slug(mat) + ".png";
     writeImage8(path(png), ImageFormat::Png, rateDistortionChart(mat, mine, families));
     out.plots.push_back(path(png));
+    if (std::any_of(mine.begin(), mine.end(), [](const SweepEntry& e) { return !std::isnan(e.rmseGroundTruth); })) {
+      std::string truthPng = "rd_" + slug(mat) + "_truth.png";
+      writeImage8(path(truthPng), ImageFormat::Png, rateDistortionChart(mat, mine, families, kAgainstTruth));
+      out.plots.push_back(path(truthPng));
+    }
   }
   return out;
 }

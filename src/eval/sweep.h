@@ -4,6 +4,7 @@
 // (RMSE vs compression ratio, log-scale x, one curve per method family) as a PNG drawn by
 // nbtf's own chart code (eval/figures.h), with the points as data files for other tools.
 #pragma once
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -19,6 +20,11 @@ struct SweepEntry {
   double rmse = 0, rmseSrgb8 = 0;  // linear RGB / alpha; sRGB 8-bit
   double rmseHoldout = 0;          // NaN = no held-out images
   double blurSigma = 0;            // texels
+  // Against the float ground truth beside the stack (linear RGB / alpha), all and held-out
+  // images, and the stack's own distance from it (the noise floor); NaN = no ground truth.
+  double rmseGroundTruth = std::numeric_limits<double>::quiet_NaN();
+  double rmseGroundTruthHoldout = std::numeric_limits<double>::quiet_NaN();
+  double noiseFloor = std::numeric_limits<double>::quiet_NaN();
   std::string report;              // the report.json it came from
 };
 
