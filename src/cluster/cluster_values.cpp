@@ -448,6 +448,171 @@ std::vector<float> texelCoefficients(const BtfStack& stack, float alpha, const s
   return out;
 }
 
+namespace {
+
+// What a refit of the texel coefficients solves for: every cluster's term values at each image,
+// and how the channels group into least-squares problems: all of RGB with one coefficient per
+// term (channels 1), or each channel alone (channels 3).
+struct RefitProblem {
+  const std::vector<float>& terms;
+  int clusters;
+  std::size_t n, o;  // images; values per cluster and image (3 per term)
+  int r, channels;
+  double meanWeight;
+  // Cluster g's values at image i start here.
+  const float* termsAt(std::size_t g, std::size_t i) const { return &terms[(i * clusters + g) * o]; }
+  int firstChannel(int q) const { return channels > 1 ? q : 0; }
+  int endChannel(int q) const { return channels > 1 ? q + 1 : 3; }
+};
+
+// Cluster g's term values averaged over the images (F: term a, channel c at 3 a + c).
+void addTermMean(const RefitProblem& p, std::size_t g, double* mean) {
+  for (std::size_t i = 0; i < p.n; ++i)
+    for (std::size_t j = 0; j < p.o; ++j) mean[j] += p.termsAt(g, i)[j];
+  for (std::size_t j = 0; j < p.o; ++j) mean[j] /= static_cast<double>(p.n);
+}
+
+// Cluster g's Gram matrix of its terms over the images and group q's channels, with the mean
+// term where `mean` is given.
+Eigen::MatrixXd termGram(const RefitProblem& p, std::size_t g, int q, const double* mean) {
+  const int r = p.r;
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
+  for (std::size_t i = 0; i < p.n; ++i) {
+    const float* f = p.termsAt(g, i);
+    for (int c = p.firstChannel(q); c < p.endChannel(q); ++c)
+      for (int a = 0; a < r; ++a)
+        for (int b = 0; b <= a; ++b) gram(a, b) += double(f[3 * a + c]) * f[3 * b + c];
+  }
+  if (mean) {
+    for (int c = p.firstChannel(q); c < p.endChannel(q); ++c)
+      for (int a = 0; a < r; ++a)
+        for (int b = 0; b <= a; ++b) gram(a, b) += p.meanWeight * p.n * mean[3 * a + c] * mean[3 * b + c];
+  }
+  for (int a = 0; a < r; ++a)
+    for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
+  const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
+  gram.diagonal().array() += ridge;
+  return gram;
+}
+
+// Per cluster and group: the Gram matrix of its terms over images and the group's channels,
+// regularized a little so that a term that is (nearly) zero everywhere gets coefficient 0
+// instead of noise. With meanWeight w > 0 the per-channel mean over the images, F (the
+// cluster's) and Y (the texel's), enters too: + w n |sum_a e_a F_a - Y|^2, i.e. w n F F^T on
+// the Gram matrix and w n F Y on the right-hand side; `termMeans` receives F per cluster.
+std::vector<Eigen::LDLT<Eigen::MatrixXd>> termSolvers(const RefitProblem& p, std::vector<double>& termMeans) {
+  std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(static_cast<std::size_t>(p.clusters) * p.channels);
+  termMeans.assign(p.meanWeight > 0 ? static_cast<std::size_t>(p.clusters) * p.o : 0, 0.0);
+  parallelFor(static_cast<std::size_t>(p.clusters), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t g = begin; g < end; ++g) {
+      const double* mean = nullptr;
+      if (p.meanWeight > 0) {
+        addTermMean(p, g, &termMeans[g * p.o]);
+        mean = &termMeans[g * p.o];
+      }
+      for (int q = 0; q < p.channels; ++q) solvers[g * p.channels + q].compute(termGram(p, g, q, mean));
+    }
+  });
+  return solvers;
+}
+
+// One thread's refit of chunks of consecutive texels, with its buffers: each chunk is gathered
+// as the stack stores them, and every image is read once per chunk.
+class ChunkRefit {
+ public:
+  ChunkRefit(const BtfStack& stack, const RefitProblem& p, const std::vector<int>& images,
+             const std::vector<std::int32_t>& ids, const std::vector<Eigen::LDLT<Eigen::MatrixXd>>& solvers,
+             const std::vector<double>& termMeans, float invAlpha, std::size_t maxChunkTexels)
+      : stack_(stack), p_(p), images_(images), ids_(ids), solvers_(solvers), termMeans_(termMeans),
+        invAlpha_(invAlpha), valueBytes_(stack.storedValueBytes()), rhs_(p.r),
+        stored_(3 * p.n * maxChunkTexels * valueBytes_) {}
+
+  // The coefficients of texels first .. first + count into `out` (texels x terms x channels).
+  void run(std::size_t first, int count, std::vector<float>& out) {
+    gather(first, count);
+    sumImages(count);
+    solve(first, count, out);
+  }
+
+ private:
+  void gather(std::size_t first, int count) {
+    chunk_.resize(count);
+    std::iota(chunk_.begin(), chunk_.end(), static_cast<int>(first));
+    row_.resize(count);
+    stack_.gatherStored(images_.data(), static_cast<int>(p_.n), chunk_.data(), count, stored_.data());
+    termOffset_.resize(count);
+    for (int k = 0; k < count; ++k) {
+      const std::int32_t g = ids_[first + k];
+      if (g < 0 || g >= p_.clusters) throw Error("fit texel coefficients: cluster id out of range");
+      termOffset_[k] = static_cast<std::size_t>(g) * p_.o;
+    }
+  }
+
+  // The sums image by image, across the chunk's texels. Each texel's sums add the same
+  // terms in the same order as a texel-by-texel loop would.
+  void sumImages(int count) {
+    const int r = p_.r, channels = p_.channels;
+    texelSums_.assign(3 * static_cast<std::size_t>(count), 0.0);
+    rhsSums_.assign(static_cast<std::size_t>(count) * channels * r, 0.0);
+    for (std::size_t i = 0; i < p_.n; ++i)
+      for (int c = 0; c < 3; ++c) {
+        stack_.storedToLinear(stored_.data() + (3 * i + c) * count * valueBytes_, static_cast<std::size_t>(count),
+                              invAlpha_, row_.data());
+        const int q = channels > 1 ? c : 0;
+        const float* image = p_.termsAt(0, i) + c;  // every cluster's values at this image: a few KB
+        if (p_.meanWeight > 0)
+          for (int k = 0; k < count; ++k) texelSums_[3 * k + c] += row_[k];
+        if (r == 1) {  // the default, as one tight loop
+          for (int k = 0; k < count; ++k)
+            rhsSums_[static_cast<std::size_t>(k) * channels + q] += double(row_[k]) * image[termOffset_[k]];
+        } else {
+          for (int k = 0; k < count; ++k) {
+            const double y = row_[k];
+            double* sums = &rhsSums_[(static_cast<std::size_t>(k) * channels + q) * r];
+            const float* f = image + termOffset_[k];
+            for (int a = 0; a < r; ++a) sums[a] += y * f[3 * a];
+          }
+        }
+      }
+  }
+
+  void solve(std::size_t first, int count, std::vector<float>& out) {
+    const int r = p_.r, channels = p_.channels, columns = r * channels;
+    for (int k = 0; k < count; ++k) {
+      const std::size_t t = first + k;
+      const std::int32_t g = ids_[t];
+      for (int q = 0; q < channels; ++q) {
+        for (int a = 0; a < r; ++a) rhs_(a) = rhsSums_[(static_cast<std::size_t>(k) * channels + q) * r + a];
+        if (p_.meanWeight > 0) {
+          const double* mean = &termMeans_[static_cast<std::size_t>(g) * p_.o];
+          for (int c = p_.firstChannel(q); c < p_.endChannel(q); ++c)
+            for (int a = 0; a < r; ++a) rhs_(a) += p_.meanWeight * mean[3 * a + c] * texelSums_[3 * k + c];  // w n F (sum / n)
+        }
+        Eigen::VectorXd e = solvers_[static_cast<std::size_t>(g) * channels + q].solve(rhs_);
+        for (int a = 0; a < r; ++a)
+          out[t * columns + a * channels + q] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
+      }
+    }
+  }
+
+  const BtfStack& stack_;
+  const RefitProblem& p_;
+  const std::vector<int>& images_;
+  const std::vector<std::int32_t>& ids_;
+  const std::vector<Eigen::LDLT<Eigen::MatrixXd>>& solvers_;
+  const std::vector<double>& termMeans_;
+  const float invAlpha_;
+  const std::size_t valueBytes_;
+  Eigen::VectorXd rhs_;
+  std::vector<int> chunk_;
+  PageBuffer stored_;                   // the chunk's texels in the images, image by image (gatherStored)
+  std::vector<float> row_;              // one image's channel of them, linear / alpha
+  std::vector<std::size_t> termOffset_;  // each texel's cluster's values within an image's
+  std::vector<double> texelSums_, rhsSums_;  // per texel: sums by channel; right-hand sides (channel group, term)
+};
+
+}  // namespace
+
 std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, const std::vector<std::int32_t>& ids,
                                         int clusters, const std::vector<int>& images, const std::vector<float>& terms,
                                         int r, bool progress, double meanWeight, int channels) {
@@ -456,121 +621,26 @@ std::vector<float> fitTexelCoefficients(const BtfStack& stack, float alpha, cons
   if (r < 1 || terms.size() != static_cast<std::size_t>(clusters) * n * o)
     throw Error("fit texel coefficients: " + std::to_string(terms.size()) + " term values for " +
                 std::to_string(n) + " images x " + std::to_string(clusters) + " clusters x " + std::to_string(o));
-  // Cluster g's values at image i start here.
-  auto termsAt = [&](std::size_t g, std::size_t i) { return &terms[(i * clusters + g) * o]; };
   if (channels != 1 && channels != 3) throw Error("fit texel coefficients: channels must be 1 or 3");
   if (static_cast<std::int64_t>(ids.size()) != texels) throw Error("fit texel coefficients: one id per texel needed");
-  // One least-squares problem per texel and channel group: all of RGB with one coefficient
-  // per term (channels 1), or each channel alone (channels 3).
-  const int columns = r * channels;
-  auto firstChannel = [channels](int q) { return channels > 1 ? q : 0; };
-  auto endChannel = [channels](int q) { return channels > 1 ? q + 1 : 3; };
-  // Per cluster and group: the Gram matrix of its terms over images and the group's channels,
-  // regularized a little so that a term that is (nearly) zero everywhere gets coefficient 0
-  // instead of noise. With meanWeight w > 0 the per-channel mean over the images, F (the
-  // cluster's) and Y (the texel's), enters too: + w n |sum_a e_a F_a - Y|^2, i.e. w n F F^T on
-  // the Gram matrix and w n F Y on the right-hand side.
-  std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers(static_cast<std::size_t>(clusters) * channels);
-  // F per cluster (term a, channel c at 3 a + c); only with meanWeight > 0.
-  std::vector<double> termMeans(meanWeight > 0 ? static_cast<std::size_t>(clusters) * o : 0, 0.0);
-  parallelFor(static_cast<std::size_t>(clusters), [&](std::size_t begin, std::size_t end) {
-    for (std::size_t g = begin; g < end; ++g) {
-      if (meanWeight > 0) {
-        double* mean = &termMeans[g * o];
-        for (std::size_t i = 0; i < n; ++i)
-          for (std::size_t j = 0; j < o; ++j) mean[j] += termsAt(g, i)[j];
-        for (std::size_t j = 0; j < o; ++j) mean[j] /= static_cast<double>(n);
-      }
-      for (int q = 0; q < channels; ++q) {
-        Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r, r);
-        for (std::size_t i = 0; i < n; ++i) {
-          const float* f = termsAt(g, i);
-          for (int c = firstChannel(q); c < endChannel(q); ++c)
-            for (int a = 0; a < r; ++a)
-              for (int b = 0; b <= a; ++b) gram(a, b) += double(f[3 * a + c]) * f[3 * b + c];
-        }
-        if (meanWeight > 0) {
-          const double* mean = &termMeans[g * o];
-          for (int c = firstChannel(q); c < endChannel(q); ++c)
-            for (int a = 0; a < r; ++a)
-              for (int b = 0; b <= a; ++b) gram(a, b) += meanWeight * n * mean[3 * a + c] * mean[3 * b + c];
-        }
-        for (int a = 0; a < r; ++a)
-          for (int b = 0; b < a; ++b) gram(b, a) = gram(a, b);
-        const double ridge = 1e-9 * std::max(gram.trace(), 1e-30);
-        gram.diagonal().array() += ridge;
-        solvers[g * channels + q].compute(gram);
-      }
-    }
-  });
+  // One least-squares problem per texel and channel group.
+  const RefitProblem problem{terms, clusters, n, o, r, channels, meanWeight};
+  std::vector<double> termMeans;
+  const std::vector<Eigen::LDLT<Eigen::MatrixXd>> solvers = termSolvers(problem, termMeans);
   const float invAlpha = 1.0f / alpha;
-  std::vector<float> out(static_cast<std::size_t>(texels) * columns, 0.0f);
+  std::vector<float> out(static_cast<std::size_t>(texels) * r * channels, 0.0f);
   Progress bar("refit texel coefficients", static_cast<std::size_t>(texels), progress);
-  // Chunks of consecutive texels, gathered as the stack stores them: each image is read once per
-  // chunk (one read call for a stack in a scratch file), so that larger chunks make fewer
-  // calls; 256 to 4096 texels, within the stage's budget per thread (modulationTexelsPerThread).
+  // Chunks of consecutive texels: one read call per image and chunk for a stack in a scratch
+  // file, so that larger chunks make fewer calls; 256 to 4096 texels, within the stage's budget
+  // per thread (modulationTexelsPerThread).
   const std::size_t valueBytes = stack.storedValueBytes();
   const std::size_t chunkTexels =
       std::clamp<std::size_t>(modulationTexelsPerThread(texels, clusters) * sizeof(float) / valueBytes, 256, 4096);
   parallelFor(static_cast<std::size_t>(texels), [&](std::size_t begin, std::size_t end) {
-    Eigen::VectorXd rhs(r);
-    std::vector<int> chunk;
-    // The chunk's texels in the images, image by image (gatherStored); sized for a whole chunk.
-    PageBuffer stored(3 * n * std::min(chunkTexels, end - begin) * valueBytes);
-    std::vector<float> row;            // one image's channel of them, linear / alpha
-    std::vector<std::size_t> termOffset;  // each texel's cluster's values within an image's
-    std::vector<double> texelSums, rhsSums;  // per texel: sums by channel; right-hand sides (channel group, term)
+    ChunkRefit refit(stack, problem, images, ids, solvers, termMeans, invAlpha, std::min(chunkTexels, end - begin));
     for (std::size_t first = begin; first < end; first += chunkTexels) {
       const int count = static_cast<int>(std::min(chunkTexels, end - first));
-      chunk.resize(count);
-      std::iota(chunk.begin(), chunk.end(), static_cast<int>(first));
-      row.resize(count);
-      stack.gatherStored(images.data(), static_cast<int>(n), chunk.data(), count, stored.data());
-      termOffset.resize(count);
-      for (int k = 0; k < count; ++k) {
-        const std::int32_t g = ids[first + k];
-        if (g < 0 || g >= clusters) throw Error("fit texel coefficients: cluster id out of range");
-        termOffset[k] = static_cast<std::size_t>(g) * o;
-      }
-      // The sums image by image, across the chunk's texels. Each texel's sums add the same
-      // terms in the same order as a texel-by-texel loop would.
-      texelSums.assign(3 * static_cast<std::size_t>(count), 0.0);
-      rhsSums.assign(static_cast<std::size_t>(count) * channels * r, 0.0);
-      for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) {
-          stack.storedToLinear(stored.data() + (3 * i + c) * count * valueBytes, static_cast<std::size_t>(count), invAlpha,
-                               row.data());
-          const int q = channels > 1 ? c : 0;
-          const float* image = termsAt(0, i) + c;  // every cluster's values at this image: a few KB
-          if (meanWeight > 0)
-            for (int k = 0; k < count; ++k) texelSums[3 * k + c] += row[k];
-          if (r == 1) {  // the default, as one tight loop
-            for (int k = 0; k < count; ++k)
-              rhsSums[static_cast<std::size_t>(k) * channels + q] += double(row[k]) * image[termOffset[k]];
-          } else {
-            for (int k = 0; k < count; ++k) {
-              const double y = row[k];
-              double* sums = &rhsSums[(static_cast<std::size_t>(k) * channels + q) * r];
-              const float* f = image + termOffset[k];
-              for (int a = 0; a < r; ++a) sums[a] += y * f[3 * a];
-            }
-          }
-        }
-      for (int k = 0; k < count; ++k) {
-        const std::size_t t = first + k;
-        const std::int32_t g = ids[t];
-        for (int q = 0; q < channels; ++q) {
-          for (int a = 0; a < r; ++a) rhs(a) = rhsSums[(static_cast<std::size_t>(k) * channels + q) * r + a];
-          if (meanWeight > 0) {
-            const double* mean = &termMeans[static_cast<std::size_t>(g) * o];
-            for (int c = firstChannel(q); c < endChannel(q); ++c)
-              for (int a = 0; a < r; ++a) rhs(a) += meanWeight * mean[3 * a + c] * texelSums[3 * k + c];  // w n F (sum / n)
-          }
-          Eigen::VectorXd e = solvers[static_cast<std::size_t>(g) * channels + q].solve(rhs);
-          for (int a = 0; a < r; ++a)
-            out[t * columns + a * channels + q] = std::isfinite(e(a)) ? static_cast<float>(e(a)) : 0.0f;
-        }
-      }
+      refit.run(first, count, out);
       bar.advance(static_cast<std::size_t>(count));
     }
   }, chunkTexels);

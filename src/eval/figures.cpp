@@ -147,11 +147,36 @@ std::vector<double> lineChartYTicks(double ymin, double ymax) {
   return ticks;
 }
 
-Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
-                       const std::string& yLabel, const ChartAxes& axes) {
-  // On a log axis everything below works on log10 x; ticks and labels convert back.
-  auto toAxis = [&](double x) { return axes.logX ? std::log10(x) : x; };
-  double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = 0;
+namespace {
+
+constexpr int kChartLeft = 86, kChartRight = 24, kChartTop = 50, kChartBottom = 62, kPlotW = 560, kPlotH = 300;
+
+// Rectangles in pixels: the markers', the legend's candidates, the labels'.
+struct Box {
+  int x0, y0, x1, y1;
+  bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
+  bool holds(double x, double y) const { return x >= x0 && x <= x1 && y >= y0 && y <= y1; }
+};
+
+// The data's ranges and the plotted ranges, and the mapping between them and pixels. On a
+// log axis everything works on log10 x; ticks and labels convert back.
+struct ChartFrame {
+  bool logX = false;
+  double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = 0;  // x in axis units
+  double x0 = 0, x1 = 1, yLow = 0, y1 = 1;
+  double toAxis(double x) const { return logX ? std::log10(x) : x; }
+  int px(double x) const { return kChartLeft + static_cast<int>(std::lround((x - x0) / (x1 - x0) * kPlotW)); }
+  int py(double y) const {
+    return kChartTop + kPlotH - static_cast<int>(std::lround((y - yLow) / (y1 - yLow) * kPlotH));
+  }
+  int pointX(const ChartSeries& s, std::size_t i) const { return px(toAxis(s.x[i])); }
+  int pointY(const ChartSeries& s, std::size_t i) const { return py(s.y[i]); }
+};
+
+// Checks every series and frames their points: x padded by 5% each side, y on `yTicks`.
+ChartFrame frameChart(const std::vector<ChartSeries>& series, const ChartAxes& axes, std::vector<double>& yTicks) {
+  ChartFrame f;
+  f.logX = axes.logX;
   for (const auto& s : series) {
     if (s.x.size() != s.y.size()) throw Error("line chart: series '" + s.name + "' has unequal x and y counts");
     if (!s.labels.empty() && s.labels.size() != s.x.size())
@@ -161,114 +186,125 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) throw Error("line chart: a value is not finite");
       if (axes.logX && s.x[i] <= 0)
         throw Error("line chart: series '" + s.name + "' has x = " + std::to_string(s.x[i]) + " on a log axis");
-      double x = toAxis(s.x[i]);
-      xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, s.y[i]), ymax = std::max(ymax, s.y[i]);
+      double x = f.toAxis(s.x[i]);
+      f.xmin = std::min(f.xmin, x), f.xmax = std::max(f.xmax, x), f.ymin = std::min(f.ymin, s.y[i]),
+      f.ymax = std::max(f.ymax, s.y[i]);
     }
   }
-  if (xmin > xmax) xmin = 0, xmax = 1;
-  if (xmax == xmin) xmin -= 1, xmax += 1;
-  double pad = 0.05 * (xmax - xmin);
-  double x0 = xmin - pad, x1 = xmax + pad;
-  std::vector<double> yTicks = lineChartYTicks(ymin, ymax);
-  const double yLow = yTicks.front(), y1 = yTicks.back();
-  const double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
+  if (f.xmin > f.xmax) f.xmin = 0, f.xmax = 1;
+  if (f.xmax == f.xmin) f.xmin -= 1, f.xmax += 1;
+  double pad = 0.05 * (f.xmax - f.xmin);
+  f.x0 = f.xmin - pad, f.x1 = f.xmax + pad;
+  yTicks = lineChartYTicks(f.ymin, f.ymax);
+  f.yLow = yTicks.front(), f.y1 = yTicks.back();
+  return f;
+}
 
-  const int left = 86, right = 24, top = 50, bottom = 62, plotW = 560, plotH = 300;
-  auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * plotW)); };
-  auto py = [&](double y) { return top + plotH - static_cast<int>(std::lround((y - yLow) / (y1 - yLow) * plotH)); };
-
-  // Rectangles in pixels: the markers', the legend's candidates, the labels'.
-  struct Box {
-    int x0, y0, x1, y1;
-    bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
-    bool holds(double x, double y) const { return x >= x0 && x <= x1 && y >= y0 && y <= y1; }
-  };
-  std::vector<Box> taken;  // the markers, then each label as it is placed
+std::vector<Box> markerBoxes(const std::vector<ChartSeries>& series, const ChartFrame& f) {
+  std::vector<Box> boxes;
   for (const auto& s : series)
     for (std::size_t i = 0; i < s.x.size(); ++i) {
-      const int x = px(toAxis(s.x[i])), y = py(s.y[i]);
-      taken.push_back({x - 4, y - 4, x + 5, y + 5});
+      const int x = f.pointX(s, i), y = f.pointY(s, i);
+      boxes.push_back({x - 4, y - 4, x + 5, y + 5});
     }
+  return boxes;
+}
 
-  // Legend: in the first corner of the plot (top right, top left, bottom right, bottom left)
-  // that hides no point or stretch of line; below the plot when every corner would.
+struct LegendBox {
+  int x, y, w, h;
+  bool below;  // under the plot, the image grown to hold it
+};
+
+// Legend: in the first corner of the plot (top right, top left, bottom right, bottom left)
+// that hides no point or stretch of line; below the plot when every corner would.
+LegendBox placeLegend(const std::vector<ChartSeries>& series, const ChartFrame& f, const std::vector<Box>& markers) {
   const Canvas measure(1, 1);
   int legendW = 0;
   for (const auto& s : series) legendW = std::max(legendW, measure.textWidth(s.name, 10));
   const int boxW = legendW + 46, boxH = 20 * static_cast<int>(series.size()) + 6;
   auto hides = [&](int bx, int by) {
     const Box box{bx - 5, by - 5, bx + boxW + 5, by + boxH + 5};
-    if (std::any_of(taken.begin(), taken.end(), [&](const Box& m) { return m.overlaps(box); })) return true;
+    if (std::any_of(markers.begin(), markers.end(), [&](const Box& m) { return m.overlaps(box); })) return true;
     for (const auto& s : series)
       for (std::size_t i = 1; i < s.x.size(); ++i) {
-        const double xa = px(toAxis(s.x[i - 1])), ya = py(s.y[i - 1]), xb = px(toAxis(s.x[i])), yb = py(s.y[i]);
+        const double xa = f.pointX(s, i - 1), ya = f.pointY(s, i - 1), xb = f.pointX(s, i), yb = f.pointY(s, i);
         for (int step = 1; step < 16; ++step)
           if (box.holds(xa + (xb - xa) * step / 16, ya + (yb - ya) * step / 16)) return true;
       }
     return false;
   };
-  const int inLeft = left + 8, inRight = left + plotW - boxW - 2, inTop = top + 4, inBottom = top + plotH - boxH - 4;
+  const int inLeft = kChartLeft + 8, inRight = kChartLeft + kPlotW - boxW - 2, inTop = kChartTop + 4,
+            inBottom = kChartTop + kPlotH - boxH - 4;
   const std::pair<int, int> corners[] = {{inRight, inTop}, {inLeft, inTop}, {inRight, inBottom}, {inLeft, inBottom}};
-  int boxX = left + (plotW - boxW) / 2, boxY = top + plotH + bottom;  // below the plot
-  bool below = true;
   for (const auto& [bx, by] : corners)
-    if (!hides(bx, by)) {
-      boxX = bx, boxY = by, below = false;
-      break;
-    }
-  Canvas c(left + plotW + right, top + plotH + bottom + (below ? boxH + 8 : 0));
-  c.text(title, left + plotW / 2, 22, 14, kBlack, Align::Center);
+    if (!hides(bx, by)) return {bx, by, boxW, boxH, false};
+  return {kChartLeft + (kPlotW - boxW) / 2, kChartTop + kPlotH + kChartBottom, boxW, boxH, true};
+}
 
-  for (double t : yTicks) {
-    c.line(left, py(t), left + plotW, py(t), kLightGrey);
-    c.text(formatTick(t, yStep), left - 8, py(t), 10, kBlack, Align::Right);
-  }
-  // Ticks (in axis units) and their labels (in data units).
-  std::vector<double> xTicks;
-  std::vector<std::string> xTickText;
+// Ticks (in axis units) and their labels (in data units).
+void xAxisTicks(const ChartAxes& axes, const ChartFrame& f, std::vector<double>& xTicks,
+                std::vector<std::string>& xTickText) {
   if (!axes.xTicks.empty()) {
     double step = axes.xTicks.size() > 1 ? axes.xTicks[1] - axes.xTicks[0] : 1;
-    for (double t : axes.xTicks) xTicks.push_back(toAxis(t)), xTickText.push_back(formatTick(t, step));
+    for (double t : axes.xTicks) xTicks.push_back(f.toAxis(t)), xTickText.push_back(formatTick(t, step));
   } else if (axes.logX) {
     // Powers of 10; with less than two decades also 2 and 5 times them.
-    const bool fine = xmax - xmin < 2;
-    for (int e = static_cast<int>(std::floor(x0)); e <= static_cast<int>(std::ceil(x1)); ++e)
+    const bool fine = f.xmax - f.xmin < 2;
+    for (int e = static_cast<int>(std::floor(f.x0)); e <= static_cast<int>(std::ceil(f.x1)); ++e)
       for (double m : fine ? std::vector<double>{1, 2, 5} : std::vector<double>{1}) {
         double t = std::log10(m) + e;
-        if (t < x0 || t > x1) continue;
+        if (t < f.x0 || t > f.x1) continue;
         xTicks.push_back(t);
         const double value = m * std::pow(10.0, e);
         xTickText.push_back(formatTick(value, value));
       }
   } else {
-    xTicks = niceTicks(xmin, xmax, 8);
+    xTicks = niceTicks(f.xmin, f.xmax, 8);
     double step = xTicks.size() > 1 ? xTicks[1] - xTicks[0] : 1;
     for (double t : xTicks) xTickText.push_back(formatTick(t, step));
   }
+}
+
+void drawChartAxes(Canvas& c, const ChartFrame& f, const ChartAxes& axes, const std::vector<double>& yTicks,
+                   const std::string& xLabel, const std::string& yLabel) {
+  const int left = kChartLeft, top = kChartTop, plotW = kPlotW, plotH = kPlotH;
+  const double yStep = yTicks.size() > 1 ? yTicks[1] - yTicks[0] : 1;
+  for (double t : yTicks) {
+    c.line(left, f.py(t), left + plotW, f.py(t), kLightGrey);
+    c.text(formatTick(t, yStep), left - 8, f.py(t), 10, kBlack, Align::Right);
+  }
+  std::vector<double> xTicks;
+  std::vector<std::string> xTickText;
+  xAxisTicks(axes, f, xTicks, xTickText);
   for (std::size_t i = 0; i < xTicks.size(); ++i) {
     const double t = xTicks[i];
-    if (axes.logX) c.line(px(t), top, px(t), top + plotH, kLightGrey);
-    c.line(px(t), top + plotH, px(t), top + plotH + 5, kBlack);
-    c.text(axes.xTickPrefix + xTickText[i], px(t), top + plotH + 16, 10, kBlack, Align::Center);
+    if (axes.logX) c.line(f.px(t), top, f.px(t), top + plotH, kLightGrey);
+    c.line(f.px(t), top + plotH, f.px(t), top + plotH + 5, kBlack);
+    c.text(axes.xTickPrefix + xTickText[i], f.px(t), top + plotH + 16, 10, kBlack, Align::Center);
   }
   c.line(left, top, left, top + plotH, kBlack);
   c.line(left, top + plotH, left + plotW, top + plotH, kBlack);
   c.text(xLabel, left + plotW / 2, top + plotH + 42, 11, kBlack, Align::Center);
   c.text(yLabel, 22, top + plotH / 2, 11, kBlack, Align::Center, true);
+}
 
+void drawSeries(Canvas& c, const std::vector<ChartSeries>& series, const ChartFrame& f) {
   for (const auto& s : series) {
     for (std::size_t i = 1; i < s.x.size(); ++i)
-      c.line(px(toAxis(s.x[i - 1])), py(s.y[i - 1]), px(toAxis(s.x[i])), py(s.y[i]), s.color, 2);
-    for (std::size_t i = 0; i < s.x.size(); ++i) c.circle(px(toAxis(s.x[i])), py(s.y[i]), 4, s.color);
+      c.line(f.pointX(s, i - 1), f.pointY(s, i - 1), f.pointX(s, i), f.pointY(s, i), s.color, 2);
+    for (std::size_t i = 0; i < s.x.size(); ++i) c.circle(f.pointX(s, i), f.pointY(s, i), 4, s.color);
   }
-  // Labels: above right of the point, else above left, below right, below left: the first
-  // place right of the y axis and inside the image that no marker or earlier label holds (else
-  // the first such place).
-  const Box image{left + 2, 0, left + plotW + right, top + plotH + bottom};
+}
+
+// Labels: above right of the point, else above left, below right, below left: the first
+// place right of the y axis and inside the image that no marker or earlier label holds (else
+// the first such place). Each label placed joins `taken`.
+void drawPointLabels(Canvas& c, const std::vector<ChartSeries>& series, const ChartFrame& f, std::vector<Box>& taken) {
+  const Box image{kChartLeft + 2, 0, kChartLeft + kPlotW + kChartRight, kChartTop + kPlotH + kChartBottom};
   for (const auto& s : series)
     for (std::size_t i = 0; i < s.labels.size(); ++i) {
       if (s.labels[i].empty()) continue;
-      const int x = px(toAxis(s.x[i])), y = py(s.y[i]), w = c.textWidth(s.labels[i], 9);
+      const int x = f.pointX(s, i), y = f.pointY(s, i), w = c.textWidth(s.labels[i], 9);
       const std::pair<int, int> offsets[] = {{6, -10}, {-6 - w, -10}, {6, 12}, {-6 - w, 12}};
       int chosen = -1;
       for (int k = 0; k < 4; ++k) {
@@ -285,15 +321,34 @@ Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string
       taken.push_back({lx0, ly0 - 6, lx0 + w, ly0 + 6});
       c.text(s.labels[i], lx0, ly0, 9, s.color, Align::Left);
     }
-  const int lx = boxX + 6, ly = boxY + 4;
-  c.fillRect(boxX, boxY, boxW, boxH, kWhite);
-  c.strokeRect(boxX, boxY, boxW, boxH, kLightGrey);
+}
+
+void drawLegend(Canvas& c, const std::vector<ChartSeries>& series, const LegendBox& box) {
+  const int lx = box.x + 6, ly = box.y + 4;
+  c.fillRect(box.x, box.y, box.w, box.h, kWhite);
+  c.strokeRect(box.x, box.y, box.w, box.h, kLightGrey);
   for (std::size_t i = 0; i < series.size(); ++i) {
     int yy = ly + 8 + 20 * static_cast<int>(i);
     c.line(lx, yy, lx + 24, yy, series[i].color, 2);
     c.circle(lx + 12, yy, 4, series[i].color);
     c.text(series[i].name, lx + 32, yy, 10, kBlack);
   }
+}
+
+}  // namespace
+
+Image8 renderLineChart(const std::vector<ChartSeries>& series, const std::string& title, const std::string& xLabel,
+                       const std::string& yLabel, const ChartAxes& axes) {
+  std::vector<double> yTicks;
+  const ChartFrame frame = frameChart(series, axes, yTicks);
+  std::vector<Box> taken = markerBoxes(series, frame);  // the markers, then each label as it is placed
+  const LegendBox legend = placeLegend(series, frame, taken);
+  Canvas c(kChartLeft + kPlotW + kChartRight, kChartTop + kPlotH + kChartBottom + (legend.below ? legend.h + 8 : 0));
+  c.text(title, kChartLeft + kPlotW / 2, 22, 14, kBlack, Align::Center);
+  drawChartAxes(c, frame, axes, yTicks, xLabel, yLabel);
+  drawSeries(c, series, frame);
+  drawPointLabels(c, series, frame, taken);
+  drawLegend(c, series, legend);
   return c.release();
 }
 

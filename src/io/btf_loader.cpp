@@ -68,20 +68,9 @@ StackListing ubo2014Listing(const std::string& path, Layout forced, const Ubo201
   return listing;
 }
 
-}  // namespace
-
-StackListing listBtfStack(const std::string& path, Layout forced) {
+// Candidate image files: the folder's own and its view folders', each in name order.
+std::vector<fs::path> candidateImages(const std::string& path) {
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw fileAccessError(path, "no such file or folder", ENOENT);
-  if (looksLikeUbo2014(path)) return ubo2014Listing(path, forced, Ubo2014Btf::read(path));
-  if (!fs::is_directory(path, ec))
-    throw fileAccessError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)", ENOTDIR);
-  if (forced == Layout::Ubo2014)
-    throw fileError(path, "is a folder of images: --layout ubo2014 applies to UBO2014 .btf files only (leave it "
-                          "out, or give ubo2003 or utia)");
-  refuseInterruptedOutput(path);
-
-  // Collect candidate image files: the folder itself and its view folders.
   std::vector<fs::path> candidates;
   std::size_t otherFiles = 0;
   std::vector<fs::path> entries;
@@ -111,11 +100,13 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
          "'tl000_pl000_tv000_pv000.png' / '00008 tl000 pl000 tv030 pv030.jpg')";
     throw fileError(path, s.str());
   }
+  return candidates;
+}
 
-  // Parse every name; a name with no angle tokens at all is an error only if it is
-  // an image in a view folder or among other BTF images.
+// Every candidate's directions from its name (an image in a view folder or among other BTF
+// images must have them), and per layout the names that are in it.
+std::vector<StackFile> parseStackNames(const std::vector<fs::path>& candidates, std::map<int, int>& layoutVotes) {
   std::vector<StackFile> files;
-  std::map<int, int> layoutVotes;
   for (const auto& p : candidates) {
     std::optional<ParsedBtfName> parsed;
     try {
@@ -127,9 +118,12 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
     files.push_back({p.string(), parsed->light, parsed->view, parsed->index});
     layoutVotes[static_cast<int>(parsed->layout)]++;
   }
+  return files;
+}
 
-  StackListing listing;
-  listing.layout = forced;
+// --layout where given, else the layout most names are in (ubo2003 on a tie).
+Layout stackLayout(const std::string& path, Layout forced, const std::vector<StackFile>& files,
+                   std::map<int, int>& layoutVotes) {
   if (forced == Layout::Utia && layoutVotes[static_cast<int>(Layout::Utia)] == 0) {
     // Every name carries UBO2003's running index: forcing UTIA would change nothing but the
     // colour space of EXR images, silently. (Names without an index may be either layout, so
@@ -138,11 +132,15 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
                               fs::path(files.front().path).filename().string() +
                               "'); leave --layout out or give --layout ubo2003");
   }
-  if (forced == Layout::Unknown)
-    listing.layout = layoutVotes[static_cast<int>(Layout::Ubo2003)] >= layoutVotes[static_cast<int>(Layout::Utia)]
-                         ? Layout::Ubo2003
-                         : Layout::Utia;
+  if (forced != Layout::Unknown) return forced;
+  return layoutVotes[static_cast<int>(Layout::Ubo2003)] >= layoutVotes[static_cast<int>(Layout::Utia)]
+             ? Layout::Ubo2003
+             : Layout::Utia;
+}
 
+// The sorted light and view directions of `files`, and each file in its slot; every slot
+// filled exactly once.
+void placeStackFiles(const std::string& path, const std::vector<StackFile>& files, StackListing& listing) {
   std::set<Direction, DirLess> lightSet, viewSet;
   for (const auto& f : files) lightSet.insert(f.light), viewSet.insert(f.view);
   listing.lights.assign(lightSet.begin(), lightSet.end());
@@ -174,6 +172,26 @@ StackListing listBtfStack(const std::string& path, Layout forced) {
       throw fileError(path, s.str());
     }
   }
+}
+
+}  // namespace
+
+StackListing listBtfStack(const std::string& path, Layout forced) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw fileAccessError(path, "no such file or folder", ENOENT);
+  if (looksLikeUbo2014(path)) return ubo2014Listing(path, forced, Ubo2014Btf::read(path));
+  if (!fs::is_directory(path, ec))
+    throw fileAccessError(path, "not a folder (expected a folder of BTF images or a UBO2014 .btf file)", ENOTDIR);
+  if (forced == Layout::Ubo2014)
+    throw fileError(path, "is a folder of images: --layout ubo2014 applies to UBO2014 .btf files only (leave it "
+                          "out, or give ubo2003 or utia)");
+  refuseInterruptedOutput(path);
+
+  std::map<int, int> layoutVotes;
+  const std::vector<StackFile> files = parseStackNames(candidateImages(path), layoutVotes);
+  StackListing listing;
+  listing.layout = stackLayout(path, forced, files, layoutVotes);
+  placeStackFiles(path, files, listing);
   return listing;
 }
 

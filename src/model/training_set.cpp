@@ -18,6 +18,62 @@ namespace {
 // Independent random streams derived from the one seed.
 constexpr std::uint64_t kHoldoutStream = 0x686f6c646f7574ull;  // "holdout"
 constexpr std::uint64_t kStepStream = 0x73746570ull;           // "step"
+
+// Throws unless the encoder inputs and alpha fit the stack.
+void checkEncoderInputs(const TrainInputs& in, int images, std::int64_t texels, int groups) {
+  const MatrixXfCol& x = *in.encoderInputs;
+  if (images < 1 || texels < 1) throw Error("training: the BTF stack is empty");
+  if (x.cols() != 3 * static_cast<Eigen::Index>(images))
+    throw Error("training: encoder inputs have " + std::to_string(x.cols()) + " columns, expected 3 x " +
+                std::to_string(images) + " images");
+  if (groups < 1) throw Error("training: no encoder inputs (0 rows)");
+  if (!(in.alpha > 0) || !std::isfinite(in.alpha))
+    throw Error("training: alpha must be a positive finite number, got " + std::to_string(in.alpha));
+  if (!x.allFinite()) throw Error("training: encoder inputs contain NaN or infinity");
+}
+
+// The texels of each encoder input: 1 per-texel, else the ids' counts.
+std::vector<int> groupSizes(const TrainInputs& in, bool perTexel, int groups, std::int64_t texels) {
+  std::vector<int> sizes;
+  if (perTexel) {
+    if (groups != texels)
+      throw Error("training: per-texel mode needs one encoder input per texel (" + std::to_string(texels) +
+                  "), got " + std::to_string(groups));
+    sizes.assign(groups, 1);
+    return sizes;
+  }
+  if (static_cast<std::int64_t>(in.ids.size()) != texels)
+    throw Error("training: id list has " + std::to_string(in.ids.size()) + " entries for " +
+                std::to_string(texels) + " texels");
+  sizes.assign(groups, 0);
+  for (std::size_t t = 0; t < in.ids.size(); ++t) {
+    std::int32_t id = in.ids[t];
+    if (id < 0 || id >= groups)
+      throw Error("training: texel " + std::to_string(t) + " has cluster id " + std::to_string(id) +
+                  ", outside 0.." + std::to_string(groups - 1));
+    ++sizes[id];
+  }
+  return sizes;
+}
+
+// Checks the per-texel coefficients' count and values; returns their FNV-1a hash over the bits.
+std::uint64_t checkedCoefficientHash(const TrainInputs& in, std::int64_t texels) {
+  const int terms = in.coefficientTerms, channels = in.coefficientChannels;
+  if (terms < 1 || (channels != 1 && channels != 3) ||
+      static_cast<std::int64_t>(in.texelCoefficients.size()) != texels * terms * channels)
+    throw Error("training: " + std::to_string(in.texelCoefficients.size()) + " per-texel coefficients for " +
+                std::to_string(texels) + " texels x " + std::to_string(in.coefficientTerms) + " terms x " +
+                std::to_string(channels) + " channels");
+  for (float f : in.texelCoefficients)
+    if (!std::isfinite(f)) throw Error("training: per-texel coefficients must be finite");
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (float f : in.texelCoefficients) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, 4);
+    h = (h ^ bits) * 0x100000001b3ull;
+  }
+  return h;
+}
 }  // namespace
 
 TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uint64_t seed, bool progress,
@@ -28,36 +84,11 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
   if (!in.stack) throw Error("training: no BTF stack given");
   if (!in.encoderInputs) throw Error("training: no encoder inputs given");
   const BtfStack& stack = *in.stack;
-  const MatrixXfCol& x = *in.encoderInputs;
   images_ = stack.numImages();
   texels_ = stack.numTexels();
-  groups_ = static_cast<int>(x.rows());
-  if (images_ < 1 || texels_ < 1) throw Error("training: the BTF stack is empty");
-  if (x.cols() != 3 * static_cast<Eigen::Index>(images_))
-    throw Error("training: encoder inputs have " + std::to_string(x.cols()) + " columns, expected 3 x " +
-                std::to_string(images_) + " images");
-  if (groups_ < 1) throw Error("training: no encoder inputs (0 rows)");
-  if (!(in.alpha > 0) || !std::isfinite(in.alpha))
-    throw Error("training: alpha must be a positive finite number, got " + std::to_string(in.alpha));
-  if (!x.allFinite()) throw Error("training: encoder inputs contain NaN or infinity");
-  if (perTexel_) {
-    if (groups_ != texels_)
-      throw Error("training: per-texel mode needs one encoder input per texel (" + std::to_string(texels_) +
-                  "), got " + std::to_string(groups_));
-    sizes_.assign(groups_, 1);
-  } else {
-    if (static_cast<std::int64_t>(in.ids.size()) != texels_)
-      throw Error("training: id list has " + std::to_string(in.ids.size()) + " entries for " +
-                  std::to_string(texels_) + " texels");
-    sizes_.assign(groups_, 0);
-    for (std::size_t t = 0; t < in.ids.size(); ++t) {
-      std::int32_t id = in.ids[t];
-      if (id < 0 || id >= groups_)
-        throw Error("training: texel " + std::to_string(t) + " has cluster id " + std::to_string(id) +
-                    ", outside 0.." + std::to_string(groups_ - 1));
-      ++sizes_[id];
-    }
-  }
+  groups_ = static_cast<int>(in.encoderInputs->rows());
+  checkEncoderInputs(in, images_, texels_, groups_);
+  sizes_ = groupSizes(in, perTexel_, groups_, texels_);
   cumulative_.resize(groups_ + 1);
   cumulative_[0] = 0;
   for (int g = 0; g < groups_; ++g) cumulative_[g + 1] = cumulative_[g] + sizes_[g];
@@ -99,21 +130,8 @@ TrainingSet::TrainingSet(const TrainInputs& in, double holdoutFraction, std::uin
     if (!in.texelCoefficients.empty()) {
       terms_ = in.coefficientTerms;
       channels = in.coefficientChannels;
-      if (terms_ < 1 || (channels != 1 && channels != 3) ||
-          static_cast<std::int64_t>(in.texelCoefficients.size()) != texels_ * terms_ * channels)
-        throw Error("training: " + std::to_string(in.texelCoefficients.size()) + " per-texel coefficients for " +
-                    std::to_string(texels_) + " texels x " + std::to_string(in.coefficientTerms) + " terms x " +
-                    std::to_string(channels) + " channels");
-      for (float f : in.texelCoefficients)
-        if (!std::isfinite(f)) throw Error("training: per-texel coefficients must be finite");
+      coefficientHash_ = checkedCoefficientHash(in, texels_);
       coefficients = in.texelCoefficients.data();
-      std::uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a over the coefficients' bits
-      for (float f : in.texelCoefficients) {
-        std::uint32_t bits;
-        std::memcpy(&bits, &f, 4);
-        h = (h ^ bits) * 0x100000001b3ull;
-      }
-      coefficientHash_ = h;
     }
     // With coefficients, the plain cluster means' leftover too: the floor the summary reports
     // beside the modulated one, from the same pass over the stack.

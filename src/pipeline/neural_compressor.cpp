@@ -200,6 +200,51 @@ void recordTraining(const TrainResult& train, const TrainConfig& config, Compres
   stats.allReduceSecondsPerStep = train.allReduceSecondsPerStep;
 }
 
+void recordClustering(const ClusteringResult& clustering, CompressStats& stats) {
+  stats.seconds.clusterParts.pca = clustering.pcaSeconds;
+  stats.seconds.clusterParts.kmeans = clustering.kmeansSeconds;
+  stats.seconds.clusterParts.medians = clustering.representativeSeconds;
+  stats.kmeansIterations = clustering.iterations;
+}
+
+std::vector<int> trainingImagesOf(const std::vector<std::uint8_t>& holdout) {
+  std::vector<int> trainImages;
+  for (int i = 0; i < static_cast<int>(holdout.size()); ++i)
+    if (!holdout[i]) trainImages.push_back(i);
+  return trainImages;
+}
+
+// Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
+// the stored ones are refit to the trained terms afterwards.
+void addTrainingCoefficients(const BtfStack& stack, const CompressOptions& o, float alpha,
+                             const std::vector<std::uint8_t>& holdout, TrainInputs& inputs, CompressStats& stats) {
+  const ModulationConfig& mc = o.train.modulation;
+  inputs.texelCoefficients = trainingCoefficients(stack, alpha, inputs.ids, o.clusters, holdout, mc, o.progress);
+  inputs.coefficientTerms = mc.terms;
+  inputs.coefficientChannels = mc.channels;
+  stats.modulationTerms = mc.terms;
+  stats.modulationChannels = mc.channels;
+  stats.modulationBits = mc.bits;
+}
+
+// The compressed material (storage rounding, modulation refit, decoded RMSE) and its figures.
+CompressedBtf assembleMaterial(const BtfStack& stack, const CompressOptions& o, const TrainConfig& config, float alpha,
+                               TrainResult& train, TrainInputs& inputs, const ClusteringResult& clustering,
+                               int pcaComponents, const std::vector<int>& trainImages,
+                               const std::vector<std::uint8_t>& holdout, CompressStats& stats) {
+  const auto t = Clock::now();
+  CompressedBtf b = assembleCompressed(stack, config, stats.method, alpha, train, std::move(inputs.ids), o.clusters,
+                                       inputs.texelCoefficients, trainImages, holdout, o.progress);
+  stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
+  stats.rmseTrain = train.rmseTrain;
+  stats.rmseHoldout = train.rmseHoldout;
+  b.metadataJson = metadataJson(stack, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents, stats, "");
+  b.validate("compressed result");
+  stats.sizes = computeSizes(b);
+  stats.seconds.assemble = secondsSince(t);
+  return b;
+}
+
 }  // namespace
 
 CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& options, CompressStats& stats) {
@@ -231,10 +276,7 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
       return compressAdaptive(stack, o, *data.source, std::move(clustering), data.alpha, pcaComponents, stats);
     }
     data.source.reset();  // the encoder sees only the k representatives
-    stats.seconds.clusterParts.pca = clustering.pcaSeconds;
-    stats.seconds.clusterParts.kmeans = clustering.kmeansSeconds;
-    stats.seconds.clusterParts.medians = clustering.representativeSeconds;
-    stats.kmeansIterations = clustering.iterations;
+    recordClustering(clustering, stats);
     inputs.encoderInputs = &clustering.representatives;
     inputs.ids = clustering.ids;
   } else {
@@ -245,23 +287,12 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
   // as the file stores them; training sees exactly what decoding will apply.
   const std::vector<std::uint8_t> holdout =
       holdoutImageMask(stack.numImages(), o.train.holdoutFraction, o.train.seed);
-  std::vector<int> trainImages;
-  for (int i = 0; i < stack.numImages(); ++i)
-    if (!holdout[i]) trainImages.push_back(i);
+  const std::vector<int> trainImages = trainingImagesOf(holdout);
   const ModulationConfig& mc = o.train.modulation;
   const bool modulated = o.clusters > 0 && mc.mode != "none";
   stats.modulationMode = o.clusters > 0 ? mc.mode : "none";
   const auto tCoefficients = Clock::now();
-  if (modulated) {
-    // Training fits the terms to exact per-cluster targets with these (orthonormal) coefficients;
-    // the stored ones are refit to the trained terms afterwards.
-    inputs.texelCoefficients = trainingCoefficients(stack, data.alpha, inputs.ids, o.clusters, holdout, mc, o.progress);
-    inputs.coefficientTerms = mc.terms;
-    inputs.coefficientChannels = mc.channels;
-    stats.modulationTerms = mc.terms;
-    stats.modulationChannels = mc.channels;
-    stats.modulationBits = mc.bits;
-  }
+  if (modulated) addTrainingCoefficients(stack, o, data.alpha, holdout, inputs, stats);
   stats.seconds.clusterParts.coefficients = secondsSince(tCoefficients);
   stats.seconds.cluster = secondsSince(t);
   if (stopRequested(o)) {
@@ -288,18 +319,8 @@ CompressedBtf compressNeuralStack(const BtfStack& stack, const CompressOptions& 
     if (modulated) stats.rmseFloorModulated = train.rmseFloor;
   }
 
-  // ---- Assemble the compressed material (storage rounding, modulation refit, decoded RMSE)
-  t = Clock::now();
-  CompressedBtf b = assembleCompressed(stack, config, stats.method, data.alpha, train, std::move(inputs.ids),
-                                       o.clusters, inputs.texelCoefficients, trainImages, holdout, o.progress);
-  stats.holdoutImages = static_cast<int>(b.holdoutImages.size());
-  stats.rmseTrain = train.rmseTrain;
-  stats.rmseHoldout = train.rmseHoldout;
-  b.metadataJson = metadataJson(stack, config, train, o.clusters > 0 ? &clustering : nullptr, pcaComponents, stats, "");
-  b.validate("compressed result");
-  stats.sizes = computeSizes(b);
-  stats.seconds.assemble = secondsSince(t);
-  return b;
+  return assembleMaterial(stack, o, config, data.alpha, train, inputs, clustering, pcaComponents, trainImages, holdout,
+                          stats);
 }
 
 }  // namespace detail

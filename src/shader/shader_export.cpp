@@ -492,19 +492,11 @@ void buildNeural(const CompressedBtf& m, ShaderWeights weights, ShaderDecoder& o
 
 // ---- The PCA baseline ---------------------------------------------------------------------
 
-void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
-  ShaderDecoderDescription& d = out.description;
+// Per image and channel: [mean, basis row]; per texel: [1, coefficients]; so one dot product
+// of the two gives mean + coefficients . basis. Then the measured directions.
+void addPcaTextures(const CompressedBtf& m, int row4, ShaderDecoder& out) {
   const std::string& name = out.name;
-  const int C = m.latentDim, row4 = vec4sOf(C + 1);
-  if (row4 > 64)
-    throw Error(name + ": a PCA file of " + std::to_string(C) +
-                " components: the shader keeps at most 255 per texel in registers");
-  d.pcaComponents = C;
-  d.lights = static_cast<int>(m.lights.size());
-  d.views = static_cast<int>(m.views.size());
-  const int images = m.numImages();
-  // Per image and channel: [mean, basis row]; per texel: [1, coefficients]; so one dot product
-  // of the two gives mean + coefficients . basis.
+  const int C = m.latentDim, images = m.numImages();
   std::vector<float> rows(static_cast<std::size_t>(3) * images * row4 * 4, 0.0f);
   for (int r = 0; r < 3 * images; ++r) {
     float* dst = rows.data() + static_cast<std::size_t>(r) * row4 * 4;
@@ -531,11 +523,22 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
                                      "PCA coefficients per texel ([1, coefficients], " + std::to_string(row4) + " vec4)",
                                      coefficients));
   out.textures.push_back(makeTexture(name, "nbtf_directions", "measured light then view unit vectors", dirs));
+}
 
+// How many measured lights, views and pairs the shader's search keeps, and how many pairs it blends.
+struct PcaSearch {
+  int lights, views, pairs, used;
+};
+
+PcaSearch pcaSearchOf(const ShaderDecoderDescription& d) {
   const int nl = std::min(kPcaKeep, d.lights), nv = std::min(kPcaKeep, d.views);
   const int keep = std::min(kPcaKeep, nl * nv), used = std::min(kPcaNeighbours, keep);
+  return {nl, nv, keep, used};
+}
+
+// The constants, the angle between directions, and one measured image's value at a texel.
+std::string pcaImageGlsl(const ShaderDecoderDescription& d, int row4) {
   std::ostringstream s;
-  s << fetchFunctions(out.textures) << "\n" << texelFunction(m.width, m.height);
   s << "// PCA baseline (codec/pca_model.h): the mean and basis at an unmeasured pair are the\n"
     << "// modified Shepard interpolation of the " << kPcaNeighbours
     << " nearest measured pairs, d = sqrt(angle(l, l_i)^2 + angle(v, v_i)^2).\n"
@@ -546,12 +549,15 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
     << "    v.r += dot(nbtf_pca_rows_at((3 * image + 0) * " << row4 << " + j), k[j]);\n"
     << "    v.g += dot(nbtf_pca_rows_at((3 * image + 1) * " << row4 << " + j), k[j]);\n"
     << "    v.b += dot(nbtf_pca_rows_at((3 * image + 2) * " << row4 << " + j), k[j]);\n"
-    << "  }\n  return v;\n}\n\n"
-    << "vec3 nbtf_decode(vec2 uv, vec3 light, vec3 view) {\n"
-    << "  int t = nbtf_texel(uv);\n"
-    << "  vec4 k[" << row4 << "];\n"
-    << "  for (int j = 0; j < " << row4 << "; ++j) k[j] = nbtf_pca_coefficients_at(t * " << row4 << " + j);\n"
-    << "  // The " << nl << " nearest lights and " << nv << " nearest views (ties: lower index first)\n"
+    << "  }\n  return v;\n}\n\n";
+  return s.str();
+}
+
+// Inside nbtf_decode: the nearest lights and views by insertion, then the nearest pairs of them.
+std::string pcaNearestPairsGlsl(const PcaSearch& p) {
+  const int nl = p.lights, nv = p.views, keep = p.pairs;
+  std::ostringstream s;
+  s << "  // The " << nl << " nearest lights and " << nv << " nearest views (ties: lower index first)\n"
     << "  float la[" << nl << "]; int li[" << nl << "];\n"
     << "  for (int j = 0; j < " << nl << "; ++j) { la[j] = 1e30; li[j] = 0; }\n"
     << "  for (int i = 0; i < NBTF_LIGHTS; ++i) {\n"
@@ -575,8 +581,15 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
     << "      if (x < cd[" << keep - 1 << "] || (x == cd[" << keep - 1 << "] && img < ci[" << keep - 1 << "])) {\n"
     << "        int j = " << keep - 1 << ";\n"
     << "        for (; j > 0 && (cd[j - 1] > x || (cd[j - 1] == x && ci[j - 1] > img)); --j) { cd[j] = cd[j - 1]; ci[j] = ci[j - 1]; }\n"
-    << "        cd[j] = x; ci[j] = img;\n      }\n    }\n"
-    << "  vec3 rgb;\n"
+    << "        cd[j] = x; ci[j] = img;\n      }\n    }\n";
+  return s.str();
+}
+
+// The end of nbtf_decode: the nearest pairs' images blended by Shepard weights, x alpha.
+std::string pcaBlendGlsl(const PcaSearch& p, float alpha) {
+  const int keep = p.pairs, used = p.used;
+  std::ostringstream s;
+  s << "  vec3 rgb;\n"
     << "  // A measured pair (float32 angles: within 1e-6 rad) is its image alone.\n"
     << "  if (cd[0] < 1e-6) {\n    rgb = nbtf_pca_image(ci[0], k);\n  } else {\n"
     << "    float radius = " << (keep > kPcaNeighbours ? "cd[" + std::to_string(kPcaNeighbours) + "]" : "-1.0")
@@ -594,15 +607,43 @@ void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
     << "    for (int j = 0; j < " << used << "; ++j)\n"
     << "      if (w[j] > 0.0) rgb += (w[j] / sum) * nbtf_pca_image(ci[j], k);\n"
     << "  }\n"
-    << "  return rgb * " << lit(m.alpha) << ";  // x alpha: linear RGB\n}\n";
-  out.glsl = s.str();
+    << "  return rgb * " << lit(alpha) << ";  // x alpha: linear RGB\n}\n";
+  return s.str();
+}
 
-  ShaderCost& c = out.cost;
+// Cost per pixel (see ShaderCost).
+void addPcaCost(const ShaderDecoderDescription& d, int row4, const PcaSearch& p, ShaderCost& c) {
+  const int nl = p.lights, nv = p.views, used = p.used;
   const double dirsTotal = d.lights + d.views;
   c.textureFetches = row4 + dirsTotal + used * 3.0 * row4;
   c.otherOps = 8 + dirsTotal * (6 + 4 + 3 + 2) + nl * nv * 5.0 + used * 6.0;
   c.transcendentals = dirsTotal;  // atan per measured direction
   c.multiplyAdds = used * 3.0 * 4 * row4 + used * 3.0 + 3;
+}
+
+void buildPca(const CompressedBtf& m, ShaderDecoder& out) {
+  ShaderDecoderDescription& d = out.description;
+  const std::string& name = out.name;
+  const int C = m.latentDim, row4 = vec4sOf(C + 1);
+  if (row4 > 64)
+    throw Error(name + ": a PCA file of " + std::to_string(C) +
+                " components: the shader keeps at most 255 per texel in registers");
+  d.pcaComponents = C;
+  d.lights = static_cast<int>(m.lights.size());
+  d.views = static_cast<int>(m.views.size());
+  addPcaTextures(m, row4, out);
+
+  const PcaSearch search = pcaSearchOf(d);
+  std::ostringstream s;
+  s << fetchFunctions(out.textures) << "\n" << texelFunction(m.width, m.height);
+  s << pcaImageGlsl(d, row4)
+    << "vec3 nbtf_decode(vec2 uv, vec3 light, vec3 view) {\n"
+    << "  int t = nbtf_texel(uv);\n"
+    << "  vec4 k[" << row4 << "];\n"
+    << "  for (int j = 0; j < " << row4 << "; ++j) k[j] = nbtf_pca_coefficients_at(t * " << row4 << " + j);\n"
+    << pcaNearestPairsGlsl(search) << pcaBlendGlsl(search, m.alpha);
+  out.glsl = s.str();
+  addPcaCost(d, row4, search, out.cost);
 }
 
 }  // namespace

@@ -67,6 +67,8 @@ DecoderBackprop::DecoderBackprop(Decoder decoder, int latentDim) : decoder_(std:
   gradOffset_.push_back(offset);
 }
 
+// One piece: the forward pass, the loss and the backward pass work on the same chunk-sized
+// buffers while they are in L2, each stage on the one before it.
 void DecoderBackprop::runChunk(Worker& k, std::int64_t c, std::int64_t rows, int rowsPerTile, const float* dirs,
                               const float* targets, float* outRows) {
   const int W = width_, S = stride_, L = layers_, O = outputs_;
