@@ -97,17 +97,4 @@ TEST(BtfStack, GatherStoredGivesGatherLinearsValuesAfterConversion) {
   }
 }
 
-TEST(BtfStack, ParseCropAndLayout) {
-  Crop c = parseCrop("10,20,100,50");
-  EXPECT_EQ(c.x, 10);
-  EXPECT_EQ(c.height, 50);
-  EXPECT_THROW(parseCrop("10,20,100"), Error);
-  EXPECT_THROW(parseCrop("10,20,0,5"), Error);
-  EXPECT_THROW(parseCrop("-1,0,5,5"), Error);
-  EXPECT_EQ(parseLayout("utia"), Layout::Utia);
-  EXPECT_EQ(parseLayout("ubo2014"), Layout::Ubo2014);  // a Bonn .btf file
-  EXPECT_EQ(layoutName(Layout::Ubo2014), "ubo2014");
-  EXPECT_THROW(parseLayout("ubo2015"), Error);
-}
-
 }  // namespace nbtf

@@ -1,5 +1,5 @@
 // Helpers shared by the clustering tests: labelled Gaussian blobs and the adjusted Rand
-// index (1 = the same partition up to renaming, about 0 = chance agreement).
+// index (1 = the same partition up to renaming, about 0 = chance agreement), quiet k-means options.
 #pragma once
 #include <algorithm>
 #include <cstdint>
@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "cluster/kmeans.h"
 #include "preprocess/abrdf_matrix.h"
 
 namespace nbtf::testing {
@@ -52,6 +53,15 @@ inline double adjustedRandIndex(const std::vector<std::int32_t>& a, const std::v
   double expected = rows * cols / pairs(static_cast<double>(a.size()));
   double maximum = 0.5 * (rows + cols);
   return maximum == expected ? 1.0 : (index - expected) / (maximum - expected);
+}
+
+// k-means options for k clusters from `seed`, without progress output.
+inline KMeansOptions quiet(int k, std::uint64_t seed = 1) {
+  KMeansOptions o;
+  o.clusters = k;
+  o.seed = seed;
+  o.progress = false;
+  return o;
 }
 
 }  // namespace nbtf::testing

@@ -62,26 +62,6 @@ TEST(CompressConfig, ShippedAdaptiveConfigIsTheDefaultRecipePlusAdaptive) {
   EXPECT_FALSE(loadCompressConfig(dir + "default.json").adaptive.enabled);
 }
 
-// Every config of configs/ is compiled in, as it is in the file.
-TEST(CompressConfig, BuiltInConfigsAreTheShippedFiles) {
-  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
-  const std::vector<std::string> names = builtInConfigNames();
-  std::vector<std::string> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    if (e.path().extension() == ".json") files.push_back(e.path().stem().string());
-  std::sort(files.begin(), files.end());
-  EXPECT_EQ(names, files);
-  for (const std::string& name : names) {
-    SCOPED_TRACE(name);
-    std::ifstream in(dir + name + ".json");
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    EXPECT_EQ(std::string(builtInConfigText(name)), text);
-    EXPECT_TRUE(isBuiltInConfig(name));
-  }
-  EXPECT_EQ(builtInConfigText("no-such-config"), nullptr);
-  EXPECT_EQ(trainConfigJson(loadTrainConfig("compact")), trainConfigJson(loadTrainConfig(dir + "compact.json")));
-}
-
 // The shipped configs of the rate-distortion curve are each another shipped config with a few
 // keys changed and nothing else: `name` equals `base` after `change`.
 void expectShippedConfigIs(const std::string& name, const std::string& base,
@@ -196,17 +176,6 @@ TEST(CompressConfig, ReadsTheDefaultClusterCount) {
   EXPECT_EQ(loadCompressConfig("compact").clusters, 250);
   EXPECT_EQ(loadCompressConfig("high_fidelity").clusters, 500);
   EXPECT_EQ(loadCompressConfig("default").clusters, 1000);
-}
-
-TEST(CompressConfig, DefaultClusterCountIsCappedToTheInput) {
-  EXPECT_EQ(defaultClusterCount(1000, 100 * 100), 1000);
-  EXPECT_EQ(defaultClusterCount(1000, 256 * 256), 1000);
-  EXPECT_EQ(defaultClusterCount(1000, 48 * 48), 230);  // 2304 texels / 10
-  EXPECT_EQ(defaultClusterCount(1000, 9999), 999);
-  EXPECT_EQ(defaultClusterCount(250, 48 * 48), 230);
-  EXPECT_EQ(defaultClusterCount(100, 48 * 48), 100);
-  EXPECT_EQ(defaultClusterCount(1000, 7), 1);  // fewer texels than kTexelsPerDefaultCluster: one cluster
-  EXPECT_EQ(defaultClusterCount(0, 48 * 48), 0);  // per-texel stays per-texel
 }
 
 TEST(CompressConfig, AdaptiveOptionsAreCheckedWhereverTheyComeFrom) {

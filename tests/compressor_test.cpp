@@ -14,6 +14,7 @@
 #include "codec/nbtf_describe.h"
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
+#include "compressor_fixtures.h"
 #include "io/btf_loader.h"
 #include "io/ubo2014_btf.h"
 #include "model/config/config_section.h"
@@ -28,18 +29,8 @@ namespace nbtf {
 namespace {
 namespace fs = std::filesystem;
 
-bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
-
-// The paper's model (no per-texel modulation, float32 parts), as these tests check it.
-CompressOptions quickOptions(int clusters) {
-  CompressOptions o;
-  o.train = testing::quickConfig();
-  o.train.modulation.mode = "none";
-  o.train.storage = StorageConfig{"float32", "float32", "raw"};
-  o.clusters = clusters;
-  o.progress = false;
-  return o;
-}
+using testing::contains;
+using testing::quickOptions;
 
 // The RMSE of the written file itself, decoded texel by texel with its own decoder: what a
 // user of the file gets, independent of the trainer's bookkeeping.
@@ -340,58 +331,6 @@ TEST(Compressor, HoldoutImagesAreRecordedAndMeasured) {
   EXPECT_NEAR(stats.rmseHoldout, fileRmse(b, m.stack, b.holdoutImages), 1e-4);
   std::vector<std::uint8_t> bytes = serializeNbtf(b);
   EXPECT_EQ(parseNbtf(bytes.data(), bytes.size(), "mem").holdoutImages, b.holdoutImages);
-}
-
-TEST(Compressor, MoreClustersThanTexelsIsAClearError) {
-  testing::TestMaterial m = testing::makeTestMaterial();
-  CompressStats stats;
-  try {
-    compressStack(m.stack, quickOptions(65), stats);
-    FAIL() << "expected an error";
-  } catch (const Error& e) {
-    EXPECT_TRUE(contains(e.what(), "--clusters 65 is larger than the 64 texels")) << e.what();
-  }
-}
-
-TEST(Compressor, StatsJsonHasTheDocumentedKeys) {
-  testing::TestMaterial m = testing::makeTestMaterial();
-  CompressOptions o = quickOptions(4);
-  o.train.epochs = 5;
-  CompressStats stats;
-  compressStack(m.stack, o, stats);
-  nlohmann::json j = nlohmann::json::parse(compressStatsJson(stats));
-  for (const char* key : {"rmse_train", "rmse_holdout", "ratio", "bytes", "seconds"}) EXPECT_TRUE(j.contains(key)) << key;
-  for (const char* key : {"decoder", "latents", "ids", "total", "raw_float32"}) EXPECT_TRUE(j["bytes"].contains(key)) << key;
-  for (const char* key : {"load", "preprocess", "cluster", "train", "assemble", "write"})
-    EXPECT_TRUE(j["seconds"].contains(key)) << key;
-  // The cluster stage's parts, as the stats hold them (their values are timings: not checked).
-  const StageSeconds& t = stats.seconds;
-  const std::pair<const char*, double> parts[] = {{"pca", t.clusterParts.pca},
-                                                  {"kmeans", t.clusterParts.kmeans},
-                                                  {"medians", t.clusterParts.medians},
-                                                  {"coefficients", t.clusterParts.coefficients}};
-  ASSERT_EQ(j["seconds"]["cluster_parts"].size(), 4u);
-  for (const auto& [key, value] : parts) EXPECT_EQ(j["seconds"]["cluster_parts"][key].get<double>(), value) << key;
-  // The training steps' phases, likewise; the steps ran, so the decoder's part is counted.
-  const std::pair<const char*, double> trainParts[] = {{"sampling", t.trainParts.sampling},
-                                                       {"encoder", t.trainParts.encoder},
-                                                       {"decoder", t.trainParts.decoder},
-                                                       {"optimizer", t.trainParts.optimizer}};
-  ASSERT_EQ(j["seconds"]["train_parts"].size(), 4u);
-  for (const auto& [key, value] : trainParts)
-    EXPECT_EQ(j["seconds"]["train_parts"][key].get<double>(), value) << key;
-  EXPECT_GT(t.trainParts.decoder, 0);
-  EXPECT_EQ(j["seconds"]["assemble"].get<double>(), t.assemble);
-  EXPECT_EQ(j["seconds"]["total"].get<double>(), t.total());
-  EXPECT_GE(j["kmeans_iterations"].get<int>(), 1);
-  EXPECT_EQ(j["kmeans_iterations"].get<int>(), stats.kmeansIterations);
-  EXPECT_TRUE(j["rmse_holdout"].is_null());  // no hold-out set
-  EXPECT_EQ(j["bytes"]["total"].get<std::uint64_t>(), stats.sizes.total);
-  EXPECT_DOUBLE_EQ(j["ratio"].get<double>(), stats.sizes.ratio);
-  std::string summary = formatCompressSummary(stats);
-  EXPECT_TRUE(contains(summary, "on linear RGB / alpha")) << summary;
-  EXPECT_TRUE(contains(summary, "ratio")) << summary;
-  EXPECT_TRUE(contains(summary, "  train: decoder ")) << summary;
 }
 
 // 8 x 8 texels that differ in two ways: the left half is twice as bright as the right in

@@ -7,6 +7,7 @@
 #include <random>
 #include <vector>
 
+#include "codec/decoder.h"
 #include "codec/nbtf_file.h"
 #include "codec_fixtures.h"
 #include "util/direction_planes.h"
@@ -137,6 +138,19 @@ inline CompressedBtf makeSmoothMaterial(int k = 3, int width = 3, int height = 2
   b.decoder.layers = {h, o};
   for (std::size_t i = 0; i < b.latents.size(); ++i) b.latents[i] = 0.25f * static_cast<float>(i % 5) - 0.5f;
   return b;
+}
+
+// The instruction sets this CPU runs, in order (the best last).
+inline std::vector<DecoderIsa> supportedIsas() {
+  std::vector<DecoderIsa> out;
+  for (DecoderIsa isa : {DecoderIsa::Portable, DecoderIsa::Avx2, DecoderIsa::Avx512})
+    if (decoderIsaSupported(isa)) out.push_back(isa);
+  return out;
+}
+
+// Measured directions of the fixture plus unmeasured ones (grazing and at the pole too).
+inline std::vector<Direction> probeDirections() {
+  return {{0, 0}, {15, 60}, {37.5, 200}, {10, 45}, {89.9, 300}, {90, 0}, {63.2, 359.5}};
 }
 
 }  // namespace nbtf::testing

@@ -27,58 +27,9 @@ namespace {
 
 using testing::decoderTolerance;
 using testing::makeDecoderMaterial;
+using testing::probeDirections;
 using testing::referenceOutput;
-
-std::vector<DecoderIsa> supportedIsas() {
-  std::vector<DecoderIsa> out;
-  for (DecoderIsa isa : {DecoderIsa::Portable, DecoderIsa::Avx2, DecoderIsa::Avx512})
-    if (decoderIsaSupported(isa)) out.push_back(isa);
-  return out;
-}
-
-// Measured directions of the fixture plus unmeasured ones (grazing and at the pole too).
-std::vector<Direction> probeDirections() {
-  return {{0, 0}, {15, 60}, {37.5, 200}, {10, 45}, {89.9, 300}, {90, 0}, {63.2, 359.5}};
-}
-
-void expectMatchesReference(const NbtfDecoder& dec, const CompressedBtf& b) {
-  for (const Direction& l : probeDirections())
-    for (const Direction& v : {Direction{0, 0}, Direction{30, 30}, Direction{72, 123}})
-      for (int y = 0; y < b.height; ++y)
-        for (int x = 0; x < b.width; ++x) {
-          std::array<double, 3> mag;
-          auto ref = referenceOutput(b, y * b.width + x, l, v, &mag);
-          Rgb n = dec.evaluate(x, y, l, v, OutputScale::Normalized);
-          const float got[3] = {n.r, n.g, n.b};
-          for (int c = 0; c < 3; ++c)
-            ASSERT_NEAR(got[c], ref[c], decoderTolerance(mag[c]))
-                << decoderIsaName(dec.isa()) << " texel " << x << "," << y << " channel " << c << " light "
-                << l.thetaDeg << "," << l.phiDeg;
-        }
-}
-
-TEST(Decoder, MatchesReferenceOnEveryInstructionSet) {
-  // Shapes: the paper's kind (ReLU hidden layers, widths not multiples of 16), a wide
-  // layer that needs several column panels, a sigmoid layer, and a single-layer decoder.
-  std::vector<std::vector<int>> shapes = {{37, 21}, {130, 5, 17}, {}, {106, 106, 106}};
-  for (int k : {5, 0})
-    for (const auto& widths : shapes) {
-      // Every shape with the paper's direction inputs, the default one with the half vector too.
-      for (DirectionEncoding encoding : directionEncodings()) {
-      if (encoding != DirectionEncoding::Stereographic && widths != shapes[0]) continue;
-      CompressedBtf b = makeDecoderMaterial(k, widths, 7, 5, 11, encoding);
-      if (widths.size() == 3 && widths[1] == 5) b.decoder.layers[1].activation = Activation::Sigmoid;
-      for (DecoderIsa isa : supportedIsas()) {
-        DecoderOptions o;
-        o.isa = isa;
-        NbtfDecoder dec(b, o);
-        EXPECT_EQ(dec.isa(), isa);
-        EXPECT_EQ(dec.directionInputs(), directionInputCount(encoding));
-        expectMatchesReference(dec, b);
-      }
-      }
-    }
-}
+using testing::supportedIsas;
 
 // The plain forward pass (tests/support/mlp_reference.h, Eigen) on the same
 // inputs: decoder input = latent | stereographic light | stereographic view.
@@ -377,60 +328,6 @@ TEST(Decoder, CommittedFormat111FileDecodesAsBefore) {
   EXPECT_TRUE(b.modulation.decorrelated);
   EXPECT_EQ(b.modulation.terms, 1);
   EXPECT_EQ(b.modulation.bits, 7);
-}
-
-TEST(Decoder, DecodeRowsGivesOneValuePerCluster) {
-  CompressedBtf b = makeDecoderMaterial(6, {37, 21}, 8, 8);
-  NbtfDecoder dec(b);
-  std::vector<float> rows(3 * 6), img(3 * 64);
-  dec.decodeRows({45, 100}, {30, 30}, rows.data(), OutputScale::Normalized);
-  dec.decodeImage({45, 100}, {30, 30}, img.data(), OutputScale::Normalized);
-  for (int t = 0; t < 64; ++t)
-    for (int c = 0; c < 3; ++c) EXPECT_EQ(img[3 * t + c], rows[3 * b.ids[t] + c]);
-}
-
-TEST(Decoder, BatchEqualsSingleQueries) {
-  // Large enough to run on several threads and many tiles; directions repeat in runs
-  // (the batch shares their first-layer work) and also change on every query.
-  setThreadCount(2);
-  for (int k : {5, 0})
-  for (DirectionEncoding encoding : directionEncodings()) {
-    CompressedBtf b = makeDecoderMaterial(k, {37, 21}, 7, 5, 11, encoding);
-    NbtfDecoder dec(b);
-    std::mt19937 rng(3);
-    std::uniform_int_distribution<int> xs(0, b.width - 1), ys(0, b.height - 1);
-    std::uniform_real_distribution<double> theta(0, 90), phi(0, 360);
-    std::vector<TexelQuery> queries(6000);
-    for (std::size_t i = 0; i < queries.size(); ++i) {
-      TexelQuery& q = queries[i];
-      q.x = xs(rng), q.y = ys(rng);
-      if (i % 100 < 50 && i > 0) {
-        q.light = queries[i - 1].light, q.view = queries[i - 1].view;
-      } else {
-        q.light = {theta(rng), phi(rng)}, q.view = {theta(rng), phi(rng)};
-      }
-    }
-    std::vector<float> rgb(3 * queries.size());
-    dec.evaluate(queries.data(), queries.size(), rgb.data());
-    for (std::size_t i = 0; i < queries.size(); i += 7) {
-      Rgb one = dec.evaluate(queries[i].x, queries[i].y, queries[i].light, queries[i].view);
-      ASSERT_EQ(rgb[3 * i + 0], one.r) << "query " << i;
-      ASSERT_EQ(rgb[3 * i + 1], one.g) << "query " << i;
-      ASSERT_EQ(rgb[3 * i + 2], one.b) << "query " << i;
-    }
-  }
-  setThreadCount(0);
-}
-
-TEST(Decoder, UncachedFirstLayerGivesIdenticalResults) {
-  CompressedBtf b = makeDecoderMaterial(0, {37, 21});
-  DecoderOptions uncached;
-  uncached.maxCachedFirstLayerBytes = 0;
-  NbtfDecoder a(b), c(b, uncached);
-  std::vector<float> ia(3 * b.numTexels()), ic(3 * b.numTexels());
-  a.decodeImage({20, 40}, {50, 80}, ia.data());
-  c.decodeImage({20, 40}, {50, 80}, ic.data());
-  EXPECT_EQ(ia, ic);
 }
 
 TEST(Decoder, TextureCoordinatesWrap) {

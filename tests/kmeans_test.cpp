@@ -13,14 +13,7 @@ namespace {
 
 using testing::adjustedRandIndex;
 using testing::makeBlobs;
-
-KMeansOptions quiet(int k, std::uint64_t seed = 1) {
-  KMeansOptions o;
-  o.clusters = k;
-  o.seed = seed;
-  o.progress = false;
-  return o;
-}
+using testing::quiet;
 
 // Plain Lloyd in double precision, the reference the accelerated version must reproduce.
 std::vector<std::int32_t> referenceLloyd(const MatrixXfCol& points, Eigen::MatrixXd centers, int& iterations) {
@@ -52,14 +45,6 @@ TEST(KMeans, FindsWellSeparatedBlobs) {
   for (int s : r.sizes) EXPECT_EQ(s, 60);
   // Inertia of the true partition: about M * dims (unit noise per dimension).
   EXPECT_NEAR(r.inertia / (480.0 * 5), 1.0, 0.15);
-}
-
-TEST(KMeans, ClassicSeedingAlsoWorks) {
-  auto blobs = makeBlobs(6, 40, 4, 40.0f, 2);
-  KMeansOptions o = quiet(6);
-  o.seedingTrials = 1;
-  KMeansResult r = kmeansPlusPlus(blobs.points, o);
-  EXPECT_GT(adjustedRandIndex(r.ids, blobs.truth), 0.99);
 }
 
 TEST(KMeans, SameSeedSameIdsOnAnyThreadCount) {

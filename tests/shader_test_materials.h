@@ -1,7 +1,10 @@
 // Small materials of every kind the shader generator handles, with decoded values mostly in
 // [0, 1] so that 8-bit sRGB comparisons keep their information (shader and viewer tests).
 #pragma once
+#include <fstream>
+#include <iterator>
 #include <random>
+#include <string>
 
 #include "codec/texel_modulation.h"
 #include "decoder_fixtures.h"
@@ -58,6 +61,12 @@ inline CompressedBtf makeShaderPcaMaterial() {
   b.holdoutImages.clear();
   b.alpha = 0.9f;
   return b;
+}
+
+// The whole file at `path` ("" when it cannot be read).
+inline std::string readText(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
 }
 
 }  // namespace nbtf::testing

@@ -1,4 +1,4 @@
-// The comparison metrics: whole image, darkest and brightest 10% of the material's pixels.
+// The comparison metrics (render/compare.h): whole image, darkest and brightest 10% of the material's pixels.
 #include <gtest/gtest.h>
 
 #include <cmath>

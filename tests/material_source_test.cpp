@@ -1,6 +1,6 @@
-// Material sources: the direction interpolation of a stack, a stack at measured directions,
-// a .nbtf rendered through the decoder against a render of its own decoded stack, and the
-// errors for a missing material or an unknown scene.
+// Material sources (render/material_source.h): the direction interpolation of a stack, a stack at
+// measured directions, a .nbtf rendered through the decoder against a render of its own decoded
+// stack, and the errors for a missing material or an unknown scene.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,6 +1,6 @@
-// The adaptive sampler: silhouette pixels are refined and the interior is not; texel
-// boundaries with a change of colour are detected; shadow edges are caught by the
-// derivative test and by the corner rule; images are deterministic.
+// The integrator's adaptive sampler (render/integrator.h): silhouette pixels are refined and the
+// interior is not; texel boundaries with a change of colour are detected; shadow edges are caught
+// by the derivative test and by the corner rule; images are deterministic.
 #include <gtest/gtest.h>
 
 #include "render/integrator.h"
