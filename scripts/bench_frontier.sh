@@ -68,11 +68,9 @@ reference=$root/bench/configs/default_d943497.json
 reports=()
 names=()
 for spec in $presets; do
-  words=$(preset_layout "$spec")
-  read -r preset layout name <<<"$words"
+  stack=$(preset_stack "$spec" "$out")
+  read -r name data <<<"$stack"
   names+=("$name")
-  data=$out/${preset}100_$layout
-  synth_once "$data" --preset "$preset" --size 100x100 $(synth_layout_options "$layout") --seed 1 -q
   runs=("per_texel|--clusters 0 --time-budget $budget"
         "reference|--config $reference --time-budget $budget")
   for k in $clusters; do runs+=("nbtf_k$k|--clusters $k --config $config --time-budget $budget"); done

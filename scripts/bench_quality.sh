@@ -55,11 +55,9 @@ echo "== paper-style runs: $epochs epochs; nbtf (k = $k): $nbtf_epochs; per-texe
 reports=()
 names=()
 for spec in $presets; do
-  words=$(preset_layout "$spec")
-  read -r preset layout name <<<"$words"
+  stack=$(preset_stack "$spec" "$out")
+  read -r name data <<<"$stack"
   names+=("$name")
-  data=$out/${preset}100_$layout
-  synth_once "$data" --preset "$preset" --size 100x100 $(synth_layout_options "$layout") --seed 1 -q
   runs=("per_texel|--clusters 0 --epochs $per_texel_epochs"
         "paper_k500|--clusters 500 --config $root/configs/paper-clustered.json --epochs $epochs"
         "nbtf_k$k|--clusters $k --config $config --epochs $nbtf_epochs")

@@ -39,21 +39,21 @@ synth_once() {
   fi
 }
 
-# preset_layout SPEC: "NAME" (the UBO2003 layout, 8-bit JPEG) or "NAME:utia" (the UTIA layout,
-# 8-bit PNG) -> "NAME LAYOUT LABEL", LABEL naming the preset's runs (fabric, fabric_utia).
-preset_layout() {
-  local name=${1%%:*} layout=ubo2003
+# preset_stack SPEC OUT: the 100 x 100 synthetic stack of a preset SPEC, "NAME" (the UBO2003
+# layout, 8-bit JPEG) or "NAME:utia" (the UTIA layout, 8-bit PNG), with its float ground truth,
+# generated once into OUT/NAME100_LAYOUT; prints "LABEL DIR", LABEL naming the preset's runs
+# (fabric, fabric_utia).
+preset_stack() {
+  local name=${1%%:*} layout=ubo2003 label options="--layout ubo2003"
   [[ $1 == *:* ]] && layout=${1#*:}
   case "$layout" in
-    ubo2003) echo "$name ubo2003 $name";;
-    utia) echo "$name utia ${name}_utia";;
+    ubo2003) label=$name;;
+    utia) label=${name}_utia options="--layout utia --format png";;
     *) echo "unknown layout '$layout' in preset '$1' (NAME or NAME:utia)" >&2; return 2;;
   esac
-}
-
-# synth_layout_options LAYOUT: nbtf-synth's options for a layout of preset_layout.
-synth_layout_options() {
-  if [[ $1 == utia ]]; then echo "--layout utia --format png"; else echo "--layout ubo2003"; fi
+  # shellcheck disable=SC2086  # the options are words
+  synth_once "$2/${name}100_$layout" --preset "$name" --size 100x100 $options --seed 1 -q
+  echo "$label $2/${name}100_$layout"
 }
 
 # bench_banner [TEXT]: the first line of every benchmark's output: cores, date, commit, TEXT.
