@@ -278,6 +278,37 @@ TEST(Trainer, FreeLatentsFitBetterAndResumeExactly) {
   std::filesystem::remove(ckpt);
 }
 
+// The latent blur schedule (training.latent_blur_sigma) shapes the per-texel free latents:
+// a run with it differs from one without, reports the RMSE its stored latents give (the blur
+// still on at the end is in them), is deterministic, agrees with autograd's torch backend, and
+// is refused, naming the key, where there is no texture of free latents to blur.
+TEST(Trainer, LatentBlurShapesPerTexelFreeLatents) {
+  const TestMaterial& m = material();
+  TrainConfig c = quickConfig();
+  c.epochs = 30;
+  c.polishFraction = 0.5;
+  c.latentLearningRate = 3e-2;
+  const TrainResult plain = trainModel(m.perTexel(), c);
+  c.latentBlurSigma = 2;
+  c.latentBlurHalfLife = 2;  // sigma 2 -> 1 over the phase: still on at the end
+  const TrainResult blurred = trainModel(m.perTexel(), c);
+  EXPECT_EQ(blurred.steps, plain.steps);
+  EXPECT_NE(blurred.latents, plain.latents);
+  EXPECT_TRUE(std::isfinite(blurred.rmseTrain));
+  EXPECT_NEAR(testing::decodedRmse(m, blurred, {}, allImages(m)), blurred.rmseTrain, 1e-4 + 1e-3 * blurred.rmseTrain);
+  EXPECT_TRUE(sameModel(trainModel(m.perTexel(), c), blurred));
+  TrainConfig stock = c;
+  stock.backend = "torch";
+  stock.products = c.products = "float";
+  EXPECT_NEAR(trainModel(m.perTexel(), stock).rmseTrain, trainModel(m.perTexel(), c).rmseTrain,
+              0.03 * blurred.rmseTrain);
+
+  EXPECT_NE(errorOf([&] { trainModel(m.clustered(), c); }).find("training.latent_blur_sigma"), std::string::npos);
+  c.latentLearningRate = 0;
+  EXPECT_NE(errorOf([&] { trainModel(m.perTexel(), c); }).find("optimizer.latent_learning_rate > 0"),
+            std::string::npos);
+}
+
 TEST(Trainer, MinStepsAppliesToSmallEpochs) {
   const TestMaterial& m = material();
   TrainConfig c = quickConfig();  // 4 clusters x 81 images = one 1024-sample step per epoch

@@ -16,6 +16,7 @@
 #include "model/autograd/decoder_backprop.h"
 #include "model/distributed/distributed_group.h"
 #include "model/autograd/fused_adam.h"
+#include "model/autograd/latent_blur.h"
 #include "model/autograd/torch_modules.h"
 #include "model/train_checkpoint.h"
 #include "model/train_eval.h"
@@ -156,18 +157,37 @@ double polishScheduleFactor(const TrainConfig& c, double p) {
   return 0.5 * (1 + std::cos(M_PI * q));
 }
 
+// The texture the per-texel latents lie on, and the blur they are seen through now
+// (sigma 0: none; clustered latents have no texture).
+struct LatentImage {
+  int width = 0, height = 0;
+  double sigma = 0;
+  torch::Tensor view(const torch::Tensor& values) const {
+    return detail::blurLatentImage(values, width, height, sigma);
+  }
+};
+
 // One polish step's forward and backward pass over the polish latents of the step's tiles
 // (`decoderStep` returns the loss and, in the fused backend, dL/dz in dz). When the latents are
-// free their gradient is the tiles' dz summed per encoder input (autograd's in the torch backend).
+// free their gradient is the tiles' dz summed per encoder input (autograd's in the torch backend),
+// taken back through the blur when there is one.
 template <typename DecoderStep>
 double polishStep(PolishLatents& polish, const torch::Tensor& tileGroup, DecoderStep decoderStep, bool stock,
-                  torch::Tensor& dz) {
+                  torch::Tensor& dz, const LatentImage& image) {
   if (!polish.free()) return decoderStep(polish.values.index_select(0, tileGroup));
   polish.values.mutable_grad() = torch::Tensor();
   if (stock) {
     polish.values.requires_grad_(true);
-    const double loss = decoderStep(polish.values.index_select(0, tileGroup));
+    const double loss = decoderStep(image.view(polish.values).index_select(0, tileGroup));
     polish.values.requires_grad_(false);
+    return loss;
+  }
+  if (image.sigma > 0) {
+    torch::Tensor values = polish.values.detach().requires_grad_(true);
+    torch::Tensor seen = image.view(values);
+    const double loss = decoderStep(seen.detach().index_select(0, tileGroup));
+    seen.backward(torch::zeros_like(seen).index_add_(0, tileGroup, dz));
+    polish.values.mutable_grad() = values.grad();
     return loss;
   }
   const double loss = decoderStep(polish.values.index_select(0, tileGroup));
@@ -246,6 +266,7 @@ class TrainingRun {
         inputSource_(x_),
         encoder_(nullptr),
         decoder_(nullptr) {
+    if (config_.latentBlurSigma > 0) checkLatentBlur(inputs);
     buildModel();
     geometry_ = planTraining(config_, set_.groups(), static_cast<int>(set_.trainImages().size()));
     tileShare_ = {0, geometry_.tiles};
@@ -263,6 +284,7 @@ class TrainingRun {
 
  private:
   void buildModel();
+  void checkLatentBlur(const TrainInputs& inputs);
   void joinGroup();
   void sampleStep();
   double forwardBackward(bool polishing, double p);
@@ -298,6 +320,16 @@ class TrainingRun {
     return std::min(1.0, p);
   }
   bool worker() const { return group_ && group_->rank() != 0; }
+  // The per-texel latents' texture and their blur at training progress p (no texture and no
+  // blur for clustered latents; the blur's clock is the polish phase).
+  LatentImage latentImageAt(double p) const {
+    LatentImage image;
+    if (!set_.perTexel() || !(config_.latentBlurSigma > 0)) return image;
+    image.width = latentWidth_, image.height = latentHeight_;
+    const double q = config_.polishFraction > 0 ? (p - (1 - config_.polishFraction)) / config_.polishFraction : 1;
+    image.sigma = detail::latentBlurSigma(config_.latentBlurSigma, config_.latentBlurHalfLife, q);
+    return image;
+  }
   int stepTiles() const { return tileShare_.second - tileShare_.first; }
 
   const TrainConfig& config_;
@@ -322,6 +354,7 @@ class TrainingRun {
   DirectionPlanes stepPlanes_;  // the planes as this step samples them
   double flopsPerSample_ = 0;
   PolishLatents polish_;
+  int latentWidth_ = 0, latentHeight_ = 0;  // the texture of per-texel latents
 
   // ---- The plan, and this rank's share of every step's tiles (all of them in one process)
   TrainPlan geometry_;
@@ -349,6 +382,18 @@ class TrainingRun {
 };
 
 // Model and optimizer, initialized from the seed.
+// The blur is over per-texel latents that the polish phase moves: anything else has no
+// texture to blur or nothing the blur could shape.
+void TrainingRun::checkLatentBlur(const TrainInputs& inputs) {
+  if (!set_.perTexel())
+    throw Error("training.latent_blur_sigma blurs per-texel latents over the texture: it needs the per-texel "
+                "model (--clusters 0), this run has " + std::to_string(set_.groups()) + " clusters");
+  if (!(config_.latentLearningRate > 0) || !(config_.polishFraction > 0))
+    throw Error("training.latent_blur_sigma blurs the free per-texel latents of the polish phase: it needs "
+                "optimizer.latent_learning_rate > 0 and training.polish_fraction > 0");
+  latentWidth_ = inputs.stack->width(), latentHeight_ = inputs.stack->height();
+}
+
 void TrainingRun::buildModel() {
   torch::manual_seed(config_.seed);
   encoder_ = Encoder(set_.images(), config_.model);
@@ -574,7 +619,7 @@ double TrainingRun::forwardBackward(bool polishing, double p) {
     return stock_ ? stockTrainStep(decoder_, params_, z.to(device_), stepDirs_, stepTargets_, perTile, device_,
                                    trailingInputs_, stockInputGradient_)
                   : backprop_->trainStep(z, stepDirs_, stepTargets_, perTile, dz_);
-  }, stock_, dz_);
+  }, stock_, dz_, latentImageAt(p));
   if (polish_.free())
     setLearningRate(*polish_.optimizer, config_.latentLearningRate * polishScheduleFactor(config_, p));
   lap(&TrainResult::Profile::decoder);
@@ -686,7 +731,10 @@ TrainResult TrainingRun::finish() {
   result.holdoutImages = set_.holdoutImages();
   // The polish phase's latents are the ones the decoder was fitted to last (the encoder's
   // outputs, moved when free); without a polish phase, the encoder's.
-  torch::Tensor latents = polish_.values.defined() ? polish_.values.detach() : encodeAll(encoder_, x_, stock_, device_);
+  // A blur still on at the end is part of what the decoder saw: the file stores the latents
+  // through it.
+  torch::Tensor latents = polish_.values.defined() ? latentImageAt(1).view(polish_.values.detach())
+                                                   : encodeAll(encoder_, x_, stock_, device_);
   if (!device_.is_cpu()) encoder_->to(torch::kCPU), decoder_->to(torch::kCPU);  // export and evaluate on the CPU
   result.latentRows = set_.groups();
   result.latents.assign(latents.data_ptr<float>(), latents.data_ptr<float>() + latents.numel());

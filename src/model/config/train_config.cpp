@@ -39,6 +39,7 @@ bool never(const TrainConfig&) { return false; }
 bool withPlanes(const TrainConfig& c) { return c.model.planeFeatures > 0; }
 bool withClusterPlanes(const TrainConfig& c) { return c.model.clusterPlaneFeatures > 0; }
 bool withModulation(const TrainConfig& c) { return c.modulation.mode != "none"; }
+bool withLatentBlur(const TrainConfig& c) { return c.latentBlurSigma > 0; }
 
 #define NBTF_CONFIG_FIELD(section, key, member, recorded) \
   ConfigField { section, key, [](TrainConfig& c) -> ConfigValue { return &c.member; }, recorded }
@@ -71,6 +72,8 @@ const ConfigField kConfigFields[] = {
     NBTF_CONFIG_FIELD("training", "schedule", schedule, nullptr),
     NBTF_CONFIG_FIELD("training", "warmup_fraction", warmupFraction, nullptr),
     NBTF_CONFIG_FIELD("training", "polish_fraction", polishFraction, nullptr),
+    NBTF_CONFIG_FIELD("training", "latent_blur_sigma", latentBlurSigma, withLatentBlur),
+    NBTF_CONFIG_FIELD("training", "latent_blur_half_life", latentBlurHalfLife, withLatentBlur),
     NBTF_CONFIG_FIELD("training", "holdout_fraction", holdoutFraction, nullptr),
     NBTF_CONFIG_FIELD("training", "seed", seed, nullptr),
     NBTF_CONFIG_FIELD("training", "threads", threads, nullptr),
@@ -114,8 +117,9 @@ TrainConfig trainConfigFromJson(const nlohmann::json& root, const std::string& p
 
 std::string trainConfigJson(const TrainConfig& config) { return configFieldsJson(kConfigFields, config).dump(); }
 
-void validateTrainConfig(const TrainConfig& c, const std::string& source) {
-  auto finite = [](double v) { return std::isfinite(v); };
+namespace {
+
+void validateModel(const TrainConfig& c, const std::string& source) {
   if (c.model.latentDim < 1 || c.model.latentDim > 4096) bad(source, "model.latent_dim", "must be in 1..4096");
   for (int ch : c.model.encoderChannels)
     if (ch < 1 || ch > 4096) bad(source, "model.encoder_channels", "entries must be in 1..4096");
@@ -132,19 +136,26 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
         "must be in 0.." + std::to_string(DirectionPlanes::kMaxFeatures) + " (0: no cluster planes)");
   if (c.model.clusterPlaneResolution < 2 || c.model.clusterPlaneResolution > DirectionPlanes::kMaxResolution)
     bad(source, "cluster_planes.resolution", "must be in 2.." + std::to_string(DirectionPlanes::kMaxResolution));
+}
+
+void validateOptimizer(const TrainConfig& c, const std::string& source) {
   if (c.optimizer != "sgd" && c.optimizer != "adam")
     bad(source, "optimizer.name", "must be \"sgd\" or \"adam\", got \"" + c.optimizer + "\"");
-  if (!finite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
+  if (!std::isfinite(c.learningRate) || c.learningRate <= 0) bad(source, "optimizer.learning_rate", "must be > 0");
   if (c.learningRateScaling != "inputs" && c.learningRateScaling != "none")
     bad(source, "optimizer.learning_rate_scaling",
         "must be \"inputs\" or \"none\", got \"" + c.learningRateScaling + "\"");
-  if (!finite(c.momentum) || c.momentum < 0 || c.momentum >= 1) bad(source, "optimizer.momentum", "must be in [0, 1)");
-  if (!finite(c.latentLearningRate) || c.latentLearningRate < 0)
+  if (!std::isfinite(c.momentum) || c.momentum < 0 || c.momentum >= 1)
+    bad(source, "optimizer.momentum", "must be in [0, 1)");
+  if (!std::isfinite(c.latentLearningRate) || c.latentLearningRate < 0)
     bad(source, "optimizer.latent_learning_rate", "must be >= 0 (0: the latents stay the encoder's outputs)");
   if (c.latentLearningRate > 0 && c.polishFraction > 0 && c.optimizer != "adam")
     bad(source, "optimizer.latent_learning_rate", "needs optimizer.name \"adam\" (or 0: latents fixed in the polish phase)");
-  if (!finite(c.planeLearningRate) || c.planeLearningRate < 0)
+  if (!std::isfinite(c.planeLearningRate) || c.planeLearningRate < 0)
     bad(source, "optimizer.plane_learning_rate", "must be >= 0 (0: optimizer.learning_rate)");
+}
+
+void validateTraining(const TrainConfig& c, const std::string& source) {
   if (c.batchSize < 1) bad(source, "training.batch_size", "must be >= 1");
   if (c.backend != "fused" && c.backend != "torch")
     bad(source, "training.backend", "must be \"fused\" or \"torch\", got \"" + c.backend + "\"");
@@ -158,7 +169,7 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "training.device", "\"cuda\" needs training.backend \"torch\" (the fused kernels are CPU code)");
   if (c.imagesPerInput < 1) bad(source, "training.images_per_input", "must be >= 1");
   if (c.epochs < 0) bad(source, "training.epochs", "must be >= 0");
-  if (!finite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)
+  if (!std::isfinite(c.timeBudgetSeconds) || c.timeBudgetSeconds < 0)
     bad(source, "training.time_budget_seconds", "must be >= 0 (0 = no limit)");
   if (c.minSteps < 0) bad(source, "training.min_steps", "must be >= 0 (0 = no minimum)");
   if (c.minStepsPerInput < 0)
@@ -171,18 +182,25 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
     bad(source, "training.epochs", "is 0 and there is no time budget: nothing would be trained");
   if (c.schedule != "constant" && c.schedule != "cosine" && c.schedule != "step")
     bad(source, "training.schedule", "must be \"constant\", \"cosine\" or \"step\", got \"" + c.schedule + "\"");
-  if (!finite(c.warmupFraction) || c.warmupFraction < 0 || c.warmupFraction >= 1)
+  if (!std::isfinite(c.warmupFraction) || c.warmupFraction < 0 || c.warmupFraction >= 1)
     bad(source, "training.warmup_fraction", "must be in [0, 1)");
-  if (!finite(c.polishFraction) || c.polishFraction < 0 || c.polishFraction >= 1)
+  if (!std::isfinite(c.polishFraction) || c.polishFraction < 0 || c.polishFraction >= 1)
     bad(source, "training.polish_fraction", "must be in [0, 1)");
   if (c.warmupFraction + c.polishFraction >= 1)
     bad(source, "training.polish_fraction", "plus warmup_fraction must be < 1");
-  if (!finite(c.holdoutFraction) || c.holdoutFraction < 0 || c.holdoutFraction >= 1)
+  if (!std::isfinite(c.latentBlurSigma) || c.latentBlurSigma < 0 || c.latentBlurSigma > 64)
+    bad(source, "training.latent_blur_sigma", "must be in [0, 64] texels (0 = no blur)");
+  if (!std::isfinite(c.latentBlurHalfLife) || c.latentBlurHalfLife <= 0)
+    bad(source, "training.latent_blur_half_life", "must be > 0 (a fraction of the polish phase)");
+  if (!std::isfinite(c.holdoutFraction) || c.holdoutFraction < 0 || c.holdoutFraction >= 1)
     bad(source, "training.holdout_fraction", "must be in [0, 1)");
   if (c.threads < 0) bad(source, "training.threads", "must be >= 0 (0 = all cores)");
-  if (!finite(c.checkpointSeconds) || c.checkpointSeconds < 0)
+  if (!std::isfinite(c.checkpointSeconds) || c.checkpointSeconds < 0)
     bad(source, "training.checkpoint_seconds", "must be >= 0 (0 = only when stopped)");
   if (c.resume && c.checkpointPath.empty()) bad(source, "training.resume", "needs training.checkpoint_path");
+}
+
+void validateModulation(const TrainConfig& c, const std::string& source) {
   const ModulationConfig& m = c.modulation;
   if (m.mode != "none" && m.mode != "svd")
     bad(source, "modulation.mode", "must be \"none\" or \"svd\", got \"" + m.mode + "\"");
@@ -193,8 +211,11 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
                                            std::to_string(m.channels));
   if (m.codes != "linear" && m.codes != "decorrelated")
     bad(source, "modulation.codes", "must be \"linear\" or \"decorrelated\", got \"" + m.codes + "\"");
-  if (!finite(m.meanWeight) || m.meanWeight < 0)
+  if (!std::isfinite(m.meanWeight) || m.meanWeight < 0)
     bad(source, "modulation.mean_weight", "must be a number >= 0 (0 = plain least squares)");
+}
+
+void validateStorage(const TrainConfig& c, const std::string& source) {
   if (c.storage.decoder != "float32" && c.storage.decoder != "half" && c.storage.decoder != "int8")
     bad(source, "storage.decoder", "must be \"float32\", \"half\" or \"int8\", got \"" + c.storage.decoder + "\"");
   if (c.storage.latents != "float32" && c.storage.latents != "half")
@@ -208,6 +229,16 @@ void validateTrainConfig(const TrainConfig& c, const std::string& source) {
                                               c.storage.clusterPlanes + "\"");
   if (c.storage.metadata != "raw" && c.storage.metadata != "zstd")
     bad(source, "storage.metadata", "must be \"raw\" or \"zstd\", got \"" + c.storage.metadata + "\"");
+}
+
+}  // namespace
+
+void validateTrainConfig(const TrainConfig& c, const std::string& source) {
+  validateModel(c, source);
+  validateOptimizer(c, source);
+  validateTraining(c, source);
+  validateModulation(c, source);
+  validateStorage(c, source);
 }
 
 TrainPlan planTraining(const TrainConfig& c, std::int64_t encoderInputs, int trainImages) {

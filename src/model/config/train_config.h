@@ -148,6 +148,12 @@ struct TrainConfig {
   // fitted to the latents the file stores. Its steps skip the encoder, so a long polish costs
   // less time per step (the measured choice of half the run: docs/model.md, *Free latents*).
   double polishFraction = 0.5;
+  // Per-texel free latents (clusters 0, latentLearningRate > 0): blurred over the texture by a
+  // Gaussian whose sigma starts at latentBlurSigma texels and halves every latentBlurHalfLife
+  // of the polish phase, so they learn what neighbours share before single images' noise
+  // (model/autograd/latent_blur.h). 0 = no blur.
+  double latentBlurSigma = 0;
+  double latentBlurHalfLife = 1.0 / 9;
   double holdoutFraction = 0;      // fraction of (light, view) images kept out of training
   std::uint64_t seed = 1;
   int threads = 0;                 // 0 = threadCount() (all cores unless --threads)
