@@ -197,12 +197,11 @@ Color8 familyColor(const std::string& family, std::size_t i) {
 // What a rate-distortion plot draws on its y axis.
 struct RdMeasure {
   double SweepEntry::*rmse;
-  const char* title;  // after "Rate-distortion"
+  const char* title;  // before ": <material>"
   const char* axis;
 };
-const RdMeasure kAgainstStack{&SweepEntry::rmse, "", "RMSE (linear RGB / alpha, eq. 10)"};
-const RdMeasure kAgainstTruth{&SweepEntry::rmseGroundTruth, " against the ground truth",
-                              "RMSE against the float ground truth (linear RGB / alpha)"};
+const RdMeasure kAgainstStack{&SweepEntry::rmse, "Rate-distortion", "RMSE (linear RGB / alpha, eq. 10)"};
+const RdMeasure kAgainstTruth{&SweepEntry::rmseGroundTruth, "Against the truth", "RMSE vs truth (linear RGB / alpha)"};
 
 // The noise floor as a flat line over the plotted ratios (empty without a ground truth).
 ChartSeries noiseFloorLine(const std::vector<SweepEntry>& entries) {
@@ -245,7 +244,7 @@ Image8 rateDistortionChart(const std::string& material, const std::vector<SweepE
   ChartAxes axes;
   axes.logX = true;
   axes.xTickPrefix = "1:";
-  return renderLineChart(series, std::string("Rate-distortion") + measure.title + ": " + material,
+  return renderLineChart(series, std::string(measure.title) + ": " + material,
                          "compression ratio (raw float32 / total), log scale", measure.axis, axes);
 }
 }  // namespace
