@@ -336,11 +336,11 @@ void addSummary(Doc& doc, const json& j) {
     if (holdout)
       rows.push_back({"RMSE against the float ground truth, held-out images",
                       rmseText(j["rmse_ground_truth_holdout"]), kLinear});
-    rows.push_back({"Noise floor: the stack (" + j.value("reference_encoding", std::string("stored")) +
-                        ") against the float ground truth, all images (" +
-                        j.value("noise_floor_cause", std::string("its encoding's loss")) + ")",
+    rows.push_back({"Noise floor: the stack (" + j["reference_encoding"].get<std::string>() +
+                        ") against the float ground truth, all images (" + j["noise_floor_cause"].get<std::string>() +
+                        ")",
                     rmseText(j["rmse_reference_vs_ground_truth"]), kLinear});
-    if (holdout && !j.value("rmse_reference_vs_ground_truth_holdout", json()).is_null())
+    if (holdout)
       rows.push_back({"Noise floor, held-out images", rmseText(j["rmse_reference_vs_ground_truth_holdout"]), kLinear});
   }
   rows.push_back({"RMSE, all images", srgbText(j["rmse_srgb8"]), kSrgb});

@@ -1,11 +1,7 @@
 // The clustered neural kind (the paper's method): one latent per cluster, a texel -> cluster
 // id list, optionally per-texel modulation of the decoder's terms (codec/texel_modulation.h).
-#include <cmath>
-
 #include "codec/methods/neural.h"
-#include "codec/nbtf_format.h"
 #include "codec/texel_modulation.h"
-#include "util/error.h"
 
 namespace nbtf {
 namespace {

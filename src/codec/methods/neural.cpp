@@ -12,11 +12,8 @@
 namespace nbtf {
 namespace {
 
-using format::allFinite;
 using format::int8Code;
 using format::int8RowScale;
-using format::kMaxLatentDim;
-using format::kMaxLayerWidth;
 using format::storagePlanesHalf;
 
 // Stored in half or 8 bits, the values in memory are exactly the stored ones (roundToStorage).

@@ -16,7 +16,6 @@
 namespace nbtf {
 namespace {
 
-using format::allFinite;
 using format::kMaxPcaComponents;
 using format::Need;
 using format::Part;
