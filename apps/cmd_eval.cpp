@@ -96,7 +96,7 @@ int runEval(const cxxopts::ParseResult& args) {
 int evalMain(int argc, char** argv) {
   return runGuarded("eval", [&] {
     cxxopts::Options options("nbtf eval", "Compare a compressed material with its reference; write an RMSE report");
-    options.positional_help("<file.nbtf> --reference <stack> -o <report folder>  |  --summarize -o <folder> <report.json>...");
+    options.positional_help("<file.nbtf or material.gltf> --reference <stack> -o <report folder>  |  --summarize -o <folder> <report.json>...");
     options.add_options()("files", "Compressed material (.nbtf); with --summarize: report.json files",
                           cxxopts::value<std::vector<std::string>>())(
         "r,reference", "The measured BTF image stack it was made from", cxxopts::value<std::string>())(

@@ -1,6 +1,7 @@
 // nbtf render <material>: the material on an object, ray traced on the CPU, anti-aliased
 // adaptively with automatic differentiation (adaptive oversampling) or uniformly; --compare renders an
 // original stack and its .nbtf with the same scene and reports the difference.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -88,7 +89,7 @@ cxxopts::Options renderOptions() {
   options.add_options()("material", "A .nbtf file or an original image stack folder", cxxopts::value<std::string>())(
       "o,output", "Output image (PNG/JPG, sRGB); with --compare an output folder", cxxopts::value<std::string>())(
       "exr", "Also write the linear radiance as a float EXR", cxxopts::value<std::string>())(
-      "scene", "plane, sphere, cylinder or cloth", cxxopts::value<std::string>()->default_value("sphere"))(
+      "scene", "plane, tile (the plane without its occluder), sphere, cylinder or cloth", cxxopts::value<std::string>()->default_value("sphere"))(
       "light", "Direction towards the light THETA,PHI in degrees (theta from +y up, phi from +x towards +z)",
       cxxopts::value<std::string>()->default_value("45,300"))(
       "camera", "EX,EY,EZ[,TX,TY,TZ[,FOV]]: eye, target, vertical field of view (default: the scene's)",
@@ -109,6 +110,9 @@ cxxopts::Options renderOptions() {
       cxxopts::value<std::string>())(
       "compare", "Original stack to compare with the .nbtf <material>: writes reference/compressed/error images, "
                  "compare.md and compare.json into the -o folder",
+      cxxopts::value<std::string>())(
+      "also", "--compare: a second material (.nbtf or .gltf) rendered beside the first: also.png, also_error.png, "
+              "compare_also.md, and side_by_side.png (stack | material | this)",
       cxxopts::value<std::string>())("magnify", "--compare: error image magnification",
                                      cxxopts::value<double>()->default_value("8"))(
       "reference", "EXR of the same scene to measure this render's RMSE against (in --stats-json)",
@@ -148,8 +152,19 @@ RenderOptions samplingOptions(const cxxopts::ParseResult& args, bool quiet) {
 
 // The paths the command reads and writes.
 struct RenderPaths {
-  std::string material, output, exr, mask, stats, stack, referenceExr;
+  std::string material, output, exr, mask, stats, stack, referenceExr, also;
 };
+
+// reference | compressed | also, side by side (linear RGB, the images' height).
+std::vector<float> sideBySide(const std::vector<const RenderResult*>& images) {
+  const int w = images[0]->width, h = images[0]->height, n = static_cast<int>(images.size());
+  std::vector<float> out(static_cast<std::size_t>(w) * n * h * 3);
+  for (int i = 0; i < n; ++i)
+    for (int y = 0; y < h; ++y)
+      std::copy_n(images[i]->rgb.data() + static_cast<std::size_t>(y) * w * 3, w * 3,
+                  out.data() + (static_cast<std::size_t>(y) * w * n + static_cast<std::size_t>(i) * w) * 3);
+  return out;
+}
 
 // --compare: the same scene rendered from the original stack and from the .nbtf, the images
 // and their difference, compare.md and compare.json in the output folder.
@@ -159,10 +174,11 @@ int renderCompare(const cxxopts::ParseResult& args, const RenderPaths& p, const 
   for (const char* o : {"exr", "show-refined", "reference", "ray-cost"})
     if (args.count(o)) throw Error(std::string("--") + o + " is for a single render, not --compare");
   if (std::filesystem::is_regular_file(stackPath) && hasNbtfMagic(stackPath))
-    throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf is the <material>: "
-                "nbtf render --compare STACK FILE.nbtf -o DIR)");
+    throw Error("--compare " + stackPath + ": expected the original image stack folder (the .nbtf or .gltf is the "
+                "<material>: nbtf render --compare STACK FILE.nbtf -o DIR)");
   if (std::filesystem::is_directory(material))
-    throw Error(material + ": with --compare the <material> is the .nbtf file (nbtf render --compare STACK FILE.nbtf -o DIR)");
+    throw Error(material + ": with --compare the <material> is the .nbtf or .gltf file (nbtf render --compare STACK "
+                "FILE.nbtf -o DIR)");
   std::unique_ptr<MaterialSource> reference = openMaterial(stackPath, crop, !quiet);
   std::unique_ptr<MaterialSource> compressed = openMaterial(material, {}, !quiet);
   checkCompareDirections(*reference, *compressed);
@@ -175,6 +191,7 @@ int renderCompare(const cxxopts::ParseResult& args, const RenderPaths& p, const 
   const RenderResult ref = renderImage(scene, camera, *reference, ro);
   const RenderResult cmp = renderImage(scene, camera, *compressed, ro);
   const RenderComparison c = compareImages(ref.rgb, cmp.rgb, ref.coverage, ro.width, ro.height);
+  std::unique_ptr<MaterialSource> also = p.also.empty() ? nullptr : openMaterial(p.also, {}, !quiet);
   CompareReportInfo info;
   info.reference = stackPath, info.compressed = material, info.scene = scene.name;
   info.width = ro.width, info.height = ro.height, info.sampling = samplingName(ro);
@@ -187,6 +204,22 @@ int renderCompare(const cxxopts::ParseResult& args, const RenderPaths& p, const 
   writeImageSrgb8((dir / "error.png").string(), ImageFormat::Png, ro.width, ro.height, err.data());
   writeFileAtomic((dir / "compare.md").string(), compareMarkdown(c, info));
   writeFileAtomic((dir / "compare.json").string(), compareJson(c, info));
+  if (also) {  // a second material (a glTF fit beside the .nbtf, say): its render, error and report
+    const RenderResult second = renderImage(scene, camera, *also, ro);
+    const RenderComparison c2 = compareImages(ref.rgb, second.rgb, ref.coverage, ro.width, ro.height);
+    CompareReportInfo info2 = info;
+    info2.compressed = p.also, info2.compressedSeconds = second.stats.seconds;
+    writeRender((dir / "also.png").string(), (dir / "also.exr").string(), second);
+    const std::vector<float> err2 = errorImage(ref.rgb, second.rgb, info.magnify);
+    writeImageSrgb8((dir / "also_error.png").string(), ImageFormat::Png, ro.width, ro.height, err2.data());
+    writeFileAtomic((dir / "compare_also.md").string(), compareMarkdown(c2, info2));
+    writeFileAtomic((dir / "compare_also.json").string(), compareJson(c2, info2));
+    const std::vector<float> row = sideBySide({&ref, &cmp, &second});
+    writeImageSrgb8((dir / "side_by_side.png").string(), ImageFormat::Png, ro.width * 3, ro.height, row.data());
+    std::cout << "render --compare: " << p.also << ": RMSE (linear) all " << c2.all.rmse << " -> "
+              << (dir / "compare_also.md").string() << "; side_by_side.png: stack | " << material << " | " << p.also
+              << std::endl;
+  }
   if (!statsPath.empty()) {
     nlohmann::json j;
     j["reference"] = statsJson(ref, ro);
@@ -283,10 +316,13 @@ int renderMain(int argc, char** argv) {
     p.stats = optional("stats-json");
     p.stack = optional("compare");
     p.referenceExr = optional("reference");
+    p.also = optional("also");
+    if (!p.also.empty() && !compare) throw Error("--also is for --compare (a second material rendered beside the first)");
     // No output may overwrite an input or another output; then every output's folders are made.
     refuseOverlappingPaths({{"<material>", p.material},
                             {"--compare", p.stack},
-                            {"--reference", p.referenceExr}},
+                            {"--reference", p.referenceExr},
+                            {"--also", p.also}},
                            {{"-o", p.output, compare}, {"--exr", p.exr}, {"--show-refined", p.mask}, {"--stats-json", p.stats}});
     for (const std::string& out : {p.exr, p.mask, p.stats})
       if (!out.empty()) createParentFolders(out);

@@ -21,6 +21,7 @@ int clusterMain(int argc, char** argv);
 int compressMain(int argc, char** argv);
 int renderMain(int argc, char** argv);
 int exportShaderMain(int argc, char** argv);
+int exportGltfMain(int argc, char** argv);
 int viewMain(int argc, char** argv);
 
 }  // namespace nbtf::cli

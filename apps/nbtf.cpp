@@ -16,6 +16,7 @@ const Command kCommands[] = {
     {"cluster", clusterMain, "Cluster a BTF's ABRDFs (PCA + k-means++) and show the clusters"},
     {"render", renderMain, "Ray trace a material on an object; --compare a stack with its .nbtf"},
     {"export-shader", exportShaderMain, "The decoder as a GLSL ES 3.00 function, its data as textures"},
+    {"export-gltf", exportGltfMain, "A glTF 2.0 material fitted to a BTF, for Blender and any glTF renderer"},
     {"view", viewMain, "A self-contained WebGL2 page showing the material live"},
 };
 

@@ -18,6 +18,7 @@ PACKAGES=(
   pybind11-dev python3-dev python3-numpy  # the Python module `nbtf` (python/, docs/python.md)
   python3-pytest          # its tests (tests/python, run by ctest)
   chromium                # headless browser test of the viewer (tests/viewer_browser_test.cpp; WebGL2 on SwiftShader)
+  blender                 # renders an exported glTF material headless with Cycles (tests/gltf_blender_test.py)
 )
 # Extra packages for optional tools: pass --with NAME... (e.g. python3-sklearn for bench_cluster.sh)
 while [[ $# -gt 0 ]]; do

@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "codec_fixtures.h"
+#include "gltf/gltf_export.h"
+#include "synth/synth_material.h"
 #include "model_test_material.h"
 #include "pipeline/compress_parts.h"
 #include "test_util.h"
@@ -33,6 +35,33 @@ BtfStack brighter(const BtfStack& stack) {
     other.setImageLinear(image, rgb.data());
   }
   return other;
+}
+
+// A glTF fit is evaluated like a .nbtf: the same RMSE as the export measured, its textures as
+// the size; a reference of another size is refused.
+TEST(EvaluateFile, AGltfFitIsEvaluatedAgainstItsStackAndTheGroundTruth) {
+  const std::string stack = test::tempFilePath("eval_gltf_stack"), out = test::tempFilePath("eval_gltf_fit");
+  std::filesystem::remove_all(stack), std::filesystem::remove_all(out);
+  synth::SynthOptions so;
+  so.preset = "wool";
+  so.width = so.height = 8, so.layout = Layout::Utia, so.format = ImageFormat::Png, so.progress = false;
+  synth::writeSynthStack(so, stack);
+  gltf::ExportOptions eo;
+  eo.progress = false, eo.fit.samples = 64, eo.fit.iterations = 5, eo.sheen = gltf::SheenMode::Off;
+  const gltf::ExportSummary fit = gltf::exportGltf(stack, out, eo);
+  EvaluateFileOptions o;
+  o.eval.progress = false;
+  o.eval.blurSampleImages = 0;
+  const EvaluateFileResult r = evaluateFile(out + "/material.gltf", stack, o);
+  EXPECT_NEAR(r.result.all.rmse, fit.errors[0].rmse, 1e-5 * fit.errors[0].rmse);
+  EXPECT_TRUE(r.result.sizes.gltf);
+  EXPECT_EQ(r.result.sizes.total, fit.bytes.total());
+  EXPECT_EQ(r.evaluationsPerImage, 64);
+  EXPECT_EQ(r.result.methodFamily, "gltf");
+  EvaluateFileOptions cropped = o;
+  cropped.crop = Crop{0, 0, 4, 4};
+  test::expectErrorContaining([&] { evaluateFile(out + "/material.gltf", stack, cropped); },
+                              {"material.gltf", "8 x 8", "4 x 4"});
 }
 
 TEST(EvaluateFile, TheReferenceTheFileWasMadeFromMatches) {

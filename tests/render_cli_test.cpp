@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "codec/decoder.h"
+#include "gltf/gltf_export.h"
 #include "pipeline/decoder_output.h"
 #include "codec_fixtures.h"
 #include "decoder_fixtures.h"
@@ -100,6 +101,37 @@ TEST_F(RenderCli, CompareWithItsDecodedStack) {
   const nlohmann::json j = nlohmann::json::parse(slurp((fs::path(out) / "compare.json").string()));
   EXPECT_LT(j["rmse"]["all"]["rmse"].get<double>(), 0.02);
   EXPECT_GT(j["rmse"]["dark10"]["pixels"].get<int>(), 0);
+}
+
+// --also: a glTF fit of the same stack rendered beside the .nbtf, and the three side by side.
+TEST_F(RenderCli, CompareShowsAGltfFitBesideTheNbtf) {
+  const std::string stack = dir / "stack_also";
+  NbtfDecoder dec(material);
+  DecodeStackOptions o;
+  o.format = ImageFormat::Exr;
+  o.progress = false;
+  writeDecodedStack(dec, stack, o);
+  gltf::ExportOptions eo;
+  eo.progress = false, eo.fit.samples = 64, eo.fit.iterations = 5;
+  const std::string gltfDir = dir / "fit";
+  gltf::exportGltf(stack, gltfDir, eo);
+  const std::string out = dir / "cmp_also", gltfFile = gltfDir + "/material.gltf";
+  const CliRun r = runNbtf("render --compare '" + stack + "' '" + file + "' --also '" + gltfFile + "' -o '" + out +
+                               "' --scene tile --size 40x30 -q",
+                           dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"compressed.png", "also.png", "also_error.png", "compare_also.md", "compare_also.json"})
+    EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
+  const Image8 row = readImage8((fs::path(out) / "side_by_side.png").string());
+  EXPECT_EQ(row.width, 120);
+  EXPECT_EQ(row.height, 30);
+  const nlohmann::json j = nlohmann::json::parse(slurp((fs::path(out) / "compare_also.json").string()));
+  EXPECT_GT(j["rmse"]["all"]["rmse"].get<double>(), 0);
+  // The glTF file alone is a material too; --also without --compare is an error.
+  EXPECT_EQ(runNbtf("render '" + gltfFile + "' -o '" + (dir / "g.png") + "' --scene tile --size 20x15 -q", dir).status, 0);
+  const CliRun bad = runNbtf("render '" + file + "' --also '" + gltfFile + "' -o '" + (dir / "y.png") + "' -q", dir);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("--also is for --compare"), std::string::npos) << bad.err;
 }
 
 TEST_F(RenderCli, ClearErrors) {

@@ -34,6 +34,9 @@ struct SizeTable {
   bool pca = false;
   int pcaComponents = 0;
   std::uint64_t pcaMean = 0, pcaBasis = 0, pcaCoefficients = 0;
+  // A glTF fit (nbtf export-gltf) instead: total = its textures' bytes (PNG files).
+  bool gltf = false;
+  std::uint64_t textures = 0;
   bool known() const { return total > 0; }
   double ratio() const { return total ? static_cast<double>(rawFloat32) / static_cast<double>(total) : 0; }
 };

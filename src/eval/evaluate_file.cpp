@@ -5,6 +5,7 @@
 
 #include "codec/nbtf_file.h"
 #include "eval/compressed_source.h"
+#include "gltf/gltf_read.h"
 #include "io/btf_loader.h"
 #include "io/ground_truth.h"
 #include "io/source_fingerprint.h"
@@ -61,10 +62,58 @@ std::string checkReferenceFingerprint(const CompressedBtf& btf, const BtfStack& 
   return "MISMATCH, used anyway (--force): " + summary + " from the file's source";
 }
 
+namespace {
+
+// A glTF fit (nbtf export-gltf, or any core metallic-roughness material of the stack's size) as
+// the compressed material: its textures' values at every measured pair, its PNG bytes.
+EvaluateFileResult evaluateGltf(const std::string& file, const std::string& referencePath,
+                                const EvaluateFileOptions& options, RenderSection render) {
+  const gltf::GltfMaterial material = gltf::readGltfMaterial(file);
+  LoadOptions load;
+  load.progress = options.eval.progress;
+  if (options.crop) load.crop = *options.crop;
+  if (options.layout) load.layout = *options.layout;
+  BtfStack reference = loadBtfStack(referencePath, load);
+  if (reference.width() != material.width || reference.height() != material.height)
+    throw Error(file + ": its textures are " + std::to_string(material.width) + " x " + std::to_string(material.height) +
+                ", the reference '" + referencePath + "' is " + std::to_string(reference.width()) + " x " +
+                std::to_string(reference.height()) + " texels (--crop cuts the reference)");
+  EvalInputs inputs;
+  inputs.reference = &reference;
+  const std::vector<Direction> lights = reference.lights(), views = reference.views();
+  inputs.reconstruct = [&material, lights, views](int image, float* rgb) {
+    const auto l = lights[image / views.size()].unitVector(), v = views[image % views.size()].unitVector();
+    const gltf::Vec3 lu{l[0], l[1], l[2]}, vu{v[0], v[1], v[2]};
+    for (std::size_t t = 0; t < material.texels.size(); ++t) {
+      const gltf::Vec3 value = material.value(static_cast<int>(t), lu, vu);
+      for (int c = 0; c < 3; ++c) rgb[3 * t + c] = static_cast<float>(value[c]);
+    }
+  };
+  inputs.sizes.gltf = true;
+  inputs.sizes.rawFloat32 = reference.rawFloat32Bytes();
+  inputs.sizes.textures = gltf::textureFileBytes(file);
+  inputs.sizes.total = inputs.sizes.textures;
+  inputs.method = std::string("glTF 2.0 metallic-roughness fit") + (material.sheen ? " with sheen" : "");
+  inputs.methodFamily = "gltf";
+  inputs.referenceName = referencePath;
+  inputs.compressedName = file;
+  inputs.details.push_back({"exposure (sun strength)", std::to_string(material.exposure)});
+  if (options.groundTruth) inputs.groundTruth = groundTruthBeside(referencePath, reference, load.crop);
+  if (inputs.groundTruth) inputs.groundTruthName = (std::filesystem::path(referencePath) / kGroundTruthFolder).string();
+  EvaluateFileResult out;
+  out.result = evaluate(inputs, options.eval);
+  out.result.render = std::move(render);
+  out.evaluationsPerImage = static_cast<int>(material.texels.size());
+  return out;
+}
+
+}  // namespace
+
 EvaluateFileResult evaluateFile(const std::string& file, const std::string& referencePath,
                                 const EvaluateFileOptions& options) {
   RenderSection render;
   if (!options.renderCompare.empty()) render = loadRenderSection(options.renderCompare);
+  if (gltf::isGltfPath(file)) return evaluateGltf(file, referencePath, options, std::move(render));
 
   CompressedBtf btf = readNbtf(file);
   std::uint64_t fileBytes = std::filesystem::file_size(file);

@@ -122,7 +122,10 @@ void addHeadline(const EvalResult& r, json& j) {
 // The Table-1 sizes and the ratio (null when the file's size is not known).
 void addSizes(const EvalResult& r, json& j) {
   if (r.sizes.known()) {
-    if (r.sizes.pca)
+    if (r.sizes.gltf)
+      j["bytes"] = {{"raw_float32", r.sizes.rawFloat32}, {"gltf_textures", r.sizes.textures}, {"total", r.sizes.total},
+                    {"file", r.sizes.fileBytes ? json(r.sizes.fileBytes) : json(nullptr)}};
+    else if (r.sizes.pca)
       j["bytes"] = {{"raw_float32", r.sizes.rawFloat32},
                     {"pca_mean", r.sizes.pcaMean},
                     {"pca_basis", r.sizes.pcaBasis},
@@ -373,6 +376,15 @@ void addSizes(Doc& doc, const json& j) {
   doc.heading("Size (the paper's Table 1)");
   if (j["bytes"].is_null()) {
     doc.note("No size table: this reconstruction does not come from a compressed file.");
+  } else if (j["bytes"].contains("gltf_textures")) {
+    const json& b = j["bytes"];
+    doc.table({"Part", "Bytes", "Size"},
+              {{"Raw data (float32 RGB)", bytesText(b["raw_float32"]), humanBytes(b["raw_float32"])},
+               {"glTF textures (PNG files)", bytesText(b["gltf_textures"]), humanBytes(b["gltf_textures"])},
+               {"**Total**", bytesText(b["total"]), humanBytes(b["total"])},
+               {"**Compression ratio** (raw : total)", "1 : " + fmt("%.0f", j["ratio"].get<double>()), ""}},
+              "glTF fit: total = the textures (material.gltf and the meshes are not counted). KiB = 1024 bytes.",
+              {false, true, true});
   } else if (j["bytes"].contains("pca_basis")) {
     const json& b = j["bytes"];
     const std::string c = integerText(b["pca_components"]);

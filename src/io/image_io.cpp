@@ -73,7 +73,9 @@ void checkComplete(const std::string& path, const std::vector<std::uint8_t>& byt
 }
 }  // namespace
 
-Image8 readImage8(const std::string& path) {
+namespace {
+// An 8-bit JPEG or PNG as OpenCV decodes it (BGR or BGRA), checked for completeness and depth.
+cv::Mat decodeImage8(const std::string& path) {
   ImageFormat format = imageFormatFromName(path);
   if (format == ImageFormat::Exr) throw fileError(path, "EXR is not an 8-bit format");
   std::vector<std::uint8_t> bytes = readFileBytes(path);
@@ -91,25 +93,63 @@ Image8 readImage8(const std::string& path) {
       << "JPEG/PNG or EXR (convert this stack to 8-bit or EXR)";
     throw fileError(path, s.str());
   }
-  if (mat.channels() != 3) {
-    std::ostringstream s;
-    s << "has " << mat.channels() << " channel" << (mat.channels() == 1 ? " (grayscale)" : "s")
-      << "; expected 3 (RGB)";
-    throw fileError(path, s.str());
+  return mat;
+}
+
+std::string channelCount(int channels) {
+  return std::to_string(channels) + " channel" + (channels == 1 ? " (grayscale)" : "s");
+}
+
+// `channels` 3 or 4 interleaved from OpenCV's BGR(A) rows (alpha 255 where the image has none).
+std::vector<std::uint8_t> toRgb(const cv::Mat& mat, int channels) {
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(mat.cols) * mat.rows * channels);
+  const int in = mat.channels();
+  for (int y = 0; y < mat.rows; ++y) {
+    const std::uint8_t* src = mat.ptr<std::uint8_t>(y);
+    std::uint8_t* dst = out.data() + static_cast<std::size_t>(y) * mat.cols * channels;
+    for (int x = 0; x < mat.cols; ++x) {  // OpenCV stores BGR(A)
+      dst[channels * x + 0] = src[in * x + 2];
+      dst[channels * x + 1] = src[in * x + 1];
+      dst[channels * x + 2] = src[in * x + 0];
+      if (channels == 4) dst[4 * x + 3] = in == 4 ? src[4 * x + 3] : 255;
+    }
   }
+  return out;
+}
+
+void encodeAndWrite(const std::string& path, ImageFormat format, const cv::Mat& mat, int jpegQuality) {
+  std::vector<int> params;
+  if (format == ImageFormat::Jpg) params = {cv::IMWRITE_JPEG_QUALITY, jpegQuality};
+  std::vector<std::uint8_t> encoded;
+  bool ok = false;
+  try {
+    ok = cv::imencode(extensionOf(format), mat, encoded, params);
+  } catch (const std::exception& e) {
+    throw fileError(path, std::string("cannot encode image: ") + e.what());
+  }
+  if (!ok) throw fileError(path, "cannot encode image");
+  writeFileAtomic(path, encoded.data(), encoded.size());
+}
+}  // namespace
+
+Image8 readImage8(const std::string& path) {
+  const cv::Mat mat = decodeImage8(path);
+  if (mat.channels() != 3) throw fileError(path, "has " + channelCount(mat.channels()) + "; expected 3 (RGB)");
   Image8 img;
   img.width = mat.cols;
   img.height = mat.rows;
-  img.rgb.resize(static_cast<std::size_t>(img.width) * img.height * 3);
-  for (int y = 0; y < img.height; ++y) {
-    const std::uint8_t* src = mat.ptr<std::uint8_t>(y);
-    std::uint8_t* dst = img.rgb.data() + static_cast<std::size_t>(y) * img.width * 3;
-    for (int x = 0; x < img.width; ++x) {  // OpenCV stores BGR
-      dst[3 * x + 0] = src[3 * x + 2];
-      dst[3 * x + 1] = src[3 * x + 1];
-      dst[3 * x + 2] = src[3 * x + 0];
-    }
-  }
+  img.rgb = toRgb(mat, 3);
+  return img;
+}
+
+ImageRgba8 readImageRgba8(const std::string& path) {
+  const cv::Mat mat = decodeImage8(path);
+  if (mat.channels() != 3 && mat.channels() != 4)
+    throw fileError(path, "has " + channelCount(mat.channels()) + "; expected 3 (RGB) or 4 (RGBA)");
+  ImageRgba8 img;
+  img.width = mat.cols;
+  img.height = mat.rows;
+  img.rgba = toRgb(mat, 4);
   return img;
 }
 
@@ -193,17 +233,23 @@ void writeImage8(const std::string& path, ImageFormat format, const Image8& imag
       dst[3 * x + 2] = src[3 * x + 0];
     }
   }
-  std::vector<int> params;
-  if (format == ImageFormat::Jpg) params = {cv::IMWRITE_JPEG_QUALITY, jpegQuality};
-  std::vector<std::uint8_t> encoded;
-  bool ok = false;
-  try {
-    ok = cv::imencode(extensionOf(format), mat, encoded, params);
-  } catch (const std::exception& e) {
-    throw fileError(path, std::string("cannot encode image: ") + e.what());
+  encodeAndWrite(path, format, mat, jpegQuality);
+}
+
+void writeImageRgba8(const std::string& path, const ImageRgba8& image) {
+  if (imageFormatFromName(path) != ImageFormat::Png) throw fileError(path, "an RGBA image is written as PNG");
+  cv::Mat mat(image.height, image.width, CV_8UC4);
+  for (int y = 0; y < image.height; ++y) {
+    const std::uint8_t* src = image.rgba.data() + static_cast<std::size_t>(y) * image.width * 4;
+    std::uint8_t* dst = mat.ptr<std::uint8_t>(y);
+    for (int x = 0; x < image.width; ++x) {
+      dst[4 * x + 0] = src[4 * x + 2];
+      dst[4 * x + 1] = src[4 * x + 1];
+      dst[4 * x + 2] = src[4 * x + 0];
+      dst[4 * x + 3] = src[4 * x + 3];
+    }
   }
-  if (!ok) throw fileError(path, "cannot encode image");
-  writeFileAtomic(path, encoded.data(), encoded.size());
+  encodeAndWrite(path, ImageFormat::Png, mat, 95);
 }
 
 void writeImageSrgb8(const std::string& path, ImageFormat format, int width, int height, const float* linearRgb,

@@ -21,6 +21,10 @@ struct Image8 {
   int width = 0, height = 0;
   std::vector<std::uint8_t> rgb;  // sRGB-encoded
 };
+struct ImageRgba8 {  // with alpha (glTF's packed textures: sheen colour + roughness)
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> rgba;
+};
 struct ImageF {
   int width = 0, height = 0;
   std::vector<float> rgb;  // linear
@@ -29,6 +33,9 @@ struct ImageF {
 // Reads an 8-bit RGB JPEG or PNG. Rejects, naming the file: unreadable or truncated
 // files, grayscale or alpha images, 16-bit images.
 Image8 readImage8(const std::string& path);
+// An 8-bit PNG or JPEG with or without alpha (alpha 255 where it has none); rejects the rest
+// as readImage8 does.
+ImageRgba8 readImageRgba8(const std::string& path);
 
 // Reads an RGB(A) EXR into linear sRGB floats. `space` says how the pixels are
 // encoded when the file itself does not say (a chromaticities attribute wins).
@@ -40,6 +47,8 @@ void writeImageSrgb8(const std::string& path, ImageFormat format, int width, int
                      const float* linearRgb, int jpegQuality = 95);
 // Writes an 8-bit image already sRGB-encoded.
 void writeImage8(const std::string& path, ImageFormat format, const Image8& image, int jpegQuality = 95);
+// Writes an 8-bit RGBA PNG (the path must end in .png).
+void writeImageRgba8(const std::string& path, const ImageRgba8& image);
 
 // Writes an RGB EXR from linear sRGB floats: half or full float; optionally converted to
 // CIE XYZ (and tagged with XYZ chromaticities) as UTIA stores it.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "gltf/gltf_read.h"
 #include "io/btf_loader.h"
 #include "io/ubo2014_btf.h"
 #include "util/error.h"
@@ -94,6 +95,16 @@ void StackMaterial::evaluate(const UvQuery* queries, std::size_t count, float* r
   }
 }
 
+void GltfMaterialSource::evaluate(const UvQuery* queries, std::size_t count, float* rgb) const {
+  for (std::size_t i = 0; i < count; ++i) {
+    const UvQuery& q = queries[i];
+    const int texel = wrapTexel(q.v, material_.height) * material_.width + wrapTexel(q.u, material_.width);
+    const gltf::Vec3 l{q.light[0], q.light[1], q.light[2]}, v{q.view[0], q.view[1], q.view[2]};
+    const gltf::Vec3 value = material_.value(texel, l, v);
+    for (int c = 0; c < 3; ++c) rgb[3 * i + c] = static_cast<float>(value[c]);
+  }
+}
+
 std::unique_ptr<MaterialSource> openMaterial(const std::string& path, const Crop& crop, bool progress) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
@@ -105,6 +116,7 @@ std::unique_ptr<MaterialSource> openMaterial(const std::string& path, const Crop
     return std::make_unique<StackMaterial>(loadBtfStack(path, options), path);
   }
   if (!crop.empty()) throw Error("--crop applies to image stacks; " + path + " is a file");
+  if (gltf::isGltfPath(path)) return std::make_unique<GltfMaterialSource>(gltf::readGltfMaterial(path), path);
   if (!hasNbtfMagic(path))
     throw fileError(path, "not a .nbtf file (no nbtf magic bytes) and not an image stack folder");
   return std::make_unique<NbtfMaterial>(NbtfDecoder::open(path));

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "codec/decoder.h"
+#include "gltf/gltf_material.h"
 #include "io/btf_stack.h"
 
 namespace nbtf {
@@ -79,11 +80,30 @@ class StackMaterial : public MaterialSource {
   DirectionInterpolator lights_, views_;
 };
 
+// A fitted glTF material (gltf/gltf_read.h): per texel the glTF 2.0 BRDF x exposure x the
+// cosine at the texel's shading normal (the convention of gltf/gltf_material.h), at the texel
+// the decoder would use (floor(u * width) mod width, likewise v): nearest, as glTF's NEAREST
+// magnification filter samples it.
+class GltfMaterialSource : public MaterialSource {
+ public:
+  GltfMaterialSource(gltf::GltfMaterial material, std::string name)
+      : material_(std::move(material)), name_(std::move(name)) {}
+  int width() const override { return material_.width; }
+  int height() const override { return material_.height; }
+  std::string name() const override { return name_; }
+  void evaluate(const UvQuery* queries, std::size_t count, float* rgb) const override;
+  const gltf::GltfMaterial& material() const { return material_; }
+
+ private:
+  gltf::GltfMaterial material_;
+  std::string name_;
+};
+
 // Texel index of texture coordinate u in a texture `size` texels wide (wraps).
 int wrapTexel(double u, int size);
 
-// Opens `path`: a .nbtf file (by its magic bytes) or an image stack folder (loaded with
-// `crop`). Throws nbtf::Error naming the path when it does not exist or is neither.
+// Opens `path`: a .nbtf file (by its magic bytes), a glTF file (.gltf) or an image stack
+// folder (loaded with `crop`). Throws nbtf::Error naming the path when it does not exist or is neither.
 std::unique_ptr<MaterialSource> openMaterial(const std::string& path, const Crop& crop = {}, bool progress = true);
 
 }  // namespace nbtf

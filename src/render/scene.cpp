@@ -7,7 +7,7 @@
 namespace nbtf {
 
 const std::vector<std::string>& sceneNames() {
-  static const std::vector<std::string> names = {"plane", "sphere", "cylinder", "cloth"};
+  static const std::vector<std::string> names = {"plane", "tile", "sphere", "cylinder", "cloth"};
   return names;
 }
 
@@ -39,7 +39,7 @@ Scene makeScene(const std::string& name, double tiling, const std::string& optio
   Scene s;
   s.name = name;
   setLight(s, {45, 300});
-  if (name == "plane") {
+  if (name == "plane" || name == "tile") {
     Shape p;
     p.kind = ShapeKind::Rect;
     p.center = {0, 0, 0};
@@ -47,12 +47,15 @@ Scene makeScene(const std::string& name, double tiling, const std::string& optio
     p.e2 = {0, 0, -1};
     p.a1 = p.a2 = 1;
     p.tiling = tiling;
-    Shape occluder;  // a grey ball above the sample, casting a shadow onto it
-    occluder.kind = ShapeKind::Sphere;
-    occluder.material = 1;
-    occluder.center = {-0.25, 0.45, 0.25};
-    occluder.radius = 0.22;
-    s.shapes = {p, occluder};
+    s.shapes = {p};
+    if (name == "plane") {
+      Shape occluder;  // a grey ball above the sample, casting a shadow onto it
+      occluder.kind = ShapeKind::Sphere;
+      occluder.material = 1;
+      occluder.center = {-0.25, 0.45, 0.25};
+      occluder.radius = 0.22;
+      s.shapes.push_back(occluder);
+    }
     s.camera = {{0, 2.3, 2.4}, {0, 0, 0.1}, 45};
   } else if (name == "sphere") {
     Shape b;

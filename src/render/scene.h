@@ -27,7 +27,7 @@ struct Scene {
   CameraSpec camera;       // the scene's default view
 };
 
-// "plane", "sphere", "cylinder", "cloth".
+// "plane", "tile" (the plane alone: what another renderer is compared on), "sphere", "cylinder", "cloth".
 const std::vector<std::string>& sceneNames();
 // Throws nbtf::Error naming the option and listing the known scenes for any other name.
 Scene makeScene(const std::string& name, double tiling, const std::string& option = "--scene");

@@ -1,21 +1,16 @@
 #include "shader/shader_export.h"
 
-#include <sys/stat.h>
-
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "codec/pca_model.h"
 #include "codec/texel_modulation.h"
 #include "util/error.h"
+#include "util/output_folder.h"
 
 namespace nbtf {
 namespace {
@@ -782,71 +777,17 @@ std::string shaderManifestJson(const ShaderDecoder& shader) {
   return j.dump(2) + "\n";
 }
 
-namespace {
-void writeWhole(const std::filesystem::path& path, const void* data, std::size_t size) {
-  std::ofstream f(path, std::ios::binary);
-  if (f) f.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
-  if (f) f.flush();
-  if (!f) throw Error(path.string() + ": cannot write (" + std::strerror(errno) + ")");
-}
-
-std::filesystem::path makeTempFolder(const std::filesystem::path& dir, const char* tag) {
-  std::filesystem::path parent = dir.parent_path().empty() ? std::filesystem::path(".") : dir.parent_path();
-  std::string tmpl = (parent / ("." + dir.filename().string() + tag + "XXXXXX")).string();
-  if (!mkdtemp(tmpl.data()))
-    throw Error(dir.string() + ": cannot create a temporary folder beside it (" + std::strerror(errno) + ")");
-  // mkdtemp makes it 0700; the export becomes this folder, so give it the mode every other
-  // output folder gets (0777 less the umask).
-  const mode_t mask = ::umask(0);
-  ::umask(mask);
-  ::chmod(tmpl.c_str(), 0777 & ~mask);
-  return tmpl;
-}
-}  // namespace
-
-void writeShaderExport(const ShaderDecoder& shader, const std::string& dirText) {
-  namespace fs = std::filesystem;
-  fs::path dir(dirText);
-  while (!dir.empty() && dir.filename().empty()) dir = dir.parent_path();  // "out/" -> "out"
-  if (dir.empty()) throw Error("export-shader: empty output folder name");
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": exists and is not a folder");
-    if (!fs::is_empty(dir, ec) && !fs::exists(dir / "manifest.json", ec))
-      throw Error(dir.string() + ": exists and is not a shader export (no manifest.json); give a new or empty folder");
-  }
-  if (!dir.parent_path().empty()) fs::create_directories(dir.parent_path(), ec);
-  const fs::path tmp = makeTempFolder(dir, ".tmp-");
-  try {
-    writeWhole(tmp / "nbtf_decoder.glsl", shader.glsl.data(), shader.glsl.size());
-    for (const ShaderTexture& t : shader.textures) {
-      // Little-endian float32 (every platform this builds on); written as bytes.
-      writeWhole(tmp / t.file, t.data.data(), t.data.size() * sizeof(float));
-    }
+void writeShaderExport(const ShaderDecoder& shader, const std::string& dir) {
+  const OutputFolderKind kind{"a shader export", "manifest.json", {}};
+  writeFolderAtomic(dir, kind, [&](const std::filesystem::path& tmp) {
+    writeWholeFile(tmp / "nbtf_decoder.glsl", shader.glsl.data(), shader.glsl.size());
+    // Little-endian float32 (every platform this builds on); written as bytes.
+    for (const ShaderTexture& t : shader.textures) writeWholeFile(tmp / t.file, t.data.data(), t.data.size() * sizeof(float));
     for (const ShaderUniformBlock& b : shader.uniformBlocks)
-      writeWhole(tmp / b.file, b.data.data(), b.data.size() * sizeof(float));
+      writeWholeFile(tmp / b.file, b.data.data(), b.data.size() * sizeof(float));
     const std::string manifest = shaderManifestJson(shader);
-    writeWhole(tmp / "manifest.json", manifest.data(), manifest.size());
-    if (fs::exists(dir, ec)) {
-      const fs::path old = makeTempFolder(dir, ".old-");
-      fs::rename(dir, old);  // onto the empty folder just made
-      try {
-        fs::rename(tmp, dir);
-      } catch (...) {
-        fs::rename(old, dir, ec);
-        throw;
-      }
-      fs::remove_all(old, ec);
-    } else {
-      fs::rename(tmp, dir);
-    }
-  } catch (const fs::filesystem_error& e) {
-    fs::remove_all(tmp, ec);
-    throw Error(dir.string() + ": cannot write the shader export (" + e.code().message() + ")");
-  } catch (...) {
-    fs::remove_all(tmp, ec);
-    throw;
-  }
+    writeWholeFile(tmp / "manifest.json", manifest.data(), manifest.size());
+  });
 }
 
 }  // namespace nbtf
