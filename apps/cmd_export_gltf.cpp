@@ -31,6 +31,8 @@ int exportGltfMain(int argc, char** argv) {
                          "is not identifiable)", cxxopts::value<double>()->default_value("0.1"))(
         "sheen", "KHR_materials_sheen (fibres' grazing sheen): auto (kept where it lowers the error), on, off",
         cxxopts::value<std::string>()->default_value("auto"))(
+        "specular", "KHR_materials_specular (the dielectric's F0 per texel): auto, on, off",
+        cxxopts::value<std::string>()->default_value("auto"))(
         "seed", "Random seed (which images the fit samples)", cxxopts::value<long long>()->default_value("1"));
     addCropOption(options);
     cxxopts::ParseResult args;
@@ -48,7 +50,8 @@ int exportGltfMain(int argc, char** argv) {
     o.fit.iterations = args["iterations"].as<int>();
     o.fit.maxTiltDeg = args["max-tilt"].as<double>();
     o.fit.minRoughness = args["min-roughness"].as<double>();
-    o.sheen = gltf::parseSheenMode(args["sheen"].as<std::string>());
+    o.sheen = gltf::parseExtensionMode(args["sheen"].as<std::string>(), "--sheen");
+    o.specular = gltf::parseExtensionMode(args["specular"].as<std::string>(), "--specular");
     const long long seed = args["seed"].as<long long>();
     if (seed < 0) throw Error("--seed must be >= 0, got " + std::to_string(seed));
     o.fit.seed = static_cast<std::uint64_t>(seed);

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "io/btf_names.h"
 #include "io/color.h"
 #include "test_util.h"
 #include "util/progress.h"
@@ -281,4 +282,24 @@ TEST(BtfLoader, LoadsFull81x81Hemisphere) {
   EXPECT_LT(maxPatternError(s), 0.01f);
 }
 
+}  // namespace nbtf
+
+namespace nbtf {
+namespace {
+
+// A decode's staging folder is refused as an interrupted decode even when the kill came before
+// its description was written (an empty folder, or the description's temporary only).
+TEST(BtfLoader, ADecodeStagingFolderIsAnInterruptedDecodeEvenBeforeItsDescription) {
+  test::TempDir dir;
+  const std::string staging = dir / (std::string(".out") + kDecodeStagingSuffix);
+  std::filesystem::create_directories(staging);
+  for (const std::string& path : {staging, staging + "/"})
+    test::expectErrorContaining([&] { listBtfStack(path); }, {".out.nbtf-decoding", "interrupted nbtf decode"});
+  // A visible folder of that name is someone's stack, not ours.
+  const std::string visible = dir / (std::string("out") + kDecodeStagingSuffix);
+  std::filesystem::create_directories(visible);
+  EXPECT_EQ(test::errorOf([&] { listBtfStack(visible); }).find("interrupted"), std::string::npos);
+}
+
+}  // namespace
 }  // namespace nbtf

@@ -47,7 +47,7 @@ TEST(EvaluateFile, AGltfFitIsEvaluatedAgainstItsStackAndTheGroundTruth) {
   so.width = so.height = 8, so.layout = Layout::Utia, so.format = ImageFormat::Png, so.progress = false;
   synth::writeSynthStack(so, stack);
   gltf::ExportOptions eo;
-  eo.progress = false, eo.fit.samples = 64, eo.fit.iterations = 5, eo.sheen = gltf::SheenMode::Off;
+  eo.progress = false, eo.fit.samples = 64, eo.fit.iterations = 5, eo.sheen = eo.specular = gltf::ExtensionMode::Off;
   const gltf::ExportSummary fit = gltf::exportGltf(stack, out, eo);
   EvaluateFileOptions o;
   o.eval.progress = false;

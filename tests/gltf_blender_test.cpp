@@ -10,7 +10,9 @@
 // 0.04-0.05; a checkerboard of normals tilted 20 degrees 1.06-1.13 and 0.19-0.22; a fitted
 // fabric 1.03-1.04 and 0.16-0.23 (2.5 pixels a texel: the texel edges, sampled differently,
 // weigh in); the uniform material with KHR_materials_sheen (which the importer turns into a
-// Velvet BSDF added to the Principled one) 1.07-1.09 and 0.07-0.09. The tolerances leave a margin over those; a flipped normal-map axis or a
+// Velvet BSDF added to the Principled one) 1.07-1.09 and 0.07-0.09; roughness 0.35 with
+// KHR_materials_specular's F0 0.12 (the importer sets the Principled BSDF's Specular input)
+// 1.06-1.13 and 0.06-0.14. The tolerances leave a margin over those; a flipped normal-map axis or a
 // mirrored texture misses them (0.29-0.61 on some pair).
 #include <gtest/gtest.h>
 
@@ -106,7 +108,7 @@ TEST(GltfBlender, CyclesRendersTheExportedMaterialAsNbtfRenderDoes) {
     const char* name;
     double meanTolerance, rmseTolerance;
   };
-  for (const Case& k : {Case{"flat", 0.08, 0.08}, Case{"bumps", 0.16, 0.25}, Case{"fitted", 0.08, 0.30}, Case{"sheen", 0.14, 0.14}}) {
+  for (const Case& k : {Case{"flat", 0.08, 0.08}, Case{"bumps", 0.16, 0.25}, Case{"fitted", 0.08, 0.30}, Case{"sheen", 0.14, 0.14}, Case{"specular", 0.18, 0.18}}) {
     const std::string dir = test::tempFilePath(std::string("gltf_blender_") + k.name);
     fs::remove_all(dir);
     if (std::string(k.name) == "fitted") {
@@ -120,6 +122,10 @@ TEST(GltfBlender, CyclesRendersTheExportedMaterialAsNbtfRenderDoes) {
       exportGltf(stack, dir, eo);
     } else {
       GltfMaterial m = testMaterial(std::string(k.name) == "bumps");
+      if (std::string(k.name) == "specular") {
+        m.specular = true;
+        for (TexelParams& p : m.texels) p.brdf.specularF0 = 0.12, p.brdf.roughness = 0.35;
+      }
       if (std::string(k.name) == "sheen") {
         m.sheen = true;
         for (TexelParams& p : m.texels) p.brdf.sheenColor = {0.3, 0.25, 0.2}, p.brdf.sheenRoughness = 0.5;

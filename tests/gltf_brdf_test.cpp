@@ -51,6 +51,15 @@ TEST(GltfBrdf, NormalIncidenceMixesDiffuseAndSpecularAsTheSpecificationSays) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mix[c], 0.75 * d[c] + 0.25 * m[c], 1e-12) << c;
 }
 
+TEST(GltfBrdf, ASpecularF0ReplacesTheDielectricsFourPercent) {
+  BrdfParams p;
+  p.baseColor = {0.5, 0.5, 0.5};
+  p.roughness = 0.5;
+  p.specularF0 = 0.1;
+  const double dv = (1 / (kPi * 0.0625)) * 0.25;
+  EXPECT_NEAR(evaluateBrdf(p, kUp, kUp, kUp)[0], 0.9 * 0.5 / kPi + 0.1 * dv, 1e-12);
+}
+
 TEST(GltfBrdf, GrazingFresnelFollowsSchlick) {
   BrdfParams p;
   p.baseColor = {0, 0, 0};

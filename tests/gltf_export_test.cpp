@@ -108,7 +108,7 @@ TEST(GltfExport, AUbo2014FileGoesThroughTheSamePath) {
   f.components = 16;
   synth::writeSynthUbo2014(so, btf, f);
   ExportOptions o = quick();
-  o.sheen = SheenMode::Off;
+  o.sheen = o.specular = ExtensionMode::Off;
   const ExportSummary s = exportGltf(btf, out, o);
   EXPECT_EQ(s.images, 151 * 151);
   ASSERT_EQ(s.errors.size(), 1u);  // the file itself; a .btf has no ground truth beside it

@@ -100,6 +100,23 @@ TEST(GltfFit, RecoversSheenFromValuesTheModelMade) {
   EXPECT_GE(recovered, 22);
 }
 
+TEST(GltfFit, RecoversTheDielectricsF0FromValuesTheModelMade) {
+  GltfMaterial truth = knownMaterial();
+  for (int i = 0; i < 24; ++i) truth.texels[i].brdf.metallic = 0, truth.texels[i].brdf.specularF0 = 0.02 + 0.01 * (i % 9);
+  FitOptions o;
+  o.progress = false;
+  o.specular = true;
+  const FitData data = gatherFitData(6, 4, hemisphere81(), hemisphere81(), imagesOf(truth), o);
+  FitSummary summary;
+  const GltfMaterial fit = fitMaterial(data, kPi, o, &summary);
+  EXPECT_LT(summary.sampleRmse, 1e-4);
+  for (int i = 0; i < 24; ++i) {
+    SCOPED_TRACE("texel " + std::to_string(i));
+    EXPECT_NEAR(fit.texels[i].brdf.specularF0, truth.texels[i].brdf.specularF0, 0.005);
+    EXPECT_NEAR(fit.texels[i].brdf.roughness, truth.texels[i].brdf.roughness, 0.02);
+  }
+}
+
 TEST(GltfFit, TheSameSeedGivesTheSameMaterialOnAnyThreadCount) {
   const GltfMaterial truth = knownMaterial();
   FitOptions o;

@@ -81,6 +81,23 @@ TEST(GltfMaterial, SheenTravelsInOneRgbaTextureColourInSrgbRoughnessInAlpha) {
   EXPECT_TRUE(quantize(twoTexels()).sheen.empty());  // no sheen, no fourth texture
 }
 
+TEST(GltfMaterial, SpecularTravelsAsAGreyTextureScaledByItsFactor) {
+  GltfMaterial m = twoTexels();
+  m.specular = true;
+  m.texels[0].brdf.specularF0 = 0.02;
+  m.texels[1].brdf.specularF0 = 0.12;
+  const TextureSet t = quantize(m);
+  ASSERT_EQ(t.specular.size(), 6u);
+  EXPECT_NEAR(t.specularColorFactor, 0.12 / 0.04, 1e-12);  // the largest F0 is the texture's white
+  EXPECT_EQ(t.specular[3], 255);
+  const GltfMaterial back = dequantize(t, m.exposure, "test");
+  EXPECT_TRUE(back.specular);
+  EXPECT_NEAR(back.texels[0].brdf.specularF0, 0.02, 2e-4);
+  EXPECT_NEAR(back.texels[1].brdf.specularF0, 0.12, 1e-9);
+  EXPECT_TRUE(quantize(twoTexels()).specular.empty());
+  EXPECT_EQ(dequantize(quantize(twoTexels()), 1, "t").texels[0].brdf.specularF0, kDielectricF0);
+}
+
 TEST(GltfMaterial, TexturesOfDifferentSizesAreRefused) {
   TextureSet t = quantize(twoTexels());
   t.normal.resize(3);

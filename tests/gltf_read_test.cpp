@@ -88,6 +88,27 @@ TEST(GltfRead, SheenComesBackFromTheExtension) {
               0.5 * want.texels[6].brdf.sheenRoughness, 1e-12);
 }
 
+TEST(GltfRead, SpecularComesBackAndWhatItCannotExpressIsRefused) {
+  GltfMaterial m = material();
+  m.specular = true;
+  for (int i = 0; i < 8; ++i) m.texels[i].brdf.specularF0 = 0.01 * (i + 1);
+  const fs::path dir = test::tempFilePath("gltf_read_specular");
+  fs::remove_all(dir);
+  writeGltfExport(dir.string(), quantize(m), 2.5, "m", "{}");
+  const std::string file = (dir / kGltfFileName).string();
+  const GltfMaterial back = readGltfMaterial(file), want = dequantize(quantize(m), 2.5, "want");
+  ASSERT_TRUE(back.specular);
+  for (int i = 0; i < 8; ++i) EXPECT_NEAR(back.texels[i].brdf.specularF0, want.texels[i].brdf.specularF0, 1e-12);
+  editDocument(file, [](json& j) { j["materials"][0]["extensions"]["KHR_materials_specular"]["specularFactor"] = 0.5; });
+  test::expectErrorContaining([&] { readGltfMaterial(file); }, {file, "KHR_materials_specular", "specularFactor 1"});
+  editDocument(file, [](json& j) {
+    auto& e = j["materials"][0]["extensions"]["KHR_materials_specular"];
+    e["specularFactor"] = 1.0;
+    e["specularColorFactor"] = {1.0, 0.5, 1.0};
+  });
+  test::expectErrorContaining([&] { readGltfMaterial(file); }, {"specularColorFactor", "grey"});
+}
+
 TEST(GltfRead, FactorsMultiplyTheTexturesAndAMaterialWithoutTexturesIsOneTexel) {
   const fs::path dir = exported("gltf_read_factors");
   const fs::path file = dir / kGltfFileName;

@@ -48,7 +48,7 @@ Vec3 evaluateBrdf(const BrdfParams& p, const Vec3& n, const Vec3& l, const Vec3&
   const double alpha = std::max(p.roughness * p.roughness, kMinAlpha);
   const double specular = ggxDistribution(alpha, nh) * smithVisibility(alpha, nl, nv);
   const double schlick = std::pow(1 - vh, 5);
-  const double dielectricF = 0.04 + 0.96 * schlick;
+  const double dielectricF = p.specularF0 + (1 - p.specularF0) * schlick;
   double sheenMax = std::max({p.sheenColor[0], p.sheenColor[1], p.sheenColor[2]});
   double sheen = 0;
   if (sheenMax > 0) sheen = charlieDistribution(p.sheenRoughness, nh) * sheenVisibility(nl, nv);

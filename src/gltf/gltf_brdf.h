@@ -1,8 +1,9 @@
 // The glTF 2.0 metallic-roughness BRDF (the specification's Appendix B) and the sheen lobe of
 // KHR_materials_sheen, in the local shading frame (z = the shading normal). This is what every
 // glTF renderer approximates: Lambertian diffuse, GGX (Trowbridge-Reitz) distribution with the
-// height-correlated Smith visibility, Schlick's Fresnel with F0 = 0.04 for dielectrics and the
-// base colour for metals; sheen is the Charlie distribution with Ashikhmin's visibility, and
+// height-correlated Smith visibility, Schlick's Fresnel with F0 = 0.04 for dielectrics (another
+// F0 with KHR_materials_specular: a white specular colour, specularFactor 1) and the base colour
+// for metals; sheen is the Charlie distribution with Ashikhmin's visibility, and
 // scales the base layer by 1 - max(sheen colour) x 0.157 (the extension's simple albedo
 // scaling).
 #pragma once
@@ -12,12 +13,16 @@ namespace nbtf::gltf {
 
 using Vec3 = std::array<double, 3>;
 
+// A dielectric's F0 at the specification's IOR 1.5.
+constexpr double kDielectricF0 = 0.04;
+
 struct BrdfParams {
   Vec3 baseColor{0.5, 0.5, 0.5};  // linear RGB in [0, 1]
   double metallic = 0;             // [0, 1]
   double roughness = 0.5;          // perceptual roughness [0, 1]; alpha = roughness^2
   Vec3 sheenColor{0, 0, 0};        // linear RGB; all zero = no sheen
   double sheenRoughness = 0;       // [0, 1]
+  double specularF0 = kDielectricF0;  // the dielectric's F0: 0.04 (IOR 1.5) x KHR_materials_specular's colour
 };
 
 // The smallest alpha the evaluation uses (roughness 0 is a mirror: a delta no finite set of

@@ -98,14 +98,14 @@ nlohmann::json errorJson(const FitError& e) {
 
 }  // namespace
 
-SheenMode parseSheenMode(const std::string& text) {
-  if (text == "auto") return SheenMode::Auto;
-  if (text == "on") return SheenMode::On;
-  if (text == "off") return SheenMode::Off;
-  throw Error("--sheen must be auto, on or off, got '" + text + "'");
+ExtensionMode parseExtensionMode(const std::string& text, const std::string& option) {
+  if (text == "auto") return ExtensionMode::Auto;
+  if (text == "on") return ExtensionMode::On;
+  if (text == "off") return ExtensionMode::Off;
+  throw Error(option + " must be auto, on or off, got '" + text + "'");
 }
-std::string sheenModeName(SheenMode mode) {
-  return mode == SheenMode::Auto ? "auto" : mode == SheenMode::On ? "on" : "off";
+std::string extensionModeName(ExtensionMode mode) {
+  return mode == ExtensionMode::Auto ? "auto" : mode == ExtensionMode::On ? "on" : "off";
 }
 
 ExportSummary exportGltf(const std::string& input, const std::string& outputDir, const ExportOptions& o) {
@@ -120,32 +120,41 @@ ExportSummary exportGltf(const std::string& input, const std::string& outputDir,
   fit.progress = o.progress;
   const FitData data = gatherFitData(in.width, in.height, in.lights, in.views, in.fitSource, fit);
   s.exposure = chooseExposure(data);
-  // Measured on the 8-bit textures a renderer reads, not on the fit's doubles.
-  auto fitOne = [&](bool sheen, FitSummary& summary) {
-    FitOptions f = fit;
-    f.sheen = sheen;
-    GltfMaterial m = fitMaterial(data, s.exposure, f, &summary);
-    m.sheen = sheen;
-    return quantize(m);
+  // Candidates are measured on the 8-bit textures a renderer reads, not on the fit's doubles.
+  struct Candidate {
+    bool sheen = false, specular = false;
+    TextureSet textures;
+    FitSummary fit;
   };
-  TextureSet textures = fitOne(o.sheen == SheenMode::On, s.fit);
-  if (o.sheen == SheenMode::Auto) {  // sheen where it lowers the error over all images of the input
-    FitSummary withSheen;
-    const TextureSet sheen = fitOne(true, withSheen);
-    const std::vector<Reference> own = {in.references.back().name == "nbtf" ? in.references.back() : in.references.front()};
-    s.rmseWithoutSheen = measureFitErrors(dequantize(textures, s.exposure, outputDir), in.lights, in.views, own,
-                                          in.alpha, o.progress)[0].rmse;
-    s.rmseWithSheen =
-        measureFitErrors(dequantize(sheen, s.exposure, outputDir), in.lights, in.views, own, in.alpha, o.progress)[0].rmse;
-    s.fit.seconds += withSheen.seconds;
-    if (s.rmseWithSheen < (1 - kSheenMinGain) * s.rmseWithoutSheen) {
-      textures = sheen;
-      const double seconds = s.fit.seconds;
-      s.fit = withSheen;
-      s.fit.seconds = seconds;
-    }
+  auto fitWith = [&](bool sheen, bool specular) {
+    Candidate c{sheen, specular, {}, {}};
+    FitOptions f = fit;
+    f.sheen = sheen, f.specular = specular;
+    GltfMaterial m = fitMaterial(data, s.exposure, f, &c.fit);
+    m.sheen = sheen, m.specular = specular;
+    c.textures = quantize(m);
+    return c;
+  };
+  const std::vector<Reference> own = {in.references.back().name == "nbtf" ? in.references.back() : in.references.front()};
+  auto rmseOf = [&](const TextureSet& t) {
+    return measureFitErrors(dequantize(t, s.exposure, outputDir), in.lights, in.views, own, in.alpha, o.progress)[0].rmse;
+  };
+  Candidate best = fitWith(o.sheen == ExtensionMode::On, o.specular == ExtensionMode::On);
+  double seconds = best.fit.seconds, bestRmse = -1;
+  for (const char* ext : {"KHR_materials_specular", "KHR_materials_sheen"}) {
+    const bool isSheen = std::string(ext) == "KHR_materials_sheen";
+    if ((isSheen ? o.sheen : o.specular) != ExtensionMode::Auto) continue;
+    if (bestRmse < 0) bestRmse = rmseOf(best.textures);
+    Candidate c = fitWith(best.sheen || isSheen, best.specular || !isSheen);
+    seconds += c.fit.seconds;
+    ExtensionTrial trial{ext, bestRmse, rmseOf(c.textures), false};
+    if (trial.with < (1 - kExtensionMinGain) * trial.without) best = c, bestRmse = trial.with, trial.kept = true;
+    s.trials.push_back(trial);
   }
-  s.sheen = !textures.sheen.empty();
+  s.fit = best.fit;
+  s.fit.seconds = seconds;
+  s.sheen = best.sheen, s.specular = best.specular;
+  const TextureSet& textures = best.textures;
   const GltfMaterial stored = dequantize(textures, s.exposure, outputDir);
   const auto start = std::chrono::steady_clock::now();
   s.errors = measureFitErrors(stored, in.lights, in.views, in.references, in.alpha, o.progress);
@@ -178,9 +187,10 @@ std::string fitReportJson(const ExportSummary& s, const ExportOptions& o) {
               {"seconds", s.fit.seconds},
               {"fitting_images_rmse_linear", s.fit.sampleRmse}};
   j["measure_seconds"] = s.measureSeconds;
-  j["sheen"] = {{"mode", sheenModeName(o.sheen)}, {"written", s.sheen}};
-  if (o.sheen == SheenMode::Auto)
-    j["sheen"]["rmse_without"] = s.rmseWithoutSheen, j["sheen"]["rmse_with"] = s.rmseWithSheen;
+  j["extensions"]["KHR_materials_sheen"] = {{"mode", extensionModeName(o.sheen)}, {"written", s.sheen}};
+  j["extensions"]["KHR_materials_specular"] = {{"mode", extensionModeName(o.specular)}, {"written", s.specular}};
+  for (const ExtensionTrial& t : s.trials)
+    j["extensions"][t.name]["rmse_without"] = t.without, j["extensions"][t.name]["rmse_with"] = t.with;
   for (const FitError& e : s.errors) j["rmse"][e.name] = errorJson(e);
   return j.dump();
 }
@@ -189,14 +199,15 @@ std::string formatExportSummary(const ExportSummary& s) {
   std::string out;
   char line[256];
   std::snprintf(line, sizeof line, "wrote %s: material.gltf, %d textures (%.1f KiB, 1 : %.0f raw float32), fit_report.json\n",
-                s.output.c_str(), s.sheen ? 4 : 3, s.bytes.total() / 1024.0, s.ratio);
+                s.output.c_str(), 3 + int(s.sheen) + int(s.specular), s.bytes.total() / 1024.0, s.ratio);
   out += line;
-  std::snprintf(line, sizeof line, "fit: %d x %d texels in %.1f s; exposure (sun strength) %.4g; sheen %s\n", s.width,
-                s.height, s.fit.seconds, s.exposure, s.sheen ? "written" : "not written");
+  std::snprintf(line, sizeof line, "fit: %d x %d texels in %.1f s; exposure (sun strength) %.4g; specular %s, sheen %s\n",
+                s.width, s.height, s.fit.seconds, s.exposure, s.specular ? "written" : "not written",
+                s.sheen ? "written" : "not written");
   out += line;
-  if (s.rmseWithSheen > 0) {
-    std::snprintf(line, sizeof line, "sheen: RMSE vs the input %.5f with, %.5f without\n", s.rmseWithSheen,
-                  s.rmseWithoutSheen);
+  for (const ExtensionTrial& t : s.trials) {
+    std::snprintf(line, sizeof line, "%s: RMSE vs the input %.5f with, %.5f without: %s\n", t.name.c_str(), t.with,
+                  t.without, t.kept ? "kept" : "not kept (gains under 1%)");
     out += line;
   }
   for (const FitError& e : s.errors) {

@@ -12,17 +12,25 @@
 
 namespace nbtf::gltf {
 
-// KHR_materials_sheen: fitted and kept where it lowers the error over all images of the input
-// by at least kSheenMinGain (auto: a fourth texture for less is not worth its bytes), always
-// written (on), or not fitted (off).
-constexpr double kSheenMinGain = 0.01;
-enum class SheenMode { Auto, On, Off };
-SheenMode parseSheenMode(const std::string& text);  // "auto" | "on" | "off"; throws naming --sheen
-std::string sheenModeName(SheenMode mode);
+// An extension of the material (KHR_materials_specular, KHR_materials_sheen): fitted and kept
+// where it lowers the error over all images of the input by at least kExtensionMinGain (auto:
+// another texture for less is not worth its bytes), always written (on), or not fitted (off).
+// Auto tries specular first, then sheen on top of what was kept.
+constexpr double kExtensionMinGain = 0.01;
+enum class ExtensionMode { Auto, On, Off };
+// "auto" | "on" | "off"; throws naming `option` (--sheen, --specular).
+ExtensionMode parseExtensionMode(const std::string& text, const std::string& option);
+std::string extensionModeName(ExtensionMode mode);
+
+struct ExtensionTrial {  // auto: the input's RMSE without and with the extension
+  std::string name;
+  double without = 0, with = 0;
+  bool kept = false;
+};
 
 struct ExportOptions {
   FitOptions fit;
-  SheenMode sheen = SheenMode::Auto;
+  ExtensionMode sheen = ExtensionMode::Auto, specular = ExtensionMode::Auto;
   Crop crop;              // of an image stack input (or of the reference)
   std::string reference;  // with a .nbtf input: the stack it was made from, to measure against (optional)
   bool progress = true;
@@ -33,8 +41,8 @@ struct ExportSummary {
   int width = 0, height = 0, images = 0;
   double exposure = 0, alpha = 0;
   FitSummary fit;
-  bool sheen = false;                             // the sheen texture was written
-  double rmseWithSheen = 0, rmseWithoutSheen = 0;  // auto: both candidates against the input
+  bool sheen = false, specular = false;  // those textures were written
+  std::vector<ExtensionTrial> trials;    // auto's decisions
   double measureSeconds = 0;
   std::vector<FitError> errors;  // stack, ground truth, nbtf: those that exist
   TextureBytes bytes;

@@ -17,8 +17,9 @@ namespace nbtf::gltf {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// base colour r, g, b; metallic; roughness; normal slopes x, y; sheen colour r, g, b; sheen roughness
-constexpr int kParams = 11;
+// base colour r, g, b; metallic; roughness; normal slopes x, y; sheen colour r, g, b; sheen
+// roughness; the dielectric's F0 (KHR_materials_specular; 0.04 without it)
+constexpr int kParams = 12;
 constexpr double kMinSheenRoughness = 0.1;
 using Params = std::array<double, kParams>;
 
@@ -27,6 +28,7 @@ using Params = std::array<double, kParams>;
 // scale = 1 - 0.157 max(sheen colour); each lobe already x exposure x cos(theta_l).
 struct Lobes {
   double a0 = 0, b0 = 0, a1 = 0, b1 = 0, sh = 0;
+  double kd = 0, ks = 0, t = 0;  // exposure cos / pi, exposure cos D V, 1 - Schlick: d(a0, b0) / dF0
   double base(double b, double m) const { return (1 - m) * (a0 * b + b0) + m * (a1 * b + b1); }
 };
 
@@ -40,8 +42,8 @@ Vec3 normalOf(double px, double py) {
   return {px / len, py / len, 1 / len};
 }
 
-Lobes lobes(double roughness, double sheenRoughness, bool sheen, const Vec3& n, const Vec3& l, const Vec3& v,
-            double exposure) {
+Lobes lobes(double roughness, double sheenRoughness, bool sheen, double f0, const Vec3& n, const Vec3& l,
+            const Vec3& v, double exposure) {
   const double nl = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
   const double nv = n[0] * v[0] + n[1] * v[1] + n[2] * v[2];
   if (nl <= 0 || nv <= 0) return {};
@@ -53,10 +55,10 @@ Lobes lobes(double roughness, double sheenRoughness, bool sheen, const Vec3& n, 
   const double alpha = std::max(roughness * roughness, kMinAlpha);
   const double s = ggxDistribution(alpha, nh) * smithVisibility(alpha, nl, nv);
   const double t = 1 - vh, schlick = t * t * t * t * t;
-  const double fd = 0.04 + 0.96 * schlick;
+  const double fd = f0 + (1 - f0) * schlick;
   const double k = exposure * nl;
   const double sh = sheen ? k * charlieDistribution(sheenRoughness, nh) * sheenVisibility(nl, nv) : 0;
-  return {k * (1 - fd) / kPi, k * fd * s, k * s * (1 - schlick), k * s * schlick, sh};
+  return {k * (1 - fd) / kPi, k * fd * s, k * s * (1 - schlick), k * s * schlick, sh, k / kPi, k * s, 1 - schlick};
 }
 
 struct Texel {
@@ -67,10 +69,13 @@ struct Texel {
   double maxSlope;
   double minRoughness;
   bool sheen;
+  bool specular;
 
-  Lobes at(const Params& x, std::size_t i) const { return at(x[4], x[10], x[5], x[6], i); }
-  Lobes at(double r, double sr, double px, double py, std::size_t i) const {
-    return lobes(r, sr, sheen, normalOf(px, py), lights[i], views[i], exposure);
+  // The lobes at x, or with parameter `moved` moved by `h`.
+  Lobes at(const Params& x, std::size_t i, int moved = -1, double h = 0) const {
+    Params y = x;
+    if (moved >= 0) y[moved] += h;
+    return lobes(y[4], y[10], sheen, y[11], normalOf(y[5], y[6]), lights[i], views[i], exposure);
   }
 
   double cost(const Params& x) const {
@@ -92,6 +97,7 @@ struct Texel {
     if (slope > maxSlope) x[5] *= maxSlope / slope, x[6] *= maxSlope / slope;
     for (int c = 7; c < 10; ++c) x[c] = sheen ? std::clamp(x[c], 0.0, 1.0) : 0;
     x[10] = sheen ? std::clamp(x[10], kMinSheenRoughness, 1.0) : 0;
+    x[11] = specular ? std::clamp(x[11], 0.0, 1.0) : kDielectricF0;
   }
 
   // Base colour by least squares for the other parameters (the value is linear in it).
@@ -107,7 +113,7 @@ struct Texel {
     clamp(x);
   }
 
-  // Normal equations J^T J and J^T r at x: base colour, metallic and sheen colour
+  // Normal equations J^T J and J^T r at x: base colour, metallic, sheen colour and F0
   // analytically, the roughnesses and the normal's slopes by forward differences.
   double normalEquations(const Params& x, double jtj[kParams][kParams], double jtr[kParams]) const {
     constexpr double h = 1e-4;
@@ -120,9 +126,8 @@ struct Texel {
     const int brightest = static_cast<int>(std::max_element(x.begin() + 7, x.begin() + 10) - (x.begin() + 7));
     double sum = 0;
     for (std::size_t i = 0; i < count; ++i) {
-      const Lobes L = at(x, i), Lr = at(x[4] + hr, x[10], x[5], x[6], i), Lx = at(x[4], x[10], x[5] + h, x[6], i),
-                  Ly = at(x[4], x[10], x[5], x[6] + h, i);
-      const Lobes Ls = sheen ? at(x[4], x[10] + hs, x[5], x[6], i) : L;
+      const Lobes L = at(x, i), Lr = at(x, i, 4, hr), Lx = at(x, i, 5, h), Ly = at(x, i, 6, h);
+      const Lobes Ls = sheen ? at(x, i, 10, hs) : L;
       const double m = x[3];
       for (int c = 0; c < 3; ++c) {
         const double f = valueOf(L, x, c);
@@ -138,6 +143,7 @@ struct Texel {
           g[7 + brightest] -= kSheenAlbedoScale * L.base(x[c], m);
           g[10] = (valueOf(Ls, x, c) - f) / hs;
         }
+        if (specular) g[11] = scale * (1 - m) * L.t * (L.ks - L.kd * x[c]);
         for (int a = 0; a < kParams; ++a) {
           if (g[a] == 0) continue;
           jtr[a] += g[a] * r;
@@ -224,11 +230,11 @@ void checkFitOptions(const FitOptions& o) {
 
 namespace {
 // The largest value (any channel) the parameters predict at any measured (light, view) pair.
-double predictedPeak(const Params& x, const FitData& d, double exposure, bool sheen) {
+double predictedPeak(const Params& x, const FitData& d, double exposure, bool sheen) {  // x[11]: its F0
   const Vec3 n = normalOf(x[5], x[6]);
   double peak = 0;
   for (std::size_t i = 0; i < d.checkLights.size(); ++i) {
-    const Lobes L = lobes(x[4], x[10], sheen, n, d.checkLights[i], d.checkViews[i], exposure);
+    const Lobes L = lobes(x[4], x[10], sheen, x[11], n, d.checkLights[i], d.checkViews[i], exposure);
     for (int c = 0; c < 3; ++c) peak = std::max(peak, valueOf(L, x, c));
   }
   return peak;
@@ -239,7 +245,7 @@ TexelParams fitTexel(const FitData& d, std::size_t texel, double exposure, const
                      double* costOut, bool* refittedOut) {
   const std::size_t n = d.count();
   Texel t{d.lights.data(), d.views.data(), d.values.data() + texel * n * 3, n, exposure,
-          std::tan(options.maxTiltDeg * kPi / 180), options.minRoughness, options.sheen};
+          std::tan(options.maxTiltDeg * kPi / 180), options.minRoughness, options.sheen, options.specular};
   // Starts (a rough and a glossy surface, flat, dielectric) a few steps each; the best one goes
   // on. A single start falls into another's basin on a fair share of texels.
   Params best{};
@@ -250,7 +256,7 @@ TexelParams fitTexel(const FitData& d, std::size_t texel, double exposure, const
   for (double roughness : {0.7, 0.3})
     for (double sheenRoughness : sheenStarts) {
       const double sheen = options.sheen ? 0.1 : 0;
-      Params x{0.5, 0.5, 0.5, 0, roughness, 0, 0, sheen, sheen, sheen, sheenRoughness};
+      Params x{0.5, 0.5, 0.5, 0, roughness, 0, 0, sheen, sheen, sheen, sheenRoughness, kDielectricF0};
       t.clamp(x);
       t.solveBaseColor(x);
       const double c = levenbergMarquardt(t, x, 5);
@@ -277,6 +283,7 @@ TexelParams fitTexel(const FitData& d, std::size_t texel, double exposure, const
   p.normal = normalOf(best[5], best[6]);
   p.brdf.sheenColor = {best[7], best[8], best[9]};
   p.brdf.sheenRoughness = best[10];
+  p.brdf.specularF0 = best[11];
   return p;
 }
 

@@ -26,6 +26,7 @@ struct FitOptions {
   double maxTiltDeg = 60;   // the shading normal's largest angle from the macro normal
   double minRoughness = 0.1;  // the smallest roughness the fit may choose
   bool sheen = false;         // also fit KHR_materials_sheen's colour and roughness per texel
+  bool specular = false;      // also fit the dielectric's F0 per texel (KHR_materials_specular)
   bool progress = true;
 };
 // Throws nbtf::Error naming the option for values out of range.

@@ -29,6 +29,7 @@ struct GltfMaterial {
   int width = 0, height = 0;
   double exposure = 1;             // sun strength that reproduces the stack's values
   bool sheen = false;              // the texels carry KHR_materials_sheen (colour, roughness)
+  bool specular = false;           // the texels carry their own dielectric F0 (KHR_materials_specular)
   std::vector<TexelParams> texels;  // row-major, width x height
 
   const TexelParams& at(int x, int y) const { return texels[static_cast<std::size_t>(y) * width + x]; }
@@ -47,6 +48,10 @@ struct TextureSet {
   std::vector<std::uint8_t> metallicRoughness;   // RGB: G = roughness, B = metallic (linear); R unused (255)
   std::vector<std::uint8_t> normal;              // RGB: tangent-space normal x 0.5 + 0.5 (green = up the image)
   std::vector<std::uint8_t> sheen;               // RGBA: sheen colour (sRGB), roughness in alpha (linear); empty = none
+  // KHR_materials_specular's specularColorTexture (grey, sRGB) and factor: F0 = min(0.04 x
+  // factor x texture, 1); empty = none (F0 0.04).
+  std::vector<std::uint8_t> specular;
+  double specularColorFactor = 1;
 };
 TextureSet quantize(const GltfMaterial& m);
 // Throws nbtf::Error naming `source` when the textures' sizes do not match.

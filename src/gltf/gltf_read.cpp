@@ -107,8 +107,23 @@ GltfMaterial readGltfMaterial(const std::string& path) {
       sheenExt.is_object() ? r.texture(sheenExt, "sheenColorTexture", sheenField) : std::nullopt;
   const std::optional<ImageRgba8> sheenRoughness =
       sheenExt.is_object() ? r.texture(sheenExt, "sheenRoughnessTexture", sheenField) : std::nullopt;
+  const json specExt = mat.contains("extensions") && mat["extensions"].contains("KHR_materials_specular")
+                           ? mat["extensions"]["KHR_materials_specular"]
+                           : json();
+  const std::string specField = "materials[0].extensions.KHR_materials_specular";
+  double specularFactor = 1;
+  if (specExt.is_object()) {
+    if (number(specExt, "specularFactor", 1) != 1 || specExt.contains("specularTexture"))
+      r.fail(specField, "only specularFactor 1 without a specularTexture is read (the colour scales F0)");
+    const json c = specExt.value("specularColorFactor", json::array({1.0, 1.0, 1.0}));
+    if (!c.is_array() || c.size() != 3 || !c[0].is_number() || c[0] != c[1] || c[0] != c[2])
+      r.fail(specField + ".specularColorFactor", "only a grey specular colour (3 equal numbers) is read");
+    specularFactor = c[0].get<double>();
+  }
+  const std::optional<ImageRgba8> specularColor =
+      specExt.is_object() ? r.texture(specExt, "specularColorTexture", specField) : std::nullopt;
   int width = 1, height = 1;
-  const std::optional<ImageRgba8>* all[] = {&base, &mr, &normal, &sheenColor, &sheenRoughness};
+  const std::optional<ImageRgba8>* all[] = {&base, &mr, &normal, &sheenColor, &sheenRoughness, &specularColor};
   for (const auto* img : all)
     if (*img) width = (*img)->width, height = (*img)->height;
   for (const auto* img : all)
@@ -130,6 +145,10 @@ GltfMaterial readGltfMaterial(const std::string& path) {
       for (int c = 0; c < 3; ++c) t.sheen[4 * i + c] = sheenColor ? sheenColor->rgba[4 * i + c] : 255;
       t.sheen[4 * i + 3] = sheenRoughness ? sheenRoughness->rgba[4 * i + 3] : 255;
     }
+  }
+  if (specExt.is_object()) {  // the texture's first channel (a grey colour), or the factor alone
+    t.specular = specularColor ? rgbOf(specularColor, n, 255) : std::vector<std::uint8_t>(3 * n, 255);
+    t.specularColorFactor = specularFactor;
   }
   double exposure = 1;
   if (mat.contains("extras") && mat["extras"].contains("nbtf")) exposure = number(mat["extras"]["nbtf"], "exposure", 1);

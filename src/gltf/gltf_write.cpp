@@ -101,7 +101,8 @@ void addMesh(json& j, std::vector<std::uint8_t>& buffer, const Mesh& m) {
                             {"material", 0}}}}});
 }
 
-json gltfDocument(double exposure, const std::string& materialName, std::size_t bufferBytes, bool sheen) {
+json gltfDocument(double exposure, const std::string& materialName, std::size_t bufferBytes, const TextureSet& t) {
+  const bool sheen = !t.sheen.empty();
   json j;
   j["asset"] = {{"version", "2.0"}, {"generator", std::string(kGltfGenerator) + " export-gltf"}};
   j["scene"] = 0;
@@ -129,7 +130,17 @@ json gltfDocument(double exposure, const std::string& materialName, std::size_t 
                                                               {"sheenColorTexture", {{"index", 3}}},
                                                               {"sheenRoughnessFactor", 1.0},
                                                               {"sheenRoughnessTexture", {{"index", 3}}}};
-    j["extensionsUsed"] = {"KHR_materials_sheen"};
+    j["extensionsUsed"].push_back("KHR_materials_sheen");
+  }
+  if (!t.specular.empty()) {  // a grey specular colour: the dielectric's F0 = 0.04 x factor x texture
+    const std::size_t index = j["images"].size();
+    j["images"].push_back({{"uri", "specular.png"}});
+    j["textures"].push_back({{"sampler", 0}, {"source", index}});
+    const double f = t.specularColorFactor;
+    j["materials"][0]["extensions"]["KHR_materials_specular"] = {{"specularFactor", 1.0},
+                                                                 {"specularColorFactor", {f, f, f}},
+                                                                 {"specularColorTexture", {{"index", index}}}};
+    j["extensionsUsed"].push_back("KHR_materials_specular");
   }
   return j;
 }
@@ -169,12 +180,13 @@ TextureBytes writeGltfExport(const std::string& dir, const TextureSet& t, double
       writeImageRgba8((tmp / "sheen.png").string(), sheen);
       bytes.sheen = static_cast<std::size_t>(fs::file_size(tmp / "sheen.png"));
     }
+    if (!t.specular.empty()) bytes.specular = writePng(tmp / "specular.png", t.width, t.height, t.specular);
     std::vector<std::uint8_t> buffer;
     json doc;
     addMesh(doc, buffer, planeMesh());
     addMesh(doc, buffer, sphereMesh());
     while (buffer.size() % 4) buffer.push_back(0);
-    json full = gltfDocument(exposure, materialName, buffer.size(), !t.sheen.empty());
+    json full = gltfDocument(exposure, materialName, buffer.size(), t);
     for (const char* key : {"bufferViews", "accessors", "meshes"}) full[key] = doc[key];
     writeWholeFile(tmp / kMeshesName, buffer.data(), buffer.size());
     const std::string text = full.dump(2) + "\n";
@@ -184,6 +196,7 @@ TextureBytes writeGltfExport(const std::string& dir, const TextureSet& t, double
                                {"metallic_roughness", bytes.metallicRoughness},
                                {"normal", bytes.normal},
                                {"sheen", bytes.sheen},
+                               {"specular", bytes.specular},
                                {"total", bytes.total()}};
     if (report.contains("raw_bytes") && bytes.total() > 0)
       report["compression_ratio"] = report["raw_bytes"].get<double>() / double(bytes.total());

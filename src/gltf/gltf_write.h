@@ -1,7 +1,8 @@
 // Writing a glTF 2.0 export: material.gltf (the material on a plane and a sphere,
 // so that it opens as it is), meshes.bin, the textures as PNG (base colour in sRGB,
 // metallic-roughness and the tangent-space normal map in linear 8-bit; with sheen, sheen.png:
-// KHR_materials_sheen's colour in sRGB and its roughness in alpha) and fit_report.json.
+// KHR_materials_sheen's colour in sRGB and its roughness in alpha; with specular, specular.png:
+// KHR_materials_specular's grey colour texture) and fit_report.json.
 // The folder is written as a whole or not at all (util/output_folder.h); only a new or empty
 // folder or an earlier export is replaced.
 //
@@ -22,8 +23,8 @@ extern const char* const kFitReportName;     // "fit_report.json"
 extern const char* const kGltfGenerator;     // the asset.generator nbtf writes ("nbtf <version>" starts with it)
 
 struct TextureBytes {
-  std::size_t baseColor = 0, metallicRoughness = 0, normal = 0, sheen = 0;
-  std::size_t total() const { return baseColor + metallicRoughness + normal + sheen; }
+  std::size_t baseColor = 0, metallicRoughness = 0, normal = 0, sheen = 0, specular = 0;
+  std::size_t total() const { return baseColor + metallicRoughness + normal + sheen + specular; }
 };
 
 // Writes the folder; `reportJson` (an object) is completed with the textures' bytes (and,

@@ -36,6 +36,11 @@ struct DirLess {
 // image and marks it complete after the last: a folder whose description says otherwise was
 // interrupted, and its images are a part of the material, or two materials mixed.
 void refuseInterruptedOutput(const fs::path& folder) {
+  // A decode's staging folder, even one killed before its description was written.
+  const fs::path named = folder.filename().empty() ? folder.parent_path() : folder;  // "dir/" -> "dir"
+  const std::string base = named.filename().string(), suffix = kDecodeStagingSuffix;
+  if (base.size() > suffix.size() + 1 && base[0] == '.' && base.compare(base.size() - suffix.size(), suffix.size(), suffix) == 0)
+    throw fileError(folder.string(), "is the staging folder of an interrupted nbtf decode: run the decode again");
   for (const char* name : {kDecodeDescriptionName, "synth.json"}) {
     const fs::path description = folder / name;
     std::error_code ec;

@@ -30,6 +30,9 @@ bool isViewFolderName(const std::string& folderName);
 
 // The description `nbtf decode` writes into its output folder (docs/decoding.md).
 inline constexpr const char* kDecodeDescriptionName = "nbtf_decode.json";
+// Its staging folder beside the output: "." + the output's name + this suffix
+// (pipeline/decode_folder.h). Such a folder is always an unfinished decode.
+inline constexpr const char* kDecodeStagingSuffix = ".nbtf-decoding";
 
 // The names nbtf writes (and the loaders read), for image (light, view).
 std::string viewFolderName(const Direction& view);  // "tv030_pv030"

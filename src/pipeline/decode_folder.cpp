@@ -120,7 +120,7 @@ DecodeFolder::DecodeFolder(const std::string& destination, const std::string& de
   if (!dest.has_filename() || dest == dest.root_path()) throw fileError(destination, "cannot replace this folder");
   fs::create_directories(dest.parent_path(), ec);
   if (ec) throw fileError(destination, "cannot create the folder '" + dest.parent_path().string() + "': " + ec.message());
-  staging_ = (dest.parent_path() / ("." + dest.filename().string() + ".nbtf-decoding")).string();
+  staging_ = (dest.parent_path() / ("." + dest.filename().string() + kDecodeStagingSuffix)).string();
   if (fs::exists(staging_, ec)) {
     // Left by a decode that was killed: ours if it has our description (or was killed before
     // writing it).
