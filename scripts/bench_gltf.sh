@@ -5,15 +5,20 @@
 # ground truth, and the worst light-elevation band. With --nbtf, beside each: the default
 # `nbtf compress` of the same stack (10% held out), its file ratio and its RMSE against the
 # ground truth on all images, from `nbtf eval`.
-# Options: --presets "a b ..." (default: fabric wool corduroy satin glossy), --nbtf.
+# With --optimizers, after the table: the fit's two optimizers on the first preset
+# (bench/bench_gltf_fit.cpp): Levenberg-Marquardt per texel, what the export runs, against all
+# texels at once with libtorch's Adam, on the base material's sample RMSE and seconds.
+# Options: --presets "a b ..." (default: fabric wool corduroy satin glossy), --nbtf, --optimizers.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 presets="fabric wool corduroy satin glossy"
 with_nbtf=
+optimizers=
 while [[ $# -gt 0 ]]; do
   case $1 in
     --presets) presets=$2; shift 2 ;;
     --nbtf) with_nbtf=1; shift ;;
+    --optimizers) optimizers=1; shift ;;
     *) echo "bench_gltf.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -63,3 +68,18 @@ echo
 echo "| preset | fit s | measure s | textures KiB | ratio | RMSE vs stack | RMSE vs truth | worst light band (vs stack) | nbtf default ratio | nbtf default vs truth |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 printf '%s\n' "${rows[@]}"
+if [[ -n $optimizers ]]; then
+  read -r label data < <(preset_stack "${presets%% *}" "$bench_data")
+  echo
+  echo "== the fit's optimizers on $label (the base material: no sheen, no specular)"
+  "$bin/bench_gltf_fit" "$data" | tee "$work/optimizers.txt"
+  python3 - "$work/optimizers.txt" <<'PY'
+import sys
+r = dict(l.split()[1:3] for l in open(sys.argv[1]) if l.startswith("result "))
+lm_s, lm_e, t_s, t_e = (float(r[k]) for k in ("lm_seconds", "lm_rmse", "torch_seconds", "torch_rmse"))
+faster = "Levenberg-Marquardt" if lm_s <= t_s else "torch Adam"
+lower = "Levenberg-Marquardt" if lm_e <= t_e else "torch Adam"
+print("bench gltf_fit_optimizers: Levenberg-Marquardt %.1f s, sample RMSE %.5f; torch Adam %.1f s, %.5f "
+      "(faster: %s, lower: %s)" % (lm_s, lm_e, t_s, t_e, faster, lower))
+PY
+fi
