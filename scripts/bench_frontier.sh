@@ -9,7 +9,9 @@
 #                    the reference of targets 1 and 2;
 #   nbtf_k<K>        the recipe under test (--config, default configs/default.json) at each K of --clusters;
 #   nbtf_k<K>_compact / _balanced / _hifi  configs/compact.json, balanced.json and high_fidelity.json
-#                    at each K of --compact-clusters, --balanced-clusters, --fidelity-clusters.
+#                    at each K of --compact-clusters, --balanced-clusters, --fidelity-clusters;
+#   nbtf_close_up    configs/close_up.json with its own k (one cluster per 2.5 texels: about 1:200);
+#                    --close-up no leaves it out.
 # A preset is NAME (the UBO2003 layout: 8-bit JPEG, a floor near 0.019) or NAME:utia (the UTIA
 # layout: 8-bit PNG, lossless, a floor near 0.001), so both noise regimes are in every run.
 # Every file is evaluated with `nbtf eval` against its stack and its ground truth (RMSE in linear
@@ -20,15 +22,16 @@
 #   (1) nbtf_k<default K> (configs/default.json's clustering.clusters) at >= 1:10,000 at least 10%
 #       below the reference (d943497's default at the same training seconds);
 #   (2) some nbtf row at >= 1:1,000 with at most 0.75 x the reference's, trained in <= 600 s;
-#   (3) dominant: at every ratio r from 1:100 to 1:20,000, the best nbtf row of ratio >= r (that
-#       size or smaller) is below every PCA or per-texel row of ratio 1:100 .. r (that size or
-#       larger, within the window), on all images and on held-out images alike.
+#   (3) dominant: every PCA or per-texel row of ratio 1:100 to 1:20,000 is beaten by an nbtf row of
+#       its ratio or higher (that size or smaller): nbtf's curve below theirs across the window, on
+#       all images and on held-out images alike.
 # The full run (four presets, S = 400 s, K = 125 1000 2000, compact K = 250, balanced K = 500,
-# high-fidelity K = 500) trains 4 x 8 rows of 400 s: about 4 hours on 2 cores. Run it alone on the machine.
+# high-fidelity K = 500, close-up) trains 4 x 9 rows of 400 s: about 4.5 hours on 2 cores. Run it
+# alone on the machine.
 #
 # usage: scripts/bench_frontier.sh [--presets "fabric wool glossy fabric:utia"] [--budget S]
 #                                  [--clusters "125 1000 2000"] [--compact-clusters "250"]
-#                                  [--balanced-clusters "500"] [--fidelity-clusters "500"]
+#                                  [--balanced-clusters "500"] [--fidelity-clusters "500"] [--close-up yes|no]
 #                                  [--config FILE] [--pca "1 2 4"] [-o DIR]
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
@@ -38,6 +41,7 @@ clusters="125 1000 2000"
 compact_clusters="250"
 balanced_clusters="500"
 fidelity_clusters="500"
+close_up=yes
 config=$root/configs/default.json
 pcas="1 2 4 8 16 32 64"
 out=$bench_data/frontier
@@ -49,6 +53,7 @@ while [[ $# -gt 0 ]]; do
     --compact-clusters) compact_clusters=$2; shift;;
     --balanced-clusters) balanced_clusters=$2; shift;;
     --fidelity-clusters) fidelity_clusters=$2; shift;;
+    --close-up) close_up=$2; shift;;
     --config) config=$2; shift;;
     --pca) pcas=$2; shift;;
     -o) out=$2; shift;;
@@ -80,6 +85,7 @@ for spec in $presets; do
     IFS='|' read -r suffix file ks <<<"$point"
     for k in $ks; do runs+=("nbtf_k${k}_$suffix|--clusters $k --config $root/configs/$file --time-budget $budget"); done
   done
+  [[ $close_up == yes ]] && runs+=("nbtf_close_up|--config $root/configs/close_up.json --time-budget $budget")
   for c in $pcas; do runs+=("pca_$c|--method pca --components $c"); done
   run_rows "$out" "$name" "$data" "${runs[@]}"
 done
@@ -109,7 +115,7 @@ for preset in presets:
         rows.append([preset, label, st["bytes"]["file"], f'1:{st["ratio"]:.0f}'] + truth_cells(rep) +
                     [f'{rep["blur_sigma"]:.2f}', f'{seconds:.0f}'])
     ref = runs.get("reference")
-    nbtf = {l: r for l, r in runs.items() if l.startswith("nbtf_k")}
+    nbtf = {l: r for l, r in runs.items() if l.startswith("nbtf_")}
     if not ref or not nbtf or held(ref[1]) is None: continue
     rs, rr = ref
     if f"nbtf_k{default_k}" in nbtf:

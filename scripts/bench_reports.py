@@ -54,17 +54,18 @@ def noise_floor_row(preset, report, before, after):
 
 
 def dominance_verdict(ours, rivals, key, low, high):
-    """At every ratio r in [low, high] (the window's ends and every run's ratio inside it), the
-    best of `ours` (label -> (stats, report)) of ratio >= r must be below every rival of ratio in
-    [low, r], on report[key]. Returns the verdict text ending in PASS or FAIL."""
+    """nbtf's rate-distortion curve below the rivals' across the window: every rival (label ->
+    (stats, report)) of ratio in [low, high] is beaten, on report[key], by one of `ours` of that
+    ratio or higher (a file of that size or smaller). Returns the verdict text ending in PASS or
+    FAIL; the failure names the first rival, by ratio, that no point of ours beats."""
     def points(runs):
         return [(s["ratio"], r[key], l) for l, (s, r) in runs.items() if r.get(key) is not None]
-    mine, theirs = points(ours), points(rivals)
-    for ratio in sorted({low, high} | {x for x, *_ in mine + theirs if low <= x <= high}):
+    mine = points(ours)
+    for ratio, error, label in sorted(p for p in points(rivals) if low <= p[0] <= high):
         best = min(((e, l) for x, e, l in mine if x >= ratio), default=None)
-        rival = min(((e, l) for x, e, l in theirs if low <= x <= ratio), default=None)
-        if rival is not None and (best is None or best[0] >= rival[0]):
+        if best is None or best[0] >= error:
             ours_text = "none" if best is None else f"{best[0]:.5f} ({best[1]})"
             return (f"at 1:{ratio:.0f} nbtf's best point of that size or smaller has {key} {ours_text} against "
-                    f"{rival[1]}'s {rival[0]:.5f} FAIL")
-    return f"at every ratio from 1:{low} to 1:{high} nbtf's best point beats PCA and per-texel at that size or larger ({key}) PASS"
+                    f"{label}'s {error:.5f} FAIL")
+    return (f"every PCA and per-texel point from 1:{low} to 1:{high} is beaten by an nbtf point of its size or "
+            f"smaller ({key}) PASS")

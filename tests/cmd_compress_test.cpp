@@ -243,6 +243,35 @@ TEST_F(CmdCompress, DefaultClusterCountAdaptsToASmallInput) {
   EXPECT_TRUE(contains(r.output, "k = 1: the config's 1000 capped to one cluster per 10 of the 16 texels")) << r.output;
 }
 
+// "clustering.texels_per_cluster" makes k follow the input's size (the same ratio on every
+// input); --clusters still overrides it.
+TEST_F(CmdCompress, TexelsPerClusterSetsKFromTheInputsSize) {
+  std::string stack = writeStack();  // 8 x 8 texels
+  std::string out = path("t.nbtf"), stats = path("t.json");
+  writeFileAtomic(path("per.json"), R"({"clustering": {"texels_per_cluster": 2.5}, "training": {"batch_size": 1024, )"
+                                    R"("images_per_input": 64, "min_steps": 0, "min_steps_per_input": 0, "epochs": 2}})");
+  RunResult r = run("compress " + stack + " -o " + out + " --seed 1 --threads 1 --config " + path("per.json") +
+                    " --stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "(clustered-neural, k = 26: one cluster per 2.5 of the 64 texels (the config's "
+                                 "texels_per_cluster))"))
+      << r.output;
+  EXPECT_EQ(readNbtf(out).numClusters(), 26);  // round(64 / 2.5)
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  EXPECT_EQ(j["texels_per_cluster"].get<double>(), 2.5);
+  EXPECT_TRUE(j["clusters_configured"].is_null());
+  // A crop of 4 x 4 texels: k = round(16 / 2.5) = 6.
+  r = run("compress " + stack + " -o " + out + " --crop 0,0,4,4 --seed 1 --threads 1 --config " + path("per.json") +
+          " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(readNbtf(out).numClusters(), 6);
+  r = run("compress " + stack + " -o " + out + " --clusters 5 --seed 1 --threads 1 --config " + path("per.json") +
+          " --stats-json " + stats + " -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(readNbtf(out).numClusters(), 5);
+  EXPECT_TRUE(nlohmann::json::parse(std::ifstream(stats))["texels_per_cluster"].is_null());
+}
+
 // --stack-storage file keeps the samples in an unnamed scratch file (under --scratch-dir): the
 // same file as with the stack in memory, nothing left in the folder, the folder in the stats.
 TEST_F(CmdCompress, StackInAScratchFileGivesTheSameFile) {
@@ -312,7 +341,7 @@ TEST_F(CmdCompress, BuiltInConfigsAreNamedAndRecorded) {
   EXPECT_FALSE(nlohmann::json::parse(readNbtf(path("d.nbtf")).metadataJson).contains("config_name"));
   r = run("compress " + stack + " -o " + path("e.nbtf") + " --clusters 4 -q --config compactt");
   EXPECT_EQ(r.exitCode, 1);
-  EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, balanced, compact, "
+  EXPECT_TRUE(contains(r.output, "compactt: cannot open config file (nor is it a built-in config: adaptive, balanced, close_up, compact, "
                                  "converged, default, high_fidelity, paper, paper-clustered)"))
       << r.output;
   EXPECT_FALSE(fs::exists(path("e.nbtf")));

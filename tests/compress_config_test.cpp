@@ -96,6 +96,13 @@ TEST(CompressConfig, ShippedHighFidelityConfigIsTheDefaultWithClusterPlanesAndTh
   });
 }
 
+// configs/close_up.json: high_fidelity.json's recipe (its k differs: one cluster per 2.5 texels,
+// checked beside the other configs' k below).
+TEST(CompressConfig, ShippedCloseUpConfigIsHighFidelitysRecipe) {
+  const std::string dir = std::string(NBTF_SOURCE_DIR) + "/configs/";
+  EXPECT_EQ(trainConfigJson(loadTrainConfig(dir + "close_up.json")), trainConfigJson(loadTrainConfig(dir + "high_fidelity.json")));
+}
+
 // configs/balanced.json: high_fidelity.json with small cluster planes (4 x 4 points x 2
 // features), the middle of the curve.
 TEST(CompressConfig, ShippedBalancedConfigIsHighFidelityWithSmallClusterPlanes) {
@@ -172,7 +179,20 @@ TEST(CompressConfig, ReadsTheDefaultClusterCount) {
     const std::string path = writeConfig(dir, text);
     test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
   }
-  // The named points of the curve each carry their k.
+  // k from the input's size: a number >= 1, and not beside a fixed k.
+  EXPECT_EQ(loadCompressConfig(writeConfig(dir, R"({"clustering": {"texels_per_cluster": 4}})")).texelsPerCluster, 4);
+  const std::vector<std::pair<std::string, std::string>> perTexel = {
+      {R"({"clustering": {"texels_per_cluster": 0.5}})", "'clustering.texels_per_cluster' must be a number >= 1 (k = texels / it), got 0.5"},
+      {R"({"clustering": {"texels_per_cluster": -3}})", "'clustering.texels_per_cluster' must be a number >= 1"},
+      {R"({"clustering": {"texels_per_cluster": 2, "clusters": 100}})", "'clustering' gives both 'clusters' and 'texels_per_cluster'"},
+  };
+  for (const auto& [text, message] : perTexel) {
+    const std::string path = writeConfig(dir, text);
+    test::expectErrorContaining([&] { loadCompressConfig(path); }, {path + ": ", message});
+  }
+  // The named points of the curve each carry their k (close_up: from the input's size).
+  EXPECT_EQ(loadCompressConfig("close_up").texelsPerCluster, 2.5);
+  EXPECT_EQ(loadCompressConfig("high_fidelity").texelsPerCluster, 0);
   EXPECT_EQ(loadCompressConfig("compact").clusters, 250);
   EXPECT_EQ(loadCompressConfig("high_fidelity").clusters, 500);
   EXPECT_EQ(loadCompressConfig("default").clusters, 1000);

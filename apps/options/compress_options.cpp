@@ -188,6 +188,7 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   const ClusteringArgs clustering = clusteringArgs(args);
   o.clusters = clustering.clusters.value_or(config.clusters);
   o.clustersAreDefault = !clustering.clusters;
+  if (o.clustersAreDefault) o.texelsPerCluster = config.texelsPerCluster;
   if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
   o.pcaComponents = clustering.components.value_or(0);
   o.clusteringSpace = clustering.space.value_or(config.clusteringSpace);

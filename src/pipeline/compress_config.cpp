@@ -27,6 +27,7 @@ namespace {
   ConfigField<CompressConfig> { section, key, [](CompressConfig& c) -> ConfigValue { return &c.member; }, nullptr }
 const ConfigField<CompressConfig> kCompressFields[] = {
     NBTF_COMPRESS_FIELD("clustering", "clusters", clusters),
+    NBTF_COMPRESS_FIELD("clustering", "texels_per_cluster", texelsPerCluster),
     NBTF_COMPRESS_FIELD("adaptive", "enabled", adaptive.enabled),
     NBTF_COMPRESS_FIELD("adaptive", "target_rmse", adaptive.targetRmse),
     NBTF_COMPRESS_FIELD("adaptive", "max_clusters", adaptive.maxClusters),
@@ -65,6 +66,14 @@ CompressConfig loadCompressConfig(const std::string& path) {
   if (c.clusters < 0)
     throw fileError(path, "'clustering.clusters' must be >= 0 (the default k; 0 = per-texel), got " +
                               std::to_string(c.clusters));
+  if (c.texelsPerCluster != 0) {
+    if (!(c.texelsPerCluster >= 1 && std::isfinite(c.texelsPerCluster)))
+      throw fileError(path, "'clustering.texels_per_cluster' must be a number >= 1 (k = texels / it), got " +
+                                nlohmann::json(c.texelsPerCluster).dump());
+    if (root.contains("clustering") && root["clustering"].contains("clusters"))
+      throw fileError(path, "'clustering' gives both 'clusters' and 'texels_per_cluster': give one (a fixed k, or k "
+                            "from the input's size)");
+  }
   validateAdaptiveOptions(c.adaptive, path);
   return c;
 }

@@ -15,6 +15,9 @@ struct CompressConfig {
   AdaptiveOptions adaptive;  // the "adaptive" object ("enabled": false when absent)
   ClusteringSpace clusteringSpace = kDefaultClusteringSpace;  // the "clustering" object's "space"
   int clusters = kDefaultClusters;  // its "clusters": k without --clusters (0 = per-texel), capped to small inputs
+  // Its "texels_per_cluster" (instead of "clusters"; 0 = not given): k = texels / this without
+  // --clusters, so that the point's ratio holds on every size of input.
+  double texelsPerCluster = 0;
 };
 
 // Loads a compress config; unknown keys, wrong types and out-of-range values are errors that

@@ -156,6 +156,12 @@ std::string formatCompressSummary(const CompressStats& s) {
   std::string parameter = s.clusters > 0             ? ", k = " + std::to_string(s.clusters)
                           : s.method == CodecMethod::Pca ? ", C = " + std::to_string(s.pcaComponents) + " components"
                                                          : "";
+  if (s.texelsPerCluster > 0) {
+    char per[96];
+    std::snprintf(per, sizeof per, ": one cluster per %g of the %d texels (the config's texels_per_cluster)",
+                  s.texelsPerCluster, s.texels);
+    parameter += per;
+  }
   if (s.clustersConfigured > 0)
     parameter += ": the config's " + std::to_string(s.clustersConfigured) + " capped to one cluster per " +
                  std::to_string(kTexelsPerDefaultCluster) + " of the " + std::to_string(s.texels) + " texels";
@@ -173,6 +179,7 @@ std::string compressStatsJson(const CompressStats& s) {
   j["method"] = codecMethodName(s.method);
   j["clusters"] = s.clusters;
   j["clusters_configured"] = s.clustersConfigured > 0 ? json(s.clustersConfigured) : json(nullptr);
+  j["texels_per_cluster"] = s.texelsPerCluster > 0 ? json(s.texelsPerCluster) : json(nullptr);
   j["pca_components"] = s.pcaComponents;
   j["kmeans_iterations"] = s.kmeansIterations;
   j["clustering_space"] = s.clusteringSpace.empty() ? json(nullptr) : json(s.clusteringSpace);

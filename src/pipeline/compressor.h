@@ -61,6 +61,9 @@ struct CompressOptions {
   // k is the config's default, not asked for (no --clusters): capped to the input by
   // defaultClusterCount once the texel count is known. An asked-for k above the texel count is an error.
   bool clustersAreDefault = false;
+  // With clustersAreDefault: k = max(1, round(texels / this)) instead of `clusters` capped (the
+  // config's "clustering.texels_per_cluster"; 0 = not given).
+  double texelsPerCluster = 0;
   // The classic PCA baseline instead of a neural method: pcaComponents components (>= 1),
   // no training; uses train.seed and train.holdoutFraction only.
   bool pcaBaseline = false;
@@ -110,6 +113,7 @@ struct CompressStats {
   CodecMethod method = CodecMethod::ClusteredNeural;
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
   int clustersConfigured = 0;  // the config's default k when the input capped it below (else 0)
+  double texelsPerCluster = 0;  // the config's texels per cluster k came from (else 0)
   int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
   int kmeansIterations = 0;   // Lloyd rounds of the initial clustering (clustered only)
   std::string clusteringSpace;  // "log" or "linear" (clustered only; else empty)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 
 #include "cluster/clustering.h"
@@ -104,6 +105,12 @@ namespace detail {
 
 void resolveDefaultClusters(CompressOptions& o, std::int64_t texels, CompressStats& stats) {
   if (!o.clustersAreDefault || o.pcaBaseline) return;
+  if (o.texelsPerCluster > 0) {
+    o.clusters = static_cast<int>(std::max<long long>(1, std::llround(static_cast<double>(texels) / o.texelsPerCluster)));
+    stats.texelsPerCluster = o.texelsPerCluster;
+    o.clustersAreDefault = false;
+    return;
+  }
   const int k = defaultClusterCount(o.clusters, texels);
   if (k != o.clusters) stats.clustersConfigured = o.clusters;
   o.clusters = k;

@@ -37,3 +37,14 @@ def test_dominance_names_the_ratio_and_the_rival_that_wins():
     assert "1:103" in text and "pca_64" in text and "0.02700" in text
     # Without held-out figures there is nothing to compare on that key: no rival, so no failure.
     assert dominance_verdict(ours, rivals, "rmse_ground_truth_holdout", 100, 20000).endswith("PASS")
+
+
+def test_dominance_asks_each_rival_for_an_nbtf_point_no_larger_and_lower():
+    # The curve below the rivals': PCA at 1:103 beaten by the 1:200 point, the per-texel model at
+    # 1:4147 by the 1:10000 one. The 1:10000 point need not beat PCA's far larger file.
+    ours = {"nbtf_small": run(10000, 0.034), "nbtf_big": run(200, 0.023)}
+    rivals = {"pca_64": run(103, 0.027), "per_texel": run(4147, 0.036), "pca_1": run(50000, 0.001)}
+    assert dominance_verdict(ours, rivals, "rmse_ground_truth", 100, 20000).endswith("PASS")  # pca_1: outside
+    rivals["per_texel"] = run(4147, 0.0334)
+    text = dominance_verdict(ours, rivals, "rmse_ground_truth", 100, 20000)
+    assert text.endswith("FAIL") and "1:4147" in text and "per_texel" in text and "0.03400 (nbtf_small)" in text
