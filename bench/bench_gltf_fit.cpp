@@ -128,7 +128,8 @@ int main(int argc, char** argv) {
     raw.index_put_({Slice(0, long(texels)), Slice(4, 5)}, roughnessLogit(0.7));
     raw.index_put_({Slice(long(texels), long(2 * texels)), Slice(4, 5)}, roughnessLogit(0.3));
     raw.set_requires_grad(true);
-    torch::optim::Adam adam({raw}, torch::optim::AdamOptions(args["lr"].as<double>()));  // rate set per step below
+    const double lr = args["lr"].as<double>();
+    torch::optim::Adam adam({raw}, torch::optim::AdamOptions(lr));  // the rate is set per step below
     const int steps = args["steps"].as<int>(), every = args["report-every"].as<int>();
     const double norm = double(texels) * samples * 3;
     const auto start = Clock::now();
@@ -139,7 +140,6 @@ int main(int argc, char** argv) {
       const auto c = fit.costs(raw, starts).view({starts, long(texels)});
       return std::sqrt(std::get<0>(c.min(0)).sum().item<double>() / norm);
     };
-    const double lr = args["lr"].as<double>();
     double measuring = 0;  // seconds spent on the full-cost checks, not counted
     for (int step = 1; step <= steps; ++step) {
       // A cosine decay to zero: a constant rate leaves the sampled gradient's noise in the result.

@@ -53,7 +53,8 @@ while [[ $# -gt 0 ]]; do
     --compact-clusters) compact_clusters=$2; shift;;
     --balanced-clusters) balanced_clusters=$2; shift;;
     --fidelity-clusters) fidelity_clusters=$2; shift;;
-    --close-up) close_up=$2; shift;;
+    --close-up) close_up=$2; shift
+                [[ $close_up == yes || $close_up == no ]] || { echo "bench_frontier: --close-up takes yes or no, got '$close_up'" >&2; exit 2; };;
     --config) config=$2; shift;;
     --pca) pcas=$2; shift;;
     -o) out=$2; shift;;

@@ -105,14 +105,11 @@ namespace detail {
 
 void resolveDefaultClusters(CompressOptions& o, std::int64_t texels, CompressStats& stats) {
   if (!o.clustersAreDefault || o.pcaBaseline) return;
-  if (o.texelsPerCluster > 0) {
-    o.clusters = static_cast<int>(std::max<long long>(1, std::llround(static_cast<double>(texels) / o.texelsPerCluster)));
-    stats.texelsPerCluster = o.texelsPerCluster;
-    o.clustersAreDefault = false;
-    return;
-  }
-  const int k = defaultClusterCount(o.clusters, texels);
-  if (k != o.clusters) stats.clustersConfigured = o.clusters;
+  const bool fromSize = o.texelsPerCluster > 0;  // the config's texels_per_cluster, not a capped k
+  const int k = fromSize ? static_cast<int>(std::max<long long>(1, std::llround(double(texels) / o.texelsPerCluster)))
+                         : defaultClusterCount(o.clusters, texels);
+  if (fromSize) stats.texelsPerCluster = o.texelsPerCluster;
+  else if (k != o.clusters) stats.clustersConfigured = o.clusters;
   o.clusters = k;
   o.clustersAreDefault = false;
 }
