@@ -757,5 +757,68 @@ TEST_F(CmdCompress, AdaptiveStagesBudgetAndSameSeed) {
                        "--target-rmse needs --adaptive"));
 }
 
+
+// --size-budget without --adaptive: the named config the budget reaches and the largest k that
+// fits, said in the summary and the stats; the file never above the budget; the options that
+// contradict it refused before loading.
+TEST_F(CmdCompress, SizeBudgetChoosesTheConfigAndTheClusters) {
+  const std::string stack = writeStack();  // 8 x 8 texels
+  const std::string out = path("b.nbtf"), stats = path("b.json");
+  const std::string quick = " --epochs 1 --seed 1 --threads 1 -q --stats-json " + stats;
+  // Above every point: high_fidelity at one cluster per 2.5 texels, round(64 / 2.5) = 26.
+  RunResult r = run("compress " + stack + " -o " + out + " --size-budget 10M" + quick);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "(clustered-neural, k = 26: one cluster per 2.5 texels, the densest point, smaller "
+                                 "than --size-budget, in high_fidelity's recipe, the named config the budget reaches)"))
+      << r.output;
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+  EXPECT_EQ(j["size_budget"]["config"], "high_fidelity");
+  EXPECT_TRUE(j["size_budget"]["at_densest"].get<bool>());
+  EXPECT_EQ(nlohmann::json::parse(readNbtf(out).metadataJson)["config_name"], "high_fidelity");
+  // Budgets below the densest file: the most clusters that fit, in the recipe the budget reaches.
+  const std::uint64_t densest = fs::file_size(out);
+  for (std::uint64_t budget : {densest - 4096, std::uint64_t(40000)}) {
+    r = run("compress " + stack + " -o " + out + " --size-budget " + std::to_string(budget) + quick);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    j = nlohmann::json::parse(std::ifstream(stats));
+    EXPECT_LE(fs::file_size(out), budget);
+    EXPECT_EQ(j["size_budget"]["bytes"].get<std::uint64_t>(), budget);
+    EXPECT_LE(j["size_budget"]["estimate_bytes"].get<std::uint64_t>(), budget);
+    EXPECT_GE(j["size_budget"]["estimate_bytes"].get<std::uint64_t>(), fs::file_size(out));
+    EXPECT_FALSE(j["size_budget"]["at_densest"].get<bool>());
+    EXPECT_TRUE(contains(r.output, "the most that fit --size-budget, in " + j["size_budget"]["config"].get<std::string>() +
+                                   "'s recipe"))
+        << r.output;
+    EXPECT_TRUE(contains(r.output, "  size budget  ")) << r.output;
+  }
+  // A config given: its recipe; PCA: the components.
+  r = run("compress " + stack + " -o " + out + " --config balanced --size-budget 10M" + quick);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(nlohmann::json::parse(std::ifstream(stats))["size_budget"]["config"].is_null());
+  EXPECT_EQ(nlohmann::json::parse(readNbtf(out).metadataJson)["config_name"], "balanced");
+  EXPECT_EQ(readNbtf(out).numClusters(), 26);
+  r = run("compress " + stack + " -o " + out + " --method pca --size-budget 30K -q");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_TRUE(contains(r.output, "components: the most that fit --size-budget")) << r.output;
+  EXPECT_LE(fs::file_size(out), 30u * 1024);
+  fs::remove(out);
+  // Refused before loading, nothing written.
+  const std::pair<std::string, std::string> refused[] = {
+      {" --size-budget 100K --clusters 5", "give --clusters or --size-budget, not both"},
+      {" --size-budget 100K --method per-texel", "--method per-texel has one latent per texel and nothing to choose"},
+      {" --size-budget 100K --method pca --components 3", "give --components or --size-budget, not both"},
+      {" --size-budget 0", "--size-budget: expected a size in bytes"},
+      {" --size-budget 2000", "--size-budget 2000 bytes is below the smallest file of this input: compact's recipe "
+                              "with one cluster is up to"},
+      {" --size-budget 2000 --method pca", "--size-budget 2000 bytes is below the smallest PCA file of this input"}};
+  for (const auto& [options, message] : refused) {
+    r = run("compress " + stack + " -o " + out + options + " -q");
+    EXPECT_EQ(r.exitCode, 1) << options << ": " << r.output;
+    EXPECT_TRUE(contains(r.output, message)) << options << ": " << r.output;
+    EXPECT_FALSE(fs::exists(out)) << options;
+    EXPECT_FALSE(fs::exists(out + ".ckpt")) << options;
+  }
+}
+
 }  // namespace
 }  // namespace nbtf

@@ -67,11 +67,13 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
     for (const char* neural : {"clusters", "config", "epochs", "time-budget", "resume", "restart", "save-encoder"})
       if (args.count(neural))
         throw Error(std::string("--") + neural + " applies to the neural methods only, not to --method pca");
-    if (!args.count("components"))
-      throw Error("--method pca needs --components C (the number of principal components kept, >= 1)");
+    const bool budget = args.count("size-budget") && !args.count("adaptive");  // the budget chooses C
+    if (!args.count("components") && !budget)
+      throw Error("--method pca needs --components C (the number of principal components kept, >= 1) or "
+                  "--size-budget BYTES (the most components that fit)");
     o.pcaBaseline = true;
     o.clustersAreDefault = false;
-    if (o.pcaComponents < 1)
+    if (o.pcaComponents < 1 && !(budget && !args.count("components")))
       throw Error("--components must be >= 1 with --method pca (the number of principal components kept), got " +
                   std::to_string(o.pcaComponents));
   } else if (method == "per-texel") {
@@ -92,7 +94,7 @@ void applyMethod(const cxxopts::ParseResult& args, CompressOptions& o) {
 // without adaptive clusters are errors.
 void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, CompressOptions& o) {
   if (args.count("adaptive")) a.enabled = true;
-  for (const char* key : {"target-rmse", "max-clusters", "size-budget", "stages", "initial-clusters"})
+  for (const char* key : {"target-rmse", "max-clusters", "stages", "initial-clusters"})
     if (args.count(key) && !a.enabled)
       throw Error(std::string("--") + key + " needs --adaptive (or \"adaptive\": {\"enabled\": true} in the config)");
   if (!a.enabled) return;
@@ -119,6 +121,22 @@ void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, Compress
   }
   validateAdaptiveOptions(a, configSource(args));
   o.adaptive = a;
+}
+
+// --size-budget without adaptive clusters (pipeline/size_budget.h): k (PCA: C) is the largest
+// whose file fits; without --config the budget also picks the recipe from `kSizeBudgetCurve`.
+const char* const kSizeBudgetCurve[] = {"compact", "default", "balanced", "high_fidelity"};
+
+void applySizeBudget(const cxxopts::ParseResult& args, CompressOptions& o) {
+  if (!args.count("size-budget") || o.adaptive.enabled) return;
+  o.sizeBudget = parseByteSize(args["size-budget"].as<std::string>(), "--size-budget");
+  if (args.count("clusters"))
+    throw Error("--size-budget chooses the number of clusters: give --clusters or --size-budget, not both");
+  if (args.count("components") && o.pcaBaseline)
+    throw Error("--size-budget chooses PCA's components: give --components or --size-budget, not both");
+  if (o.clusters == 0 && !o.clustersAreDefault)
+    throw Error("--size-budget chooses the number of clusters (or of PCA's components); --method per-texel has one "
+                "latent per texel and nothing to choose");
 }
 
 }  // namespace
@@ -160,7 +178,10 @@ void addCompressOptions(cxxopts::Options& options) {
       "merging near-duplicates between stages (training steps as for fixed k = --clusters)")(
       "target-rmse", "--adaptive: stop adding clusters once a stage's training RMSE is at most R",
       cxxopts::value<double>())("max-clusters", "--adaptive: at most K clusters", cxxopts::value<int>())(
-      "size-budget", "--adaptive: the written file is at most this size (36K, 1.5M, 40000; K = 1024 bytes)",
+      "size-budget",
+      "The written file is at most this size (36K, 1.5M, 40000; K = 1024 bytes): the largest k (--method pca: "
+      "components) that fits; without --config also the named config (compact, default, balanced, high_fidelity) the "
+      "budget reaches; with --adaptive the clusters grow to it",
       cxxopts::value<std::string>())(
       "stages", "--adaptive: training stages (default 5)", cxxopts::value<int>())(
       "initial-clusters", "--adaptive: k of the first stage (default: max clusters or --clusters / 2^(stages-1))",
@@ -170,16 +191,16 @@ void addCompressOptions(cxxopts::Options& options) {
   addStackOptions(options);
 }
 
-CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::string& program) {
-  if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
-  if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
+namespace {
+
+// The request with the recipe of `configPath` ("" = the compiled-in default).
+CompressRequest compressRequestWith(const cxxopts::ParseResult& args, const std::string& program,
+                                    const std::string& configPath) {
   CompressRequest request;
   request.input = args["input"].as<std::string>();
   request.output = args["output"].as<std::string>();
   const std::string& output = request.output;
-
-  request.configPath = args.count("config") ? args["config"].as<std::string>() : "";
-  const std::string& configPath = request.configPath;
+  request.configPath = configPath;
   const CompressConfig config = configPath.empty() ? CompressConfig{} : loadCompressConfig(configPath);
   CompressOptions& o = request.options;
   o.train = buildTrainConfig(config.train, args, output, program);
@@ -217,6 +238,20 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   o.memoryLimitText = memory.limitText;
   o.stackStorage = memory.stack;
   request.statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
+  applySizeBudget(args, o);
+  return request;
+}
+
+}  // namespace
+
+CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::string& program) {
+  if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
+  if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
+  CompressRequest request = compressRequestWith(args, program, args.count("config") ? args["config"].as<std::string>() : "");
+  CompressOptions& o = request.options;
+  if (o.sizeBudget > 0 && request.configPath.empty() && !o.pcaBaseline)
+    for (const char* name : kSizeBudgetCurve)
+      o.sizeBudgetCurve.push_back(compressRequestWith(args, program, name).options);
   return request;
 }
 

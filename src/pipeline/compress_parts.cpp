@@ -126,8 +126,6 @@ std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, cons
   return orthonormalizeTexelCoefficients(std::move(coefficients), mc.terms, ids, clusters, mc.channels);
 }
 
-namespace {
-
 // How `storage` stores a material's parts; clusterPlanes: whether it has per-cluster planes.
 PartStorage partStorage(const StorageConfig& storage, bool clusterPlanes) {
   PartStorage s;
@@ -140,8 +138,6 @@ PartStorage partStorage(const StorageConfig& storage, bool clusterPlanes) {
   s.clusterPlanes8Bit = clusterPlanes && storage.clusterPlanes == "8bit";
   return s;
 }
-
-}  // namespace
 
 bool assemblyMeasures(const TrainConfig& config, int clusters) {
   const bool modulated = clusters > 0 && config.modulation.mode != "none";

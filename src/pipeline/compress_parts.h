@@ -49,6 +49,9 @@ std::vector<float> trainingCoefficients(const BtfStack& stack, float alpha, cons
                                         int clusters, const std::vector<std::uint8_t>& holdout,
                                         const ModulationConfig& modulation, bool progress);
 
+// How `storage` stores a material's parts; clusterPlanes: whether it has per-cluster planes.
+PartStorage partStorage(const StorageConfig& storage, bool clusterPlanes);
+
 // Whether assembleCompressed measures the decoded file under `config` (its decoder or latents
 // rounded, or per-texel modulation refit): then training's own final evaluation is not needed.
 bool assemblyMeasures(const TrainConfig& config, int clusters);

@@ -3,7 +3,9 @@
 
 #include "pipeline/compress_parts.h"
 #include "pipeline/compressor.h"
+#include "pipeline/size_budget.h"
 #include "util/memory.h"
+#include "util/printable.h"
 
 namespace nbtf {
 
@@ -165,10 +167,23 @@ std::string formatCompressSummary(const CompressStats& s) {
   if (s.clustersConfigured > 0)
     parameter += ": the config's " + std::to_string(s.clustersConfigured) + " capped to one cluster per " +
                  std::to_string(kTexelsPerDefaultCluster) + " of the " + std::to_string(s.texels) + " texels";
-  std::snprintf(line, sizeof line, "summary: %s (%s%s)\n", s.output.c_str(), codecMethodName(s.method).c_str(),
-                parameter.c_str());
-  out += line;
+  if (s.sizeBudget > 0) {
+    char per[96];
+    std::snprintf(per, sizeof per, ": one cluster per %g texels, the densest point, smaller than --size-budget",
+                  kDensestTexelsPerCluster);
+    parameter += s.sizeBudgetAtDensest ? per : ": the most that fit --size-budget";
+    if (!s.sizeBudgetConfig.empty())
+      parameter += ", in " + s.sizeBudgetConfig + "'s recipe, the named config the budget reaches";
+  }
+  out += "summary: " + s.output + " (" + codecMethodName(s.method) + parameter + ")\n";
   out += formatSizeTable(s.sizes);
+  if (s.sizeBudget > 0 && s.sizes.fileBytes > 0) {
+    std::snprintf(line, sizeof line,
+                  "  size budget  %s B: estimated before loading at most %s B, written %s B (%.0f%% of the budget)\n",
+                  groupedDigits(s.sizeBudget).c_str(), groupedDigits(s.sizeBudgetEstimate).c_str(),
+                  groupedDigits(s.sizes.fileBytes).c_str(), 100.0 * s.sizes.fileBytes / s.sizeBudget);
+    out += line;
+  }
   if (s.adaptiveStages.empty()) return out + errorLines(s) + timeLines(s);
   return out + errorLines(s) + adaptiveLines(s) + timeLines(s);
 }
@@ -180,6 +195,11 @@ std::string compressStatsJson(const CompressStats& s) {
   j["clusters"] = s.clusters;
   j["clusters_configured"] = s.clustersConfigured > 0 ? json(s.clustersConfigured) : json(nullptr);
   j["texels_per_cluster"] = s.texelsPerCluster > 0 ? json(s.texelsPerCluster) : json(nullptr);
+  j["size_budget"] = s.sizeBudget > 0 ? json({{"bytes", s.sizeBudget},
+                                              {"estimate_bytes", s.sizeBudgetEstimate},
+                                              {"config", s.sizeBudgetConfig.empty() ? json(nullptr) : json(s.sizeBudgetConfig)},
+                                              {"at_densest", s.sizeBudgetAtDensest}})
+                                      : json(nullptr);
   j["pca_components"] = s.pcaComponents;
   j["kmeans_iterations"] = s.kmeansIterations;
   j["clustering_space"] = s.clusteringSpace.empty() ? json(nullptr) : json(s.clusteringSpace);

@@ -12,6 +12,7 @@
 #include "pipeline/memory_estimate.h"
 #include "pipeline/neural_compressor.h"
 #include "pipeline/pca_compressor.h"
+#include "pipeline/size_budget.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 #include "util/memory.h"
@@ -40,6 +41,17 @@ void checkSizeBudgetAgainstTheDecoder(const CompressOptions& o) {
   if (o.adaptive.sizeBudget < bytes)
     throw Error("--size-budget " + std::to_string(o.adaptive.sizeBudget) + " bytes is below the decoder alone (" +
                 std::to_string(bytes) + " bytes as " + storage + ", before any cluster or texel data)");
+}
+
+// The budget's estimate is an upper bound of the file; should a file still exceed it, it is
+// not written (the checkpoint stays), rather than broken the budget's promise.
+void refuseOverBudget(const CompressedBtf& btf, const CompressOptions& o, const CompressStats& stats) {
+  if (o.sizeBudget == 0 || o.adaptive.enabled) return;
+  const std::uint64_t bytes = serializeNbtf(btf).size();
+  if (bytes > o.sizeBudget)
+    throw Error("--size-budget " + std::to_string(o.sizeBudget) + " bytes: the trained file is " +
+                std::to_string(bytes) + " bytes, above the " + std::to_string(stats.sizeBudgetEstimate) +
+                " estimated before loading (an internal error); nothing written, run again with a smaller budget");
 }
 
 // The neural methods estimate their standardization, PCA, clusters and per-texel code ranges
@@ -145,7 +157,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   CompressOptions o = options;
   if (o.pcaBaseline) {
     if (!o.saveEncoderPath.empty()) throw Error("--save-encoder: the PCA baseline has no encoder");
-    if (o.pcaComponents < 1)
+    if (o.pcaComponents < 1 && o.sizeBudget == 0)
       throw Error("--method pca needs --components C >= 1 (the principal components kept), got " +
                   std::to_string(o.pcaComponents));
   } else {
@@ -162,6 +174,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   const BtfInput in = resolveBtfInput(input, o.load);  // a crop outside the images is that, not a cluster-count error
   const StackShape& shape = in.shape;                  // the crop's texels when cropped
   if (!o.pcaBaseline) refuseTooFewTexels(shape, input);
+  chooseSizeBudgetPoint(in, o, stats);  // k (PCA: C) and, without --config, the recipe
   detail::resolveDefaultClusters(o, shape.texels(), stats);
   if (in.cropped && !o.pcaBaseline) detail::checkClusterCounts(o, shape.texels(), "the crop");
   const bool modulated = o.clusters > 0 && o.train.modulation.mode != "none";
@@ -193,6 +206,7 @@ CompressStats compressBtf(const std::string& input, const std::string& output, c
   t = Clock::now();
   std::vector<std::uint8_t> encoder = std::move(btf.encoderState);
   btf.encoderState.clear();
+  refuseOverBudget(btf, o, stats);
   stats.sizes.fileBytes = writeNbtf(output, btf);
   if (!o.saveEncoderPath.empty()) {
     if (encoder.empty()) throw Error("--save-encoder: the trainer returned no encoder state");

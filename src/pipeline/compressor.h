@@ -90,6 +90,12 @@ struct CompressOptions {
   // Where an image stack's samples live (memory_estimate.h); the scratch folder defaults to
   // the output's.
   StackStorageOptions stackStorage;
+  // --size-budget without --adaptive (pipeline/size_budget.h): the written file is at most this
+  // many bytes; k (PCA: the components) is the largest whose file fits. 0 = no budget.
+  std::uint64_t sizeBudget = 0;
+  // With sizeBudget and no --config: the named configs' options in the order of their files'
+  // sizes, the command line applied to each; the budget takes the largest whose own point fits.
+  std::vector<CompressOptions> sizeBudgetCurve;
 };
 
 // Wall-clock seconds per stage. The cluster stage's parts (clustered runs without --adaptive)
@@ -114,6 +120,11 @@ struct CompressStats {
   int clusters = 0;           // k; 0 in per-texel mode and for PCA
   int clustersConfigured = 0;  // the config's default k when the input capped it below (else 0)
   double texelsPerCluster = 0;  // the config's texels per cluster k came from (else 0)
+  // --size-budget without --adaptive: the budget, the config it chose ("" = the one given) and
+  // the bytes estimated for the chosen k before loading (an upper bound of the file); 0 = none.
+  std::uint64_t sizeBudget = 0, sizeBudgetEstimate = 0;
+  std::string sizeBudgetConfig;
+  bool sizeBudgetAtDensest = false;  // k stopped at one cluster per kDensestTexelsPerCluster, below the budget
   int pcaComponents = 0;      // PCA components: before k-means (clustered) or kept (baseline); 0 per-texel
   int kmeansIterations = 0;   // Lloyd rounds of the initial clustering (clustered only)
   std::string clusteringSpace;  // "log" or "linear" (clustered only; else empty)

@@ -46,6 +46,22 @@ def test_option_names_are_the_cli_ones(synth_stack, tmp_path):
         assert (m.width, m.height) == (5, 4) and m.info["crop"] == [1, 2, 5, 4]
 
 
+def test_size_budget_chooses_the_point(synth_stack, tmp_path):
+    # size_budget= without adaptive: the named config and k that fit, the file within the budget;
+    # the same file as the command line's.
+    out = tmp_path / "b.nbtf"
+    stats = nbtf.compress(synth_stack, out, size_budget="60K", epochs=1, seed=1, threads=1, quiet=True)
+    assert os.path.getsize(out) <= 60 * 1024
+    budget = stats["size_budget"]
+    assert budget["bytes"] == 60 * 1024 and os.path.getsize(out) <= budget["estimate_bytes"] <= 60 * 1024
+    assert budget["config"] in ("compact", "default", "balanced", "high_fidelity")
+    cli("compress", synth_stack, "-o", tmp_path / "b_cli.nbtf", "--size-budget", "60K", "--epochs", "1", "--seed", "1",
+        "--threads", "1", "-q")
+    assert open(out, "rb").read() == open(tmp_path / "b_cli.nbtf", "rb").read()
+    with nbtf.open(out) as m:
+        assert m.info["clusters"] == stats["clusters"]
+
+
 def test_progress_callback(synth_stack, tmp_path):
     seen = []
     nbtf.compress(synth_stack, tmp_path / "p.nbtf", progress=seen.append, **{**QUICK, "quiet": False})
@@ -75,6 +91,7 @@ def test_compress_errors_have_the_cli_messages(synth_stack, tmp_path):
         (dict(crop=(0, 0, 100, 100)), ["--crop", "0,0,100,100"]),
         (dict(target_rmse=0.1), ["--target-rmse", "0.1"]),
         (dict(memory_limit="12X"), ["--memory-limit", "12X"]),
+        (dict(size_budget="1M", clusters=5), ["--size-budget", "1M", "--clusters", "5"]),
     ]
     wants = cli_errors(*[["compress", synth_stack, "-o", out, *args, "-q"] for _, args in cases])
     keywords = nbtf._compress_keywords()
