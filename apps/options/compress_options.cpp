@@ -193,26 +193,36 @@ void addCompressOptions(cxxopts::Options& options) {
 
 namespace {
 
-// The request with the recipe of `configPath` ("" = the compiled-in default).
-CompressRequest compressRequestWith(const cxxopts::ParseResult& args, const std::string& program,
-                                    const std::string& configPath) {
-  CompressRequest request;
-  request.input = args["input"].as<std::string>();
-  request.output = args["output"].as<std::string>();
-  const std::string& output = request.output;
-  request.configPath = configPath;
-  const CompressConfig config = configPath.empty() ? CompressConfig{} : loadCompressConfig(configPath);
-  CompressOptions& o = request.options;
+// The recipe of `configPath` ("" = the compiled-in default) with the command line over it: the
+// training config, the default k and the clustering space, what a config sets (and what
+// --size-budget's curve swaps); returns the config for its "adaptive" object.
+CompressConfig applyRecipe(const cxxopts::ParseResult& args, const std::string& program, const std::string& output,
+                           const std::string& configPath, CompressOptions& o) {
+  CompressConfig config = configPath.empty() ? CompressConfig{} : loadCompressConfig(configPath);
   o.train = buildTrainConfig(config.train, args, output, program);
   if (isBuiltInConfig(configPath)) o.train.builtInConfig = configPath;
-  if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
   const ClusteringArgs clustering = clusteringArgs(args);
   o.clusters = clustering.clusters.value_or(config.clusters);
   o.clustersAreDefault = !clustering.clusters;
   if (o.clustersAreDefault) o.texelsPerCluster = config.texelsPerCluster;
   if (o.clusters < 0) throw Error("--clusters must be >= 0 (0 = per-texel), got " + std::to_string(o.clusters));
-  o.pcaComponents = clustering.components.value_or(0);
   o.clusteringSpace = clustering.space.value_or(config.clusteringSpace);
+  return config;
+}
+
+}  // namespace
+
+CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::string& program) {
+  if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
+  if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
+  CompressRequest request;
+  request.input = args["input"].as<std::string>();
+  request.output = args["output"].as<std::string>();
+  request.configPath = args.count("config") ? args["config"].as<std::string>() : "";
+  CompressOptions& o = request.options;
+  const CompressConfig config = applyRecipe(args, program, request.output, request.configPath, o);
+  if (!args.count("threads") && o.train.threads > 0) setThreadCount(o.train.threads);
+  o.pcaComponents = clusteringArgs(args).components.value_or(0);
   applyMethod(args, o);
   DistributedConfig& dist = o.train.distributed;
   dist.worldSize = args["world-size"].as<int>();
@@ -239,19 +249,13 @@ CompressRequest compressRequestWith(const cxxopts::ParseResult& args, const std:
   o.stackStorage = memory.stack;
   request.statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
   applySizeBudget(args, o);
-  return request;
-}
-
-}  // namespace
-
-CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::string& program) {
-  if (!args.count("input")) throw Error("missing <input> (see 'nbtf compress --help')");
-  if (!args.count("output")) throw Error("missing -o <out.nbtf> (see 'nbtf compress --help')");
-  CompressRequest request = compressRequestWith(args, program, args.count("config") ? args["config"].as<std::string>() : "");
-  CompressOptions& o = request.options;
   if (o.sizeBudget > 0 && request.configPath.empty() && !o.pcaBaseline)
-    for (const char* name : kSizeBudgetCurve)
-      o.sizeBudgetCurve.push_back(compressRequestWith(args, program, name).options);
+    for (const char* name : kSizeBudgetCurve) {
+      CompressOptions recipe;
+      applyRecipe(args, program, request.output, name, recipe);
+      recipe.train.distributed = o.train.distributed;  // the run's, with its one secret
+      o.sizeBudgetCurve.push_back(std::move(recipe));
+    }
   return request;
 }
 
