@@ -5,6 +5,9 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <string>
+#include <tuple>
+#include <utility>
 
 #include "codec_fixtures.h"
 #include "pipeline/compress_config.h"
@@ -75,20 +78,25 @@ TEST_F(SizeBudget, TheEstimateBoundsTheWrittenFileFromAboveAndStaysNearIt) {
   }
 }
 
-// The curve: the largest named config whose own point fits, then the largest k in it.
+// The curve: the largest named config whose takeover point fits, then the largest k in it.
 TEST_F(SizeBudget, TheBudgetChoosesTheRecipeAndTheLargestClusterCountThatFits) {
+  // Own points at k = 6 of 64 texels here; the takeovers at 6, 12 and 18 clusters.
   auto curveOptions = [] {
     CompressOptions o = namedOptions("default");
-    for (const char* name : {"default", "balanced", "high_fidelity"}) o.sizeBudgetCurve.push_back(namedOptions(name));
+    const std::pair<const char*, int> curve[] = {{"default", 1}, {"balanced", 2}, {"high_fidelity", 3}};
+    for (const auto& [name, takeover] : curve) {
+      o.sizeBudgetCurve.push_back(namedOptions(name));
+      o.sizeBudgetCurve.back().sizeBudgetTakeover = takeover;
+    }
     return o;
   };
   struct Case {
     std::string config;
     int k;
   };
-  // Budgets just at a recipe's file for k: that recipe (its own point, k = 6 here, fits; the
-  // next one's does not) and exactly that k.
-  for (const Case& c : {Case{"default", 9}, Case{"balanced", 10}, Case{"high_fidelity", 20}}) {
+  // Budgets just at a recipe's file for k: that recipe (its takeover point fits; the next one's
+  // does not) and exactly that k.
+  for (const Case& c : {Case{"default", 9}, Case{"balanced", 14}, Case{"high_fidelity", 25}}) {
     CompressOptions o = curveOptions();
     o.sizeBudget = estimatedFileBytes(input_, namedOptions(c.config), c.k);
     CompressStats stats;
@@ -100,6 +108,18 @@ TEST_F(SizeBudget, TheBudgetChoosesTheRecipeAndTheLargestClusterCountThatFits) {
     EXPECT_LE(stats.sizeBudgetEstimate, o.sizeBudget);
     EXPECT_FALSE(stats.sizeBudgetAtDensest);
     EXPECT_TRUE(o.sizeBudgetCurve.empty());
+  }
+  // A richer recipe's own point fits but not its takeover point: the plainer one, with more
+  // clusters than the richer one would have had.
+  for (const auto& [budgetConfig, budgetK, config] :
+       {std::tuple<std::string, int, std::string>{"balanced", 10, "default"}, {"high_fidelity", 16, "balanced"}}) {
+    CompressOptions o = curveOptions();
+    o.sizeBudget = estimatedFileBytes(input_, namedOptions(budgetConfig), budgetK);
+    CompressStats stats;
+    chooseSizeBudgetPoint(input_, o, stats);
+    EXPECT_EQ(stats.sizeBudgetConfig, config) << budgetConfig << ", k = " << budgetK;
+    EXPECT_GT(o.clusters, budgetK) << budgetConfig << ", k = " << budgetK;
+    EXPECT_LE(stats.sizeBudgetEstimate, o.sizeBudget);
   }
   // Below the default's own point (k = 6 of 64 texels): the default with fewer clusters.
   CompressOptions o = curveOptions();

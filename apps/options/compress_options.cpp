@@ -124,8 +124,15 @@ void applyAdaptive(const cxxopts::ParseResult& args, AdaptiveOptions a, Compress
 }
 
 // --size-budget without adaptive clusters (pipeline/size_budget.h): k (PCA: C) is the largest
-// whose file fits; without --config the budget also picks the recipe from `kSizeBudgetCurve`.
-const char* const kSizeBudgetCurve[] = {"compact", "default", "balanced", "high_fidelity"};
+// whose file fits; without --config the budget also picks the recipe from `kSizeBudgetCurve`,
+// each taking over from the one before at `takeover` times its own k, where fabric's measurements
+// put it ahead (docs/compress.md, *A size budget*: balanced at k = 1000, twice its 500, passes the
+// default's densest; high_fidelity at k = 1500, three times its 500, passes balanced's).
+struct CurveRecipe {
+  const char* config;
+  int takeover;
+};
+const CurveRecipe kSizeBudgetCurve[] = {{"compact", 1}, {"default", 1}, {"balanced", 2}, {"high_fidelity", 3}};
 
 void applySizeBudget(const cxxopts::ParseResult& args, CompressOptions& o) {
   if (!args.count("size-budget") || o.adaptive.enabled) return;
@@ -250,10 +257,11 @@ CompressRequest compressRequest(const cxxopts::ParseResult& args, const std::str
   request.statsPath = args.count("stats-json") ? args["stats-json"].as<std::string>() : "";
   applySizeBudget(args, o);
   if (o.sizeBudget > 0 && request.configPath.empty() && !o.pcaBaseline)
-    for (const char* name : kSizeBudgetCurve) {
+    for (const CurveRecipe& entry : kSizeBudgetCurve) {
       CompressOptions recipe;
-      applyRecipe(args, program, request.output, name, recipe);
+      applyRecipe(args, program, request.output, entry.config, recipe);
       recipe.train.distributed = o.train.distributed;  // the run's, with its one secret
+      recipe.sizeBudgetTakeover = entry.takeover;
       o.sizeBudgetCurve.push_back(std::move(recipe));
     }
   return request;

@@ -94,8 +94,13 @@ struct CompressOptions {
   // many bytes; k (PCA: the components) is the largest whose file fits. 0 = no budget.
   std::uint64_t sizeBudget = 0;
   // With sizeBudget and no --config: the named configs' options in the order of their files'
-  // sizes, the command line applied to each; the budget takes the largest whose own point fits.
+  // sizes, the command line applied to each; the budget takes the largest whose takeover point
+  // fits.
   std::vector<CompressOptions> sizeBudgetCurve;
+  // As a recipe of sizeBudgetCurve, its takeover point: this many times its own k (capped at the
+  // densest). A richer recipe with few clusters is behind a plainer one with many at the same
+  // size (docs/compress.md, *A size budget*), so the budget takes it only once it fits there.
+  int sizeBudgetTakeover = 1;
 };
 
 // Wall-clock seconds per stage. The cluster stage's parts (clustered runs without --adaptive)

@@ -116,6 +116,11 @@ int ownClusters(CompressOptions o, std::int64_t texels) {
   return o.clusters;
 }
 
+// The k at which the budget takes a curve's recipe over the plainer one before it.
+int takeoverClusters(const CompressOptions& recipe, std::int64_t texels, int most) {
+  return static_cast<int>(std::min<std::int64_t>(most, std::int64_t(recipe.sizeBudgetTakeover) * ownClusters(recipe, texels)));
+}
+
 std::string recipeName(const CompressOptions& o) {
   return o.train.builtInConfig.empty() ? "the config's recipe" : o.train.builtInConfig + "'s recipe";
 }
@@ -149,13 +154,13 @@ void chooseSizeBudgetPoint(const BtfInput& in, CompressOptions& o, CompressStats
       throw Error(budgetText + " chooses the number of clusters (or of PCA's components); the per-texel method has "
                                "one latent per texel and nothing to choose");
     const int most = static_cast<int>(std::max<std::int64_t>(1, std::llround(double(texels) / kDensestTexelsPerCluster)));
-    // The curve's largest recipe whose own point fits. Not one below its own k: a richer recipe
+    // The curve's largest recipe whose takeover point fits. Not one below it: a richer recipe
     // with few clusters is behind a plainer one with many at the same size (docs/compress.md,
-    // *A size budget*: balanced at k = 138 against the default at k = 4000).
+    // *A size budget*: balanced at k = 500 against the default at k = 4000).
     const std::vector<CompressOptions>& curve = o.sizeBudgetCurve;
     std::size_t chosen = 0;
     for (std::size_t i = 1; i < curve.size(); ++i)
-      if (estimatedFileBytes(in, curve[i], ownClusters(curve[i], texels)) <= budget) chosen = i;
+      if (estimatedFileBytes(in, curve[i], takeoverClusters(curve[i], texels, most)) <= budget) chosen = i;
     if (!curve.empty()) {  // the recipe: what a config sets (the run's own options stay)
       const CompressOptions& recipe = curve[chosen];
       o.train = recipe.train;

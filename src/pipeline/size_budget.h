@@ -21,7 +21,8 @@ constexpr double kDensestTexelsPerCluster = 2.5;
 // components); o.clusters and o.pcaComponents are not read.
 std::uint64_t estimatedFileBytes(const BtfInput& in, const CompressOptions& o, int count);
 
-// With o.sizeBudget: the recipe (o.sizeBudgetCurve's largest whose own point fits, else o's own)
+// With o.sizeBudget: the recipe (o.sizeBudgetCurve's largest whose takeover point fits, else
+// its first; without a curve o's own)
 // and the largest k or C in it whose estimate fits, set in `o` and recorded in `stats`. Throws
 // nbtf::Error naming the smallest file the input allows when the budget is below it, and for a
 // method without a count to choose (per-texel).
