@@ -12,6 +12,8 @@
 #                    at each K of --compact-clusters, --balanced-clusters, --fidelity-clusters;
 #   nbtf_close_up    configs/close_up.json with its own k (one cluster per 2.5 texels: about 1:200);
 #                    --close-up no leaves it out.
+#   nbtf_balanced_at_per_texel  configs/balanced.json with --size-budget the per_texel row's file:
+#                    the most clusters at the per-texel model's size, the row target 3 is closest at.
 # A preset is NAME (the UBO2003 layout: 8-bit JPEG, a floor near 0.019) or NAME:utia (the UTIA
 # layout: 8-bit PNG, lossless, a floor near 0.001), so both noise regimes are in every run.
 # Every file is evaluated with `nbtf eval` against its stack and its ground truth (RMSE in linear
@@ -26,8 +28,8 @@
 #       its ratio or higher (that size or smaller): nbtf's curve below theirs across the window, on
 #       all images and on held-out images alike.
 # The full run (four presets, S = 400 s, K = 125 1000 2000, compact K = 250, balanced K = 500,
-# high-fidelity K = 500, close-up) trains 4 x 9 rows of 400 s: about 4.5 hours on 2 cores. Run it
-# alone on the machine.
+# high-fidelity K = 500, close-up, balanced at the per-texel size) trains 4 x 10 rows of 400 s:
+# about 5 hours on 2 cores. Run it alone on the machine.
 #
 # usage: scripts/bench_frontier.sh [--presets "fabric wool glossy fabric:utia"] [--budget S]
 #                                  [--clusters "125 1000 2000"] [--compact-clusters "250"]
@@ -77,8 +79,11 @@ for spec in $presets; do
   stack=$(preset_stack "$spec" "$out")
   read -r name data <<<"$stack"
   names+=("$name")
-  runs=("per_texel|--clusters 0 --time-budget $budget"
-        "reference|--config $reference --time-budget $budget")
+  run_rows "$out" "$name" "$data" "per_texel|--clusters 0 --time-budget $budget"
+  per_texel_bytes=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["bytes"]["file"])' \
+                    "$out/$name-per_texel.stats.json")
+  runs=("reference|--config $reference --time-budget $budget"
+        "nbtf_balanced_at_per_texel|--config $root/configs/balanced.json --size-budget $per_texel_bytes --time-budget $budget")
   for k in $clusters; do runs+=("nbtf_k$k|--clusters $k --config $config --time-budget $budget"); done
   # The shipped points of the curve: label suffix, config, the K to run it at.
   for point in "compact|compact.json|$compact_clusters" "balanced|balanced.json|$balanced_clusters" \
