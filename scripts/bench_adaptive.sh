@@ -61,7 +61,7 @@ for preset in $presets; do
       name=$preset-$run-$k
       opts=(--clusters "$k")
       if [[ $run == adaptive ]]; then
-        budget=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["bytes"]["file"])' "$work/$preset-fixed-$k.json")
+        budget=$(file_bytes "$work/$preset-fixed-$k.json")
         opts+=(--adaptive --size-budget "$budget")
       fi
       "$bin/nbtf" compress "$data" -o "$work/$name.nbtf" "${opts[@]}" --seed 1 -q --stats-json "$work/$name.json" \

@@ -80,8 +80,7 @@ for spec in $presets; do
   read -r name data <<<"$stack"
   names+=("$name")
   run_rows "$out" "$name" "$data" "per_texel|--clusters 0 --time-budget $budget"
-  per_texel_bytes=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["bytes"]["file"])' \
-                    "$out/$name-per_texel.stats.json")
+  per_texel_bytes=$(file_bytes "$out/$name-per_texel.stats.json")
   runs=("reference|--config $reference --time-budget $budget"
         "nbtf_balanced_at_per_texel|--config $root/configs/balanced.json --size-budget $per_texel_bytes --time-budget $budget")
   for k in $clusters; do runs+=("nbtf_k$k|--clusters $k --config $config --time-budget $budget"); done

@@ -39,6 +39,11 @@ synth_once() {
   fi
 }
 
+# file_bytes STATS-JSON: the written file's bytes a `nbtf compress --stats-json` recorded.
+file_bytes() {
+  python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["bytes"]["file"])' "$1"
+}
+
 # preset_stack SPEC OUT: the 100 x 100 synthetic stack of a preset SPEC, "NAME" (the UBO2003
 # layout, 8-bit JPEG) or "NAME:utia" (the UTIA layout, 8-bit PNG), with its float ground truth,
 # generated once into OUT/NAME100_LAYOUT; prints "LABEL DIR", LABEL naming the preset's runs
